@@ -1,0 +1,27 @@
+// `tessera`: the command-line client. Subcommands live in their own files (commands.h).
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <exception>
+#include <iostream>
+
+#include "commands.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"tessera: render scenes locally or on a Tessera render farm"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "tessera 0.1.0");
+  tessera::cli::register_render_command(app);
+  tessera::cli::register_color_commands(app);
+  tessera::cli::register_farm_commands(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const std::exception& e) {
+    // Subcommands report their own errors; this is the last line of defence.
+    std::cerr << "tessera: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

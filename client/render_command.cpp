@@ -1,0 +1,117 @@
+// `tessera render SCENE -o OUT.exr`: the in-process renderer, no network. The farm's workers run
+// exactly this code per tile, and this is the baseline the farm is measured against.
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <string>
+
+#include "commands.h"
+#include "image/exr_io.h"
+#include "image/output_path.h"
+#include "render/embree_device.h"
+#include "render/tile_renderer.h"
+#include "scene/scene_parser.h"
+
+namespace tessera::cli {
+
+namespace {
+
+struct RenderArgs {
+  std::string scene;
+  std::string output;
+  ImageOverrides overrides;
+  int frame = 0;
+  int threads = 0;
+  int tile = 32;
+  std::string sampler;
+  bool quiet = false;
+};
+
+int run_render(const RenderArgs& a) {
+  Scene scene;
+  try {
+    scene = load_scene(a.scene);
+    ImageOverrides o = a.overrides;
+    if (!a.sampler.empty()) {
+      o.sampler = sampler_from_name(a.sampler);
+      if (!o.sampler) throw SceneError("--sampler: must be one of stratified, independent, center");
+    }
+    apply_overrides(scene, o);
+  } catch (const SceneError& e) {
+    std::cerr << "tessera render: " << e.what() << "\n";
+    return 2;
+  }
+  if (a.frame < 0 || a.frame >= scene.frame_count()) {
+    std::cerr << "tessera render: --frame: must be in [0, " << scene.frame_count() - 1 << "], got " << a.frame
+              << "\n";
+    return 2;
+  }
+  const std::string out = frame_output_path(a.output, a.frame);
+  const auto parent = std::filesystem::path(out).parent_path();
+  std::error_code ec;
+  if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+
+  const auto t0 = std::chrono::steady_clock::now();
+  RenderScene rs(scene, a.frame);
+  const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const bool tty = !a.quiet && isatty(fileno(stderr));
+  const FrameResult r = render_frame(rs, a.tile, a.threads, [&](int done, int total) {
+    if (tty && (done % 16 == 0 || done == total)) {
+      std::fprintf(stderr, "\r  %d/%d tiles (%.0f%%)", done, total, 100.0 * done / total);
+      if (done == total) std::fprintf(stderr, "\n");
+    }
+  });
+  const double mrays = double(r.rays.total()) / r.seconds / 1e6;
+  ExrAttributes attrs{{"renderer", std::string("tessera 0.1.0 (") + embree_isa() + ")"},
+                      {"tessera:scene", std::filesystem::path(a.scene).filename().string()},
+                      {"tessera:frame", int64_t(a.frame)},
+                      {"tessera:spp", int64_t(scene.image.spp)},
+                      {"tessera:maxDepth", int64_t(scene.image.max_depth)},
+                      {"tessera:sampler", std::string(sampler_name(scene.image.sampler))},
+                      {"tessera:seed", std::to_string(scene.image.seed)},
+                      {"tessera:renderSeconds", r.seconds},
+                      {"tessera:raysTraced", std::to_string(r.rays.total())},
+                      {"tessera:estimatedRmse", r.estimated_rmse()}};
+  try {
+    write_exr(out, r.image, attrs);
+  } catch (const ExrError& e) {
+    std::cerr << "tessera render: " << e.what() << "\n";
+    return 1;
+  }
+  if (r.rays.nonfinite_samples > 0) {
+    spdlog::warn("{} samples had non-finite radiance and were replaced by 0", r.rays.nonfinite_samples);
+  }
+  std::printf("%s: %dx%d, %d spp, frame %d: %.3f s (+%.3f s scene build), %.2f Mrays/s "
+              "(%llu camera, %llu shadow, %llu secondary), est. RMSE %.3g\n",
+              out.c_str(), scene.image.width, scene.image.height, scene.image.spp, a.frame, r.seconds, build_s, mrays,
+              (unsigned long long)r.rays.camera, (unsigned long long)r.rays.shadow,
+              (unsigned long long)r.rays.secondary, r.estimated_rmse());
+  return 0;
+}
+
+}  // namespace
+
+void register_render_command(CLI::App& app) {
+  auto args = std::make_shared<RenderArgs>();
+  CLI::App* cmd = app.add_subcommand("render", "Render a scene in-process to a float OpenEXR file");
+  cmd->add_option("scene", args->scene, "Scene file (JSON, see docs/scene-format.md)")->required();
+  cmd->add_option("-o,--output", args->output, "Output EXR path; '#' runs become the frame number")->required();
+  cmd->add_option("--spp", args->overrides.spp, "Samples per pixel (overrides the scene)");
+  cmd->add_option("--width", args->overrides.width, "Image width (overrides the scene)");
+  cmd->add_option("--height", args->overrides.height, "Image height (overrides the scene)");
+  cmd->add_option("--max-depth", args->overrides.max_depth, "Maximum reflection/refraction depth");
+  cmd->add_option("--seed", args->overrides.seed, "Sampler seed");
+  cmd->add_option("--sampler", args->sampler, "stratified (default), independent or center");
+  cmd->add_option("--frame", args->frame, "Frame number to render (default 0)");
+  cmd->add_option("--threads", args->threads, "Render threads (default: all cores)")->check(CLI::Range(0, 4096));
+  cmd->add_option("--tile", args->tile, "Tile size in pixels (does not change the image)")->check(CLI::Range(1, 4096));
+  cmd->add_flag("-q,--quiet", args->quiet, "No progress display");
+  cmd->callback([args] {
+    const int rc = run_render(*args);
+    if (rc != 0) throw CLI::RuntimeError(rc);
+  });
+}
+
+}  // namespace tessera::cli

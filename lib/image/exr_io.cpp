@@ -1,0 +1,111 @@
+#include "image/exr_io.h"
+
+#include <ImfChannelList.h>
+#include <ImfDoubleAttribute.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfIntAttribute.h>
+#include <ImfOutputFile.h>
+#include <ImfStringAttribute.h>
+#include <Iex.h>
+#include <half.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace tessera {
+
+namespace {
+
+half to_half_clamped(float v) {
+  if (std::isnan(v)) return half(0.0f);
+  constexpr float kHalfMax = 65504.0f;
+  return half(std::clamp(v, -kHalfMax, kHalfMax));
+}
+
+}  // namespace
+
+void write_exr(const std::string& path, const ImageRGB& image, const ExrAttributes& attributes,
+               ExrPixelType type) {
+  if (image.width <= 0 || image.height <= 0) {
+    throw ExrError("cannot write " + path + ": empty image");
+  }
+  try {
+    Imf::Header header(image.width, image.height);
+    header.compression() = Imf::ZIP_COMPRESSION;
+    const Imf::PixelType pt = type == ExrPixelType::kFloat ? Imf::FLOAT : Imf::HALF;
+    for (const char* c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(pt));
+    for (const auto& [name, value] : attributes) {
+      if (const auto* s = std::get_if<std::string>(&value)) {
+        header.insert(name, Imf::StringAttribute(*s));
+      } else if (const auto* d = std::get_if<double>(&value)) {
+        header.insert(name, Imf::DoubleAttribute(*d));
+      } else {
+        header.insert(name, Imf::IntAttribute(int(std::get<int64_t>(value))));
+      }
+    }
+    Imf::FrameBuffer fb;
+    const size_t xs = 3 * sizeof(float), ys = xs * size_t(image.width);
+    std::vector<half> halfs;
+    if (type == ExrPixelType::kFloat) {
+      char* base = reinterpret_cast<char*>(const_cast<float*>(image.rgb.data()));
+      for (int c = 0; c < 3; ++c) {
+        fb.insert(c == 0 ? "R" : c == 1 ? "G" : "B",
+                  Imf::Slice(Imf::FLOAT, base + c * sizeof(float), xs, ys));
+      }
+    } else {
+      halfs.resize(image.rgb.size());
+      std::transform(image.rgb.begin(), image.rgb.end(), halfs.begin(), to_half_clamped);
+      char* base = reinterpret_cast<char*>(halfs.data());
+      const size_t hxs = 3 * sizeof(half), hys = hxs * size_t(image.width);
+      for (int c = 0; c < 3; ++c) {
+        fb.insert(c == 0 ? "R" : c == 1 ? "G" : "B",
+                  Imf::Slice(Imf::HALF, base + c * sizeof(half), hxs, hys));
+      }
+    }
+    Imf::OutputFile file(path.c_str(), header);
+    file.setFrameBuffer(fb);
+    file.writePixels(image.height);
+  } catch (const std::exception& e) {
+    throw ExrError("cannot write EXR " + path + ": " + e.what());
+  }
+}
+
+ImageRGB read_exr(const std::string& path, ExrAttributes* attributes) {
+  try {
+    Imf::InputFile file(path.c_str());
+    const Imath::Box2i dw = file.header().dataWindow();
+    const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+    ImageRGB image(w, h);
+    Imf::FrameBuffer fb;
+    const size_t xs = 3 * sizeof(float), ys = xs * size_t(w);
+    // OpenEXR addresses slices by absolute data-window coordinates: shift the base pointer.
+    char* base = reinterpret_cast<char*>(image.rgb.data()) -
+                 ptrdiff_t(dw.min.x) * ptrdiff_t(xs) - ptrdiff_t(dw.min.y) * ptrdiff_t(ys);
+    for (int c = 0; c < 3; ++c) {
+      fb.insert(c == 0 ? "R" : c == 1 ? "G" : "B",
+                Imf::Slice(Imf::FLOAT, base + c * sizeof(float), xs, ys, 1, 1, 0.0));
+    }
+    file.setFrameBuffer(fb);
+    file.readPixels(dw.min.y, dw.max.y);
+    if (attributes) {
+      for (auto it = file.header().begin(); it != file.header().end(); ++it) {
+        const Imf::Attribute& a = it.attribute();
+        if (const auto* s = dynamic_cast<const Imf::StringAttribute*>(&a)) {
+          (*attributes)[it.name()] = s->value();
+        } else if (const auto* d = dynamic_cast<const Imf::DoubleAttribute*>(&a)) {
+          (*attributes)[it.name()] = d->value();
+        } else if (const auto* i = dynamic_cast<const Imf::IntAttribute*>(&a)) {
+          (*attributes)[it.name()] = int64_t(i->value());
+        }
+      }
+    }
+    return image;
+  } catch (const std::exception& e) {
+    throw ExrError("cannot read EXR " + path + ": " + e.what());
+  }
+}
+
+}  // namespace tessera

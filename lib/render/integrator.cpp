@@ -1,0 +1,139 @@
+#include "render/integrator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "render/fresnel.h"
+
+namespace tessera {
+
+namespace {
+
+constexpr float kInvPi = float(1.0 / std::numbers::pi);
+constexpr float kShadowEpsilon = 1e-4f;  // relative shortening of rays aimed at a surface point
+
+struct Context {
+  const RenderScene& scene;
+  const PixelSampler& sampler;
+  RayCounts* counts;
+};
+
+// Direct lighting at a diffuse point: sum over lights of albedo/pi * irradiance * visibility.
+Rgb direct_light(const Context& c, const Hit& hit, const Vec3f& n, const Vec3f& albedo, uint64_t node) {
+  const RenderScene& s = c.scene;
+  Rgb sum(0.0f);
+  const Vec3f n_f = n;  // faces the viewer
+  for (const auto& l : s.point_lights()) {
+    const Vec3f to = l.position - hit.p;
+    const float r2 = dot(to, to);
+    const float r = std::sqrt(r2);
+    const Vec3f w = to / r;
+    const float cos_t = dot(n_f, w);
+    if (!(cos_t > 0.0f)) continue;
+    const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
+    ++c.counts->shadow;
+    const Rgb T = s.transmittance({o, w, length(l.position - o)}, hit.prim);
+    sum += T * l.intensity * (cos_t / r2);
+  }
+  for (const auto& l : s.directional_lights()) {
+    const Vec3f w = -l.direction;
+    const float cos_t = dot(n_f, w);
+    if (!(cos_t > 0.0f)) continue;
+    const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
+    ++c.counts->shadow;
+    sum += s.transmittance({o, w}, hit.prim) * l.irradiance * cos_t;
+  }
+  const auto& area = s.area_lights();
+  for (size_t li = 0; li < area.size(); ++li) {
+    const auto& L = area[li];
+    float u, v;
+    c.sampler.get_2d(hash_combine(node, 1000003u + li), &u, &v);
+    // Choose a triangle by area, then reuse u's remainder inside it (stays stratified).
+    const size_t k = std::min(size_t(std::upper_bound(L.cdf.begin(), L.cdf.end(), u) - L.cdf.begin()), L.cdf.size() - 1);
+    const float lo = k == 0 ? 0.0f : L.cdf[k - 1];
+    const float span = L.cdf[k] - lo;
+    u = span > 0 ? std::clamp((u - lo) / span, 0.0f, 1.0f) : 0.5f;
+    // Uniform point on the triangle (the square-root parametrization, pbrt's SampleUniformTriangle).
+    const float su = std::sqrt(u);
+    const float b0 = 1.0f - su, b1 = v * su, b2 = 1.0f - b0 - b1;
+    const Vec3f a = L.v[3 * k], b = L.v[3 * k + 1], cc = L.v[3 * k + 2];
+    const Vec3f q = a * b0 + b * b1 + cc * b2;
+    const Vec3f q_err = (abs(a * b0) + abs(b * b1) + abs(cc * b2)) * gamma_bound(7);
+    const Vec3f nl = normalize(cross(b - a, cc - a));
+    Vec3f to = q - hit.p;
+    const float r2 = dot(to, to);
+    if (!(r2 > 0.0f)) continue;
+    const Vec3f w = to / std::sqrt(r2);
+    const float cos_t = dot(n_f, w);
+    const float cos_l = std::abs(dot(nl, w));  // emitters are two-sided
+    if (!(cos_t > 0.0f) || !(cos_l > 0.0f)) continue;
+    const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
+    const Vec3f target = offset_ray_origin(q, q_err, nl, -w);
+    const Vec3f seg = target - o;
+    const float dist = length(seg);
+    if (!(dist > 0.0f)) continue;
+    ++c.counts->shadow;
+    const Rgb T = s.transmittance({o, seg / dist, dist * (1.0f - kShadowEpsilon)}, hit.prim);
+    // Irradiance estimate: Le cos_t cos_l / r^2 divided by the pdf 1/area.
+    sum += T * L.emission * (cos_t * cos_l / r2 * L.area);
+  }
+  return albedo * sum * kInvPi;
+}
+
+Rgb radiance(const Context& c, const Ray& ray, const PrimRef& from, int depth, uint64_t node) {
+  const RenderScene& s = c.scene;
+  Hit hit;
+  if (!s.intersect(ray, from, &hit)) return s.background();
+  const Material& m = s.material(hit.material);
+  Rgb L = m.emission;
+  // Shading happens on the side the ray came from.
+  const bool front = dot(ray.d, hit.n) < 0.0f;
+  const Vec3f n_facing = front ? hit.n : -hit.n;
+  const bool can_recurse = depth < s.image().max_depth;
+  switch (m.type) {
+    case Material::Type::kDiffuse: {
+      const Rgb albedo = m.checker && s.checker_parity(hit, m) ? m.albedo2 : m.albedo;
+      L += direct_light(c, hit, n_facing, albedo, node);
+      break;
+    }
+    case Material::Type::kMirror: {
+      if (!can_recurse) break;
+      const Vec3f w = normalize(reflect(ray.d, n_facing));
+      ++c.counts->secondary;
+      L += m.reflectance * radiance(c, {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w}, hit.prim, depth + 1, 2 * node);
+      break;
+    }
+    case Material::Type::kGlass: {
+      if (!can_recurse) break;
+      // Outside is vacuum/air (index 1); the normal says which side is outside.
+      const float eta_i = front ? 1.0f : float(m.ior), eta_t = front ? float(m.ior) : 1.0f;
+      const float cos_i = -dot(ray.d, n_facing);
+      float cos_t = 0.0f;
+      const float R = fresnel_dielectric(cos_i, eta_i, eta_t, &cos_t);
+      if (R > 0.0f) {
+        const Vec3f w = normalize(reflect(ray.d, n_facing));
+        ++c.counts->secondary;
+        L += radiance(c, {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w}, hit.prim, depth + 1, 2 * node) * R;
+      }
+      if (R < 1.0f) {
+        const Vec3f w = refract(ray.d, n_facing, eta_i / eta_t, cos_i, cos_t);
+        ++c.counts->secondary;
+        L += m.transmittance *
+             radiance(c, {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w}, hit.prim, depth + 1, 2 * node + 1) *
+             (1.0f - R);
+      }
+      break;
+    }
+  }
+  return L;
+}
+
+}  // namespace
+
+Rgb trace_radiance(const RenderScene& scene, const Ray& ray, const PixelSampler& sampler, RayCounts* counts) {
+  const Context c{scene, sampler, counts};
+  return radiance(c, ray, PrimRef{}, 0, 1);
+}
+
+}  // namespace tessera

@@ -1,0 +1,412 @@
+#include "render/render_scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+
+#include "math/transform.h"
+#include "render/plane.h"
+#include "render/sphere.h"
+#include "scene/animation.h"
+
+namespace tessera {
+
+namespace {
+
+constexpr uint32_t kOpaqueMask = 1;
+constexpr uint32_t kGlassMask = 2;
+constexpr int kMaxGlassCrossings = 256;
+constexpr double kDoubleEps = 0x1p-52;
+
+// Embree's context, extended (as in Embree's tutorials) with what our callbacks need.
+struct TraceContext {
+  RTCIntersectContext rtc;
+  const RenderScene* scene;
+  PrimRef from;
+};
+
+using SphereGeomData = RenderScene::SphereGeomData;
+
+Transform object_transform(const TransformDesc& t) {
+  return Transform::translate(t.translate) * Transform::rotate_xyz_deg(t.rotate_deg) * Transform::scale(t.scale);
+}
+
+Vec3f round_down(const Vec3d& v) {
+  Vec3f f(v);
+  for (int i = 0; i < 3; ++i) {
+    if (double(f[i]) > v[i]) f[i] = std::nextafter(f[i], -std::numeric_limits<float>::infinity());
+  }
+  return f;
+}
+Vec3f round_up(const Vec3d& v) {
+  Vec3f f(v);
+  for (int i = 0; i < 3; ++i) {
+    if (double(f[i]) < v[i]) f[i] = std::nextafter(f[i], std::numeric_limits<float>::infinity());
+  }
+  return f;
+}
+
+void sphere_bounds(const RTCBoundsFunctionArguments* args) {
+  const auto* data = static_cast<const SphereGeomData*>(args->geometryUserPtr);
+  const auto& s = data->scene->spheres()[data->bucket->ids[args->primID]];
+  const Vec3f lo = round_down(s.center - Vec3d(s.radius));
+  const Vec3f hi = round_up(s.center + Vec3d(s.radius));
+  args->bounds_o->lower_x = lo.x;
+  args->bounds_o->lower_y = lo.y;
+  args->bounds_o->lower_z = lo.z;
+  args->bounds_o->upper_x = hi.x;
+  args->bounds_o->upper_y = hi.y;
+  args->bounds_o->upper_z = hi.z;
+}
+
+// The nearest acceptable root of sphere `index` for a ray in (tnear, tfar), or -1.
+double sphere_root(const RenderScene::Sphere& s, uint32_t index, const PrimRef& from, const Vec3d& o,
+                   const Vec3d& d, float tnear, float tfar) {
+  double t[2];
+  if (intersect_sphere(o, d, s.center, s.radius, t) == 0) return -1;
+  int first = 0;
+  if (from.kind == PrimRef::Kind::kSphere && from.id == index) {
+    // Leaving this sphere's surface: outward it cannot be met again (convex); inward, only
+    // the far root is real. Exact, no epsilon.
+    if (dot(d, o - s.center) >= 0) return -1;
+    first = 1;
+  }
+  for (int i = first; i < 2; ++i) {
+    const float tf = float(t[i]);
+    if (tf > tnear && tf < tfar) return t[i];
+  }
+  return -1;
+}
+
+void sphere_intersect(const RTCIntersectFunctionNArguments* args) {
+  const auto* data = static_cast<const SphereGeomData*>(args->geometryUserPtr);
+  const auto* ctx = reinterpret_cast<const TraceContext*>(args->context);
+  RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, args->N);
+  RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, args->N);
+  const unsigned N = args->N;
+  const uint32_t index = data->bucket->ids[args->primID];
+  const auto& s = data->scene->spheres()[index];
+  for (unsigned i = 0; i < N; ++i) {
+    if (!args->valid[i] || !(RTCRayN_mask(ray, N, i) & data->bucket->mask)) continue;
+    const Vec3d o(RTCRayN_org_x(ray, N, i), RTCRayN_org_y(ray, N, i), RTCRayN_org_z(ray, N, i));
+    const Vec3d d(RTCRayN_dir_x(ray, N, i), RTCRayN_dir_y(ray, N, i), RTCRayN_dir_z(ray, N, i));
+    const double t = sphere_root(s, index, ctx->from, o, d, RTCRayN_tnear(ray, N, i), RTCRayN_tfar(ray, N, i));
+    if (t < 0) continue;
+    RTCRayN_tfar(ray, N, i) = float(t);
+    const Vec3d n = o + d * t - s.center;
+    RTCHitN_Ng_x(hit, N, i) = float(n.x);
+    RTCHitN_Ng_y(hit, N, i) = float(n.y);
+    RTCHitN_Ng_z(hit, N, i) = float(n.z);
+    RTCHitN_u(hit, N, i) = 0.0f;
+    RTCHitN_v(hit, N, i) = 0.0f;
+    RTCHitN_primID(hit, N, i) = args->primID;
+    RTCHitN_geomID(hit, N, i) = args->geomID;
+    RTCHitN_instID(hit, N, i, 0) = args->context->instID[0];
+  }
+}
+
+void sphere_occluded(const RTCOccludedFunctionNArguments* args) {
+  const auto* data = static_cast<const SphereGeomData*>(args->geometryUserPtr);
+  const auto* ctx = reinterpret_cast<const TraceContext*>(args->context);
+  RTCRayN* ray = args->ray;
+  const unsigned N = args->N;
+  const uint32_t index = data->bucket->ids[args->primID];
+  const auto& s = data->scene->spheres()[index];
+  for (unsigned i = 0; i < N; ++i) {
+    if (!args->valid[i] || !(RTCRayN_mask(ray, N, i) & data->bucket->mask)) continue;
+    const Vec3d o(RTCRayN_org_x(ray, N, i), RTCRayN_org_y(ray, N, i), RTCRayN_org_z(ray, N, i));
+    const Vec3d d(RTCRayN_dir_x(ray, N, i), RTCRayN_dir_y(ray, N, i), RTCRayN_dir_z(ray, N, i));
+    if (sphere_root(s, index, ctx->from, o, d, RTCRayN_tnear(ray, N, i), RTCRayN_tfar(ray, N, i)) >= 0) {
+      RTCRayN_tfar(ray, N, i) = -std::numeric_limits<float>::infinity();
+    }
+  }
+}
+
+RTCRayHit make_rayhit(const Ray& ray, float tnear, float tfar, uint32_t mask) {
+  RTCRayHit rh;
+  rh.ray.org_x = ray.o.x;
+  rh.ray.org_y = ray.o.y;
+  rh.ray.org_z = ray.o.z;
+  rh.ray.dir_x = ray.d.x;
+  rh.ray.dir_y = ray.d.y;
+  rh.ray.dir_z = ray.d.z;
+  rh.ray.tnear = tnear;
+  rh.ray.tfar = tfar;
+  rh.ray.time = 0.0f;
+  rh.ray.mask = mask;
+  rh.ray.id = 0;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  return rh;
+}
+
+}  // namespace
+
+RenderScene::RenderScene(const Scene& scene, int frame, RenderOptions options) : options_(options) {
+  build(scene, frame);
+}
+
+RenderScene::~RenderScene() {
+  rtc_scene_.reset();  // before the geometry data its callbacks and shared buffers point into
+}
+
+size_t RenderScene::triangle_count() const {
+  return triangles_[0].material_ids.size() + triangles_[1].material_ids.size();
+}
+
+void RenderScene::build(const Scene& scene, int frame) {
+  image_ = scene.image;
+  frame_ = frame;
+  background_ = scene.background;
+  materials_ = scene.materials;
+  const FrameState state = evaluate_frame(scene, frame);
+  const ScreenPlane sp = screen_plane(state.camera, image_.width, image_.height);
+  // Render space is world space shifted so the eye is the origin, computed in double and only
+  // then rounded to float: precision follows the camera, so a scene far from the world origin
+  // renders like the same scene at the origin (camera-relative rendering).
+  origin_ = sp.eye;
+  auto rel = [&](const Vec3d& p) { return p - origin_; };
+  camera_ = {Vec3f(rel(sp.p0)), Vec3f(sp.p1 - sp.p0), Vec3f(sp.p2 - sp.p0)};
+
+  for (const Light& l : scene.lights) {
+    if (l.type == Light::Type::kPoint) point_lights_.push_back({Vec3f(rel(l.position)), l.intensity});
+    else directional_lights_.push_back({Vec3f(normalize(l.direction)), l.irradiance});
+  }
+
+  auto is_glass = [&](uint32_t m) { return materials_[m].type == Material::Type::kGlass; };
+  for (size_t oi = 0; oi < scene.objects.size(); ++oi) {
+    const SceneObject& obj = scene.objects[oi];
+    const Transform xf = object_transform(state.transforms[oi]);
+    switch (obj.type) {
+      case SceneObject::Type::kSphere: {
+        const uint32_t m = uint32_t(obj.material);
+        const uint32_t index = uint32_t(spheres_.size());
+        spheres_.push_back({rel(xf.point(obj.center)), obj.radius * std::abs(state.transforms[oi].scale.x), m});
+        sphere_buckets_[is_glass(m) ? 1 : 0].ids.push_back(index);
+        break;
+      }
+      case SceneObject::Type::kPlane: {
+        Plane p;
+        p.point = rel(xf.point(obj.point));
+        p.normal = normalize(xf.normal(obj.normal));
+        orthonormal_basis(Vec3f(p.normal), p.b1, p.b2);
+        p.material = uint32_t(obj.material);
+        planes_.push_back(p);
+        break;
+      }
+      case SceneObject::Type::kMesh: {
+        const Mesh& mesh = scene.meshes[size_t(obj.mesh)];
+        const bool flip = xf.determinant() < 0;  // mirroring reverses winding: undo it
+        std::vector<Vec3f> world(mesh.positions.size());
+        for (size_t v = 0; v < mesh.positions.size(); ++v) world[v] = Vec3f(rel(xf.point(Vec3d(mesh.positions[v]))));
+        std::map<uint32_t, size_t> light_of_material;
+        for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+          const uint32_t m = mesh.material_ids[t];
+          uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1], i2 = mesh.indices[3 * t + 2];
+          if (flip) std::swap(i1, i2);
+          const Vec3f a = world[i0], b = world[i1], c = world[i2];
+          if (!(length(cross(b - a, c - a)) > 0)) continue;  // collapsed by float rounding or scale
+          TriangleBucket& bucket = triangles_[is_glass(m) ? 1 : 0];
+          const uint32_t base = uint32_t(bucket.positions.size());
+          // Unshared vertices keep buckets simple; meshes here are small next to their BVH.
+          bucket.positions.insert(bucket.positions.end(), {a, b, c});
+          bucket.indices.insert(bucket.indices.end(), {base, base + 1, base + 2});
+          bucket.material_ids.push_back(m);
+          if (materials_[m].is_emissive()) {
+            auto [it, fresh] = light_of_material.try_emplace(m, area_lights_.size());
+            if (fresh) area_lights_.push_back({{}, {}, 0.0f, materials_[m].emission});
+            AreaLight& L = area_lights_[it->second];
+            L.v.insert(L.v.end(), {a, b, c});
+            L.area += 0.5f * length(cross(b - a, c - a));
+            L.cdf.push_back(L.area);
+          }
+        }
+        break;
+      }
+    }
+  }
+  for (AreaLight& L : area_lights_) {
+    for (float& c : L.cdf) c /= L.area;
+    L.cdf.back() = 1.0f;
+  }
+  has_glass_ = !triangles_[1].material_ids.empty() || !sphere_buckets_[1].ids.empty();
+  for (const Plane& p : planes_) has_glass_ = has_glass_ || is_glass(p.material);
+
+  RTCDevice device = embree_device();
+  rtc_scene_ = SceneHandle(rtcNewScene(device));
+  RTCScene s = rtc_scene_.get();
+  rtcSetSceneFlags(s, options_.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
+  rtcSetSceneBuildQuality(s, RTC_BUILD_QUALITY_MEDIUM);  // deterministic (HIGH is not)
+  for (int k = 0; k < 2; ++k) {
+    TriangleBucket& b = triangles_[k];
+    if (b.material_ids.empty()) continue;
+    const size_t nv = b.positions.size();
+    b.positions.push_back(Vec3f(0.0f));  // padding for Embree's 16-byte vertex loads
+    GeometryHandle g(rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE));
+    rtcSetSharedGeometryBuffer(g.get(), RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, b.positions.data(), 0,
+                               sizeof(Vec3f), nv);
+    rtcSetSharedGeometryBuffer(g.get(), RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, b.indices.data(), 0,
+                               3 * sizeof(uint32_t), b.material_ids.size());
+    rtcSetGeometryMask(g.get(), k == 0 ? kOpaqueMask : kGlassMask);
+    rtcCommitGeometry(g.get());
+    b.geom_id = rtcAttachGeometry(s, g.get());
+  }
+  for (int k = 0; k < 2; ++k) {
+    SphereBucket& b = sphere_buckets_[k];
+    if (b.ids.empty()) continue;
+    b.mask = k == 0 ? kOpaqueMask : kGlassMask;
+    sphere_data_[k] = {this, &sphere_buckets_[k]};
+    GeometryHandle g(rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER));
+    rtcSetGeometryUserPrimitiveCount(g.get(), unsigned(b.ids.size()));
+    rtcSetGeometryUserData(g.get(), &sphere_data_[k]);
+    rtcSetGeometryBoundsFunction(g.get(), sphere_bounds, nullptr);
+    rtcSetGeometryIntersectFunction(g.get(), sphere_intersect);
+    rtcSetGeometryOccludedFunction(g.get(), sphere_occluded);
+    rtcSetGeometryMask(g.get(), b.mask);
+    rtcCommitGeometry(g.get());
+    b.geom_id = rtcAttachGeometry(s, g.get());
+  }
+  rtcCommitScene(s);
+  check_embree("building the Embree scene");
+}
+
+double RenderScene::nearest_plane(const Vec3d& o, const Vec3d& d, const PrimRef& from, double tmax,
+                                  int* which) const {
+  double best = tmax;
+  *which = -1;
+  for (size_t i = 0; i < planes_.size(); ++i) {
+    // A ray leaving a plane can never meet the same plane again: exclude it exactly.
+    if (from.kind == PrimRef::Kind::kPlane && from.id == i) continue;
+    const double t = intersect_plane(o, d, planes_[i].point, planes_[i].normal);
+    if (t > 0.0 && t < best) {
+      best = t;
+      *which = int(i);
+    }
+  }
+  return best;
+}
+
+bool RenderScene::intersect(const Ray& ray, const PrimRef& from, Hit* hit) const {
+  const Vec3d o(ray.o), d(ray.d);
+  int plane = -1;
+  const double tp = nearest_plane(o, d, from, double(ray.tmax), &plane);
+  TraceContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.scene = this;
+  ctx.from = from;
+  // Embree only needs to look closer than the nearest plane.
+  RTCRayHit rh = make_rayhit(ray, 0.0f, plane >= 0 ? float(tp) : ray.tmax, 0xFFFFFFFFu);
+  rtcIntersect1(rtc_scene_.get(), &ctx.rtc, &rh);
+  const uint32_t g = rh.hit.geomID;
+  if (g != RTC_INVALID_GEOMETRY_ID) {
+    hit->t = rh.ray.tfar;
+    for (int k = 0; k < 2; ++k) {
+      if (g == triangles_[k].geom_id) {
+        const TriangleBucket& b = triangles_[k];
+        const uint32_t pid = rh.hit.primID;
+        const Vec3f v0 = b.positions[b.indices[3 * pid]], v1 = b.positions[b.indices[3 * pid + 1]],
+                    v2 = b.positions[b.indices[3 * pid + 2]];
+        const float u = rh.hit.u, v = rh.hit.v, w = 1.0f - u - v;
+        // Interpolating the vertices (not o + t d) bounds the error by the vertices' magnitude.
+        hit->p = v0 * w + v1 * u + v2 * v;
+        hit->p_err = (abs(v0 * w) + abs(v1 * u) + abs(v2 * v)) * gamma_bound(7);
+        hit->n = normalize(cross(v1 - v0, v2 - v0));
+        hit->material = b.material_ids[pid];
+        hit->prim = {PrimRef::Kind::kTriangle, pid, uint32_t(k)};
+        return true;
+      }
+      if (g == sphere_buckets_[k].geom_id) {
+        const uint32_t index = sphere_buckets_[k].ids[rh.hit.primID];
+        const Sphere& s = spheres_[index];
+        // Recompute in double and project back onto the sphere (pbrt-v4's re-projection).
+        const Vec3d pd = o + d * double(rh.ray.tfar);
+        const Vec3d nd = normalize(pd - s.center);
+        const Vec3d pr = s.center + nd * s.radius;
+        hit->p = Vec3f(pr);
+        hit->p_err = abs(hit->p) * gamma_bound(5) + Vec3f(float(4 * kDoubleEps * (max_component(abs(s.center)) + s.radius)));
+        hit->n = Vec3f(nd);
+        hit->material = s.material;
+        hit->prim = {PrimRef::Kind::kSphere, index, uint32_t(k)};
+        return true;
+      }
+    }
+    return false;  // unreachable: every geometry is one of the buckets
+  }
+  if (plane < 0) return false;
+  const Plane& pl = planes_[size_t(plane)];
+  Vec3d pd = o + d * tp;
+  pd = pd - pl.normal * dot(pd - pl.point, pl.normal);  // project onto the plane
+  hit->t = float(tp);
+  hit->p = Vec3f(pd);
+  hit->p_err = abs(hit->p) * gamma_bound(3) + Vec3f(float(4 * kDoubleEps * max_component(abs(pl.point))));
+  hit->n = Vec3f(pl.normal);
+  hit->material = pl.material;
+  hit->prim = {PrimRef::Kind::kPlane, uint32_t(plane), 0};
+  return true;
+}
+
+Rgb RenderScene::transmittance(const Ray& ray, const PrimRef& from) const {
+  const Vec3d o(ray.o), d(ray.d);
+  // Opaque planes first: cheapest.
+  for (size_t i = 0; i < planes_.size(); ++i) {
+    if ((from.kind == PrimRef::Kind::kPlane && from.id == i) ||
+        materials_[planes_[i].material].type == Material::Type::kGlass) {
+      continue;
+    }
+    const double t = intersect_plane(o, d, planes_[i].point, planes_[i].normal);
+    if (t > 0.0 && t < double(ray.tmax)) return Rgb(0.0f);
+  }
+  TraceContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.scene = this;
+  ctx.from = from;
+  RTCRay r = make_rayhit(ray, 0.0f, ray.tmax, kOpaqueMask).ray;
+  rtcOccluded1(rtc_scene_.get(), &ctx.rtc, &r);
+  if (r.tfar < 0.0f) return Rgb(0.0f);
+  if (!has_glass_) return Rgb(1.0f);
+
+  // Glass between the point and the light: walk the crossings in order along the ray, so the
+  // product is formed in the same order every time (bit-identical results).
+  Rgb T(1.0f);
+  for (size_t i = 0; i < planes_.size(); ++i) {
+    if ((from.kind == PrimRef::Kind::kPlane && from.id == i) ||
+        materials_[planes_[i].material].type != Material::Type::kGlass) {
+      continue;
+    }
+    const double t = intersect_plane(o, d, planes_[i].point, planes_[i].normal);
+    if (t > 0.0 && t < double(ray.tmax)) T *= materials_[planes_[i].material].transmittance;
+  }
+  float tnear = 0.0f;
+  for (int crossing = 0; crossing < kMaxGlassCrossings; ++crossing) {
+    RTCRayHit rh = make_rayhit(ray, tnear, ray.tmax, kGlassMask);
+    rtcIntersect1(rtc_scene_.get(), &ctx.rtc, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) break;
+    uint32_t m = 0;
+    if (rh.hit.geomID == triangles_[1].geom_id) m = triangles_[1].material_ids[rh.hit.primID];
+    else m = spheres_[sphere_buckets_[1].ids[rh.hit.primID]].material;
+    T *= materials_[m].transmittance;
+    if (!(T.x > 0 || T.y > 0 || T.z > 0)) break;
+    tnear = std::nextafter(rh.ray.tfar, std::numeric_limits<float>::infinity());
+  }
+  return T;
+}
+
+int RenderScene::checker_parity(const Hit& hit, const Material& m) const {
+  const double s = m.checker_scale;
+  if (hit.prim.kind == PrimRef::Kind::kPlane) {
+    // 2D squares in the plane's own basis, anchored at its point: independent of where the
+    // plane is in the world.
+    const Plane& pl = planes_[hit.prim.id];
+    const Vec3d rel = Vec3d(hit.p) - pl.point;
+    const double a = std::floor(dot(rel, Vec3d(pl.b1)) / s), b = std::floor(dot(rel, Vec3d(pl.b2)) / s);
+    return int(int64_t(a + b) & 1);
+  }
+  const Vec3d w = Vec3d(hit.p) + origin_;  // solid 3D checker in world space
+  const double sum = std::floor(w.x / s) + std::floor(w.y / s) + std::floor(w.z / s);
+  return int(int64_t(sum) & 1);
+}
+
+}  // namespace tessera

@@ -1,0 +1,119 @@
+// One frame of a Scene, ready to trace: camera-relative float geometry in an Embree scene
+// (triangles + analytic spheres as user geometry), infinite planes beside it, lights and
+// materials. Immutable after construction, so any number of threads may trace it at once.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include "render/embree_device.h"
+#include "render/ray.h"
+#include "scene/scene.h"
+
+namespace tessera {
+
+// Identifies the primitive a ray leaves from, so flat and convex primitives can exclude
+// themselves exactly instead of relying on an epsilon.
+struct PrimRef {
+  enum class Kind : uint8_t { kNone, kTriangle, kSphere, kPlane };
+  Kind kind = Kind::kNone;
+  uint32_t id = 0;  // triangle index within its geometry bucket, sphere index, plane index
+  uint32_t geom = 0;
+  bool operator==(const PrimRef&) const = default;
+};
+
+struct Hit {
+  float t = 0;
+  Vec3f p;       // the hit point, recomputed on the surface (not o + t d)
+  Vec3f p_err;   // conservative absolute error bound of p, per component
+  Vec3f n;       // unit geometric normal: outward for spheres, winding (CCW) for triangles
+  uint32_t material = 0;
+  PrimRef prim;
+};
+
+struct RenderOptions {
+  bool robust = true;  // RTC_SCENE_FLAG_ROBUST: watertight triangle tests (see docs/accuracy.md)
+};
+
+class RenderScene {
+ public:
+  RenderScene(const Scene& scene, int frame, RenderOptions options = {});
+  ~RenderScene();
+  RenderScene(const RenderScene&) = delete;
+  RenderScene& operator=(const RenderScene&) = delete;
+
+  // Nearest hit along the ray in (0, ray.tmax]; `from` is the primitive the ray leaves.
+  bool intersect(const Ray& ray, const PrimRef& from, Hit* hit) const;
+  // Fraction of light arriving along the ray over (0, ray.tmax]: 0 if an opaque surface blocks
+  // it, else the product of the transmittances of the glass surfaces crossed (unrefracted).
+  Rgb transmittance(const Ray& ray, const PrimRef& from) const;
+
+  struct AreaLight {
+    std::vector<Vec3f> v;        // 3 vertices per triangle, render space
+    std::vector<float> cdf;      // cumulative area, normalized to 1
+    float area = 0;              // total area
+    Rgb emission;
+  };
+  struct PointLight { Vec3f position; Rgb intensity; };
+  struct DirectionalLight { Vec3f direction; Rgb irradiance; };  // direction the light travels
+
+  // Render-space camera: the eye is the origin; pixel point = p0 + u du + v dv.
+  struct Camera { Vec3f p0, du, dv; };
+
+  const Camera& camera() const { return camera_; }
+  const ImageSettings& image() const { return image_; }
+  int frame() const { return frame_; }
+  const Rgb& background() const { return background_; }
+  const Material& material(uint32_t id) const { return materials_[id]; }
+  const std::vector<PointLight>& point_lights() const { return point_lights_; }
+  const std::vector<DirectionalLight>& directional_lights() const { return directional_lights_; }
+  const std::vector<AreaLight>& area_lights() const { return area_lights_; }
+  // Checker parity (0 or 1) of a diffuse checker material at a hit.
+  int checker_parity(const Hit& hit, const Material& m) const;
+  Vec3d origin() const { return origin_; }  // world position of render space's origin (the eye)
+  size_t triangle_count() const;
+  size_t sphere_count() const { return spheres_.size(); }
+
+  struct Sphere { Vec3d center; double radius; uint32_t material; };
+  struct Plane { Vec3d point; Vec3d normal; Vec3f b1, b2; uint32_t material; };
+  struct TriangleBucket {
+    std::vector<Vec3f> positions;      // +1 padding element: Embree reads 16 bytes per vertex
+    std::vector<uint32_t> indices;
+    std::vector<uint32_t> material_ids;
+    uint32_t geom_id = RTC_INVALID_GEOMETRY_ID;
+  };
+  struct SphereBucket {
+    std::vector<uint32_t> ids;  // indices into spheres_
+    uint32_t geom_id = RTC_INVALID_GEOMETRY_ID;
+    uint32_t mask = 0;
+  };
+  // Public for the Embree user-geometry callbacks.
+  struct SphereGeomData { const RenderScene* scene; const SphereBucket* bucket; };
+  const std::vector<Sphere>& spheres() const { return spheres_; }
+
+ private:
+  void build(const Scene& scene, int frame);
+  double nearest_plane(const Vec3d& o, const Vec3d& d, const PrimRef& from, double tmax, int* which) const;
+
+  ImageSettings image_;
+  int frame_ = 0;
+  Vec3d origin_;
+  Camera camera_;
+  Rgb background_;
+  RenderOptions options_;
+  std::vector<Material> materials_;
+  std::vector<PointLight> point_lights_;
+  std::vector<DirectionalLight> directional_lights_;
+  std::vector<AreaLight> area_lights_;
+  std::vector<Sphere> spheres_;
+  std::vector<Plane> planes_;
+  TriangleBucket triangles_[2];  // [0] opaque, [1] glass
+  SphereBucket sphere_buckets_[2];
+  bool has_glass_ = false;
+  SphereGeomData sphere_data_[2];
+  SceneHandle rtc_scene_;
+};
+
+}  // namespace tessera

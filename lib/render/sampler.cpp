@@ -1,0 +1,65 @@
+#include "render/sampler.h"
+
+namespace tessera {
+
+uint32_t cmj_permute(uint32_t i, uint32_t l, uint32_t p) {
+  uint32_t w = l - 1;
+  w |= w >> 1;
+  w |= w >> 2;
+  w |= w >> 4;
+  w |= w >> 8;
+  w |= w >> 16;
+  do {
+    i ^= p;
+    i *= 0xe170893d;
+    i ^= p >> 16;
+    i ^= (i & w) >> 4;
+    i ^= p >> 8;
+    i *= 0x0929eb3f;
+    i ^= p >> 23;
+    i ^= (i & w) >> 1;
+    i *= 1 | p >> 27;
+    i *= 0x6935fa69;
+    i ^= (i & w) >> 11;
+    i *= 0x74dcb303;
+    i ^= (i & w) >> 2;
+    i *= 0x9e501cc3;
+    i ^= (i & w) >> 2;
+    i *= 0xc860a3df;
+    i &= w;
+    i ^= i >> 5;
+  } while (i >= l);
+  return (i + p) % l;
+}
+
+float cmj_randfloat(uint32_t i, uint32_t p) {
+  i ^= p;
+  i ^= i >> 17;
+  i ^= i >> 10;
+  i *= 0xb36534e5;
+  i ^= i >> 12;
+  i ^= i >> 21;
+  i *= 0x93fc4795;
+  i ^= 0xdf6e307f;
+  i ^= i >> 17;
+  i *= 1 | p >> 18;
+  return to_unit_float(i);
+}
+
+void cmj_sample(uint32_t s, uint32_t n, uint32_t p, float* x, float* y) {
+  // m x k grid with m*k >= n, as square as possible (Kensler's aspect-1 choice).
+  const uint32_t m = uint32_t(std::sqrt(double(n)));
+  const uint32_t k = (n + m - 1) / m;
+  s = cmj_permute(s, n, p * 0x51633e2d);
+  const uint32_t sx = cmj_permute(s % m, m, p * 0x68bc21eb);
+  const uint32_t sy = cmj_permute(s / m, k, p * 0x02e5be93);
+  const float jx = cmj_randfloat(s, p * 0x967a889b);
+  const float jy = cmj_randfloat(s, p * 0x368cc8b7);
+  float fx = (float(sx) + (float(sy) + jx) / float(k)) / float(m);
+  float fy = (float(s) + jy) / float(n);
+  // Guard [0,1): float rounding of the sums can land exactly on 1.
+  *x = fx < 1.0f ? fx : 0x1.fffffep-1f;
+  *y = fy < 1.0f ? fy : 0x1.fffffep-1f;
+}
+
+}  // namespace tessera

@@ -1,0 +1,24 @@
+// Loads triangle meshes with assimp (OBJ+MTL, PLY ascii/binary, glTF 2.0, ...).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "scene/scene.h"
+#include "scene/scene_error.h"
+
+namespace tessera {
+
+struct MeshLoadResult {
+  Mesh mesh;                          // material_ids index into `materials` (local to this file)
+  std::vector<Material> materials;    // from the file (MTL etc.), mapped to Tessera materials
+  std::vector<std::string> material_files;  // extra files read (e.g. the .mtl), relative to the mesh
+  size_t dropped_degenerate = 0;      // zero-area triangles dropped
+  size_t dropped_nonfinite = 0;       // triangles with a NaN/Inf vertex dropped
+};
+
+// Throws SceneError("<path>: ...") if the file is missing, unreadable or holds no triangles.
+// Node transforms in the file are baked in. Meshes/nodes named in `exclude` are skipped.
+MeshLoadResult load_mesh(const std::string& path, const std::vector<std::string>& exclude = {});
+
+}  // namespace tessera

@@ -1,0 +1,141 @@
+// The scene description: what a scene file says, in world space and double precision.
+// A Scene is plain data (no Embree, no gRPC); frame F of it is fully defined by the file and F
+// (see animation.h). The renderer converts one frame to camera-relative float geometry.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "math/vec3.h"
+
+namespace tessera {
+
+// The camera as written in the file: either look-at form or the classic screen-plane form.
+struct CameraDesc {
+  enum class Form { kLookAt, kScreenPlane };
+  Form form = Form::kLookAt;
+  // kLookAt
+  Vec3d position{0, 0, 0};
+  Vec3d look_at{0, 0, -1};
+  Vec3d up{0, 1, 0};
+  double vfov_deg = 45.0;
+  // kScreenPlane: pixel point p(u,v) = p0 + u(p1-p0) + v(p2-p0), u right, v down, in [0,1].
+  Vec3d eye{0, 0, 0};
+  Vec3d p0{-1, 1, -1}, p1{1, 1, -1}, p2{-1, -1, -1};
+};
+
+// The screen plane every camera reduces to for a given aspect ratio.
+struct ScreenPlane {
+  Vec3d eye, p0, p1, p2;
+};
+ScreenPlane screen_plane(const CameraDesc& camera, int width, int height);
+
+enum class SamplerKind {
+  kStratified,   // correlated multi-jittered (Kensler 2013): stratified for any spp; the default
+  kIndependent,  // independent uniform random samples (for comparison)
+  kCenter,       // every sample at the pixel center: no anti-aliasing (analytic tests)
+};
+
+struct ImageSettings {
+  int width = 640;
+  int height = 480;
+  int spp = 16;
+  int max_depth = 8;  // secondary bounces (reflection/refraction) after the camera ray's hit
+  uint64_t seed = 0;
+  SamplerKind sampler = SamplerKind::kStratified;
+};
+
+struct Material {
+  enum class Type { kDiffuse, kMirror, kGlass };
+  std::string name;
+  Type type = Type::kDiffuse;
+  Rgb albedo{0.8f, 0.8f, 0.8f};  // diffuse
+  bool checker = false;           // diffuse: procedural checker between albedo and albedo2
+  Rgb albedo2{0.2f, 0.2f, 0.2f};
+  double checker_scale = 1.0;     // world-space size of one checker square
+  Rgb reflectance{1, 1, 1};       // mirror
+  double ior = 1.5;               // glass
+  Rgb transmittance{1, 1, 1};     // glass: multiplies each refraction and each shadow-ray crossing
+  Rgb emission{0, 0, 0};          // radiance emitted (OBJ Ke); emissive meshes are area lights
+
+  bool is_emissive() const { return emission.x > 0 || emission.y > 0 || emission.z > 0; }
+};
+
+struct Light {
+  enum class Type { kPoint, kDirectional };
+  Type type = Type::kPoint;
+  Vec3d position{0, 0, 0};   // point
+  Rgb intensity{1, 1, 1};    // point: irradiance at distance r is I cos(theta) / r^2
+  Vec3d direction{0, -1, 0}; // directional: the direction the light travels
+  Rgb irradiance{1, 1, 1};   // directional: irradiance E cos(theta)
+};
+
+// translate * rotate(X then Y then Z, degrees) * scale, applied to object space.
+struct TransformDesc {
+  Vec3d translate{0, 0, 0};
+  Vec3d rotate_deg{0, 0, 0};
+  Vec3d scale{1, 1, 1};
+};
+
+// Triangle mesh in object space, as loaded from a file.
+struct Mesh {
+  std::vector<Vec3f> positions;
+  std::vector<uint32_t> indices;        // 3 per triangle
+  std::vector<uint32_t> material_ids;   // one per triangle, index into Scene::materials
+  size_t triangle_count() const { return indices.size() / 3; }
+};
+
+struct SceneObject {
+  enum class Type { kSphere, kPlane, kMesh };
+  Type type = Type::kSphere;
+  std::string name;
+  int material = -1;             // index into Scene::materials; for meshes -1 = the file's materials
+  TransformDesc transform;       // sphere: uniform scale only
+  // sphere (object space)
+  Vec3d center{0, 0, 0};
+  double radius = 1.0;
+  // plane (object space)
+  Vec3d point{0, 0, 0};
+  Vec3d normal{0, 1, 0};
+  // mesh
+  std::string file;              // as written in the scene file (relative to it)
+  int mesh = -1;                 // index into Scene::meshes
+};
+
+// Keyframes are interpolated linearly; before the first and after the last they hold.
+struct CameraKey {
+  int frame = 0;
+  CameraDesc camera;
+};
+struct TransformKey {
+  int frame = 0;
+  TransformDesc transform;
+};
+
+struct Animation {
+  int frame_count = 1;
+  std::vector<CameraKey> camera;                        // sorted by frame
+  std::map<int, std::vector<TransformKey>> objects;     // object index -> keys sorted by frame
+};
+
+struct Scene {
+  std::string path;             // the scene file it was loaded from
+  CameraDesc camera;
+  ImageSettings image;
+  Rgb background{0, 0, 0};
+  std::vector<Light> lights;
+  std::vector<Material> materials;
+  std::vector<SceneObject> objects;
+  std::vector<Mesh> meshes;
+  Animation animation;
+  // Every file the scene reads besides itself (meshes and their material libraries), as paths
+  // relative to the scene file's directory: a scene bundle is the scene file plus these.
+  std::vector<std::string> dependencies;
+
+  int frame_count() const { return animation.frame_count; }
+};
+
+}  // namespace tessera

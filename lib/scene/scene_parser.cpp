@@ -1,0 +1,384 @@
+#include "scene/scene_parser.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "scene/json_reader.h"
+#include "scene/mesh_loader.h"
+
+namespace tessera {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kMaxCoordinate = 1e15;  // beyond this doubles lose integer precision; floats are hopeless
+constexpr double kMaxRadiance = 1e20;    // HDR floats: 160 is legal, Inf is not
+
+void check_coord(const JsonReader& r, const Vec3d& v) {
+  if (std::abs(v.x) > kMaxCoordinate || std::abs(v.y) > kMaxCoordinate || std::abs(v.z) > kMaxCoordinate) {
+    r.fail("coordinates must be within +-1e15");
+  }
+}
+
+Vec3d read_point(const JsonReader& r) {
+  const Vec3d v = r.vec3();
+  check_coord(r, v);
+  return v;
+}
+
+Vec3d read_direction(const JsonReader& r) {
+  const Vec3d v = r.vec3();
+  const double len = length(v);
+  if (!(len > 1e-30) || !std::isfinite(len)) r.fail("must be a non-zero direction vector");
+  return v / len;
+}
+
+CameraDesc read_camera_fields(const JsonReader& r, const CameraDesc* base) {
+  CameraDesc c = base ? *base : CameraDesc{};
+  const bool look = r.has("position") || r.has("look_at") || r.has("vfov_deg") || r.has("up");
+  const bool screen = r.has("eye") || r.has("p0") || r.has("p1") || r.has("p2");
+  if (look && screen) r.fail("use either position/look_at/up/vfov_deg or eye/p0/p1/p2, not both");
+  if (!base && !look && !screen) r.fail("needs position/look_at/up/vfov_deg or eye/p0/p1/p2");
+  if (look || (!screen && c.form == CameraDesc::Form::kLookAt)) {
+    if (base && c.form != CameraDesc::Form::kLookAt && look) {
+      r.fail("keyframes must use the same camera form as the scene's camera (eye/p0/p1/p2)");
+    }
+    c.form = CameraDesc::Form::kLookAt;
+    if (auto v = r.find("position")) c.position = read_point(*v); else if (!base) r.at("position");
+    if (auto v = r.find("look_at")) c.look_at = read_point(*v); else if (!base) r.at("look_at");
+    if (auto v = r.find("up")) c.up = read_direction(*v);
+    if (auto v = r.find("vfov_deg")) c.vfov_deg = v->number_in(0.0, 180.0, true);
+    if (c.vfov_deg >= 180.0) r.at("vfov_deg").fail("must be in (0, 180)");
+    const Vec3d fwd = c.look_at - c.position;
+    if (!(length(fwd) > 0)) r.fail("look_at must differ from position");
+    if (length(cross(normalize(fwd), c.up)) < 1e-9) r.fail("up must not be parallel to the view direction");
+  } else {
+    if (base && c.form != CameraDesc::Form::kScreenPlane) {
+      r.fail("keyframes must use the same camera form as the scene's camera (position/look_at)");
+    }
+    c.form = CameraDesc::Form::kScreenPlane;
+    for (const char* k : {"eye", "p0", "p1", "p2"}) {
+      auto v = r.find(k);
+      if (!v && !base) r.at(k);
+      if (!v) continue;
+      const Vec3d p = read_point(*v);
+      if (std::string(k) == "eye") c.eye = p;
+      else if (std::string(k) == "p0") c.p0 = p;
+      else if (std::string(k) == "p1") c.p1 = p;
+      else c.p2 = p;
+    }
+    const Vec3d n = cross(c.p1 - c.p0, c.p2 - c.p0);
+    if (!(length(n) > 0)) r.fail("p0, p1, p2 must span a screen plane (not collinear)");
+    if (std::abs(dot(n, c.p0 - c.eye)) <= 1e-12 * length(n) * length(c.p0 - c.eye)) {
+      r.fail("eye must not lie in the screen plane p0, p1, p2");
+    }
+  }
+  return c;
+}
+
+TransformDesc read_transform(const JsonReader& r, const TransformDesc* base) {
+  TransformDesc t = base ? *base : TransformDesc{};
+  if (auto v = r.find("translate")) t.translate = read_point(*v);
+  if (auto v = r.find("rotate")) t.rotate_deg = v->vec3();
+  if (auto v = r.find("scale")) {
+    if (v->value().is_number()) {
+      t.scale = Vec3d(v->number());
+    } else {
+      t.scale = v->vec3();
+    }
+    if (t.scale.x == 0 || t.scale.y == 0 || t.scale.z == 0) v->fail("scale must be non-zero on every axis");
+  }
+  return t;
+}
+
+Material read_material(const JsonReader& r, const std::string& name) {
+  Material m;
+  m.name = name;
+  const std::string type = r.at("type").one_of({"diffuse", "mirror", "glass"});
+  if (type == "diffuse") {
+    m.type = Material::Type::kDiffuse;
+    if (auto v = r.find("albedo")) m.albedo = v->rgb(1.0);
+    if (auto c = r.find("checker")) {
+      m.checker = true;
+      if (auto v = c->find("albedo2")) m.albedo2 = v->rgb(1.0);
+      if (auto v = c->find("scale")) m.checker_scale = v->number_in(0.0, kMaxCoordinate, true);
+      c->reject_unknown();
+    }
+  } else if (type == "mirror") {
+    m.type = Material::Type::kMirror;
+    if (auto v = r.find("reflectance")) m.reflectance = v->rgb(1.0);
+  } else {
+    m.type = Material::Type::kGlass;
+    if (auto v = r.find("ior")) m.ior = v->number_in(1.0, 10.0);
+    if (auto v = r.find("transmittance")) m.transmittance = v->rgb(1.0);
+  }
+  if (auto v = r.find("emission")) m.emission = v->rgb(kMaxRadiance);
+  r.reject_unknown();
+  return m;
+}
+
+SceneObject read_object(const JsonReader& r, const std::map<std::string, int>& materials,
+                        std::vector<std::string>* exclude) {
+  SceneObject o;
+  const std::string type = r.at("type").one_of({"sphere", "plane", "mesh"});
+  if (auto v = r.find("name")) o.name = v->string();
+  if (auto v = r.find("material")) {
+    const std::string name = v->string();
+    auto it = materials.find(name);
+    if (it == materials.end()) {
+      std::string known;
+      for (const auto& [k, _] : materials) known += (known.empty() ? "" : ", ") + ("'" + k + "'");
+      v->fail("unknown material '" + name + "' (defined: " + (known.empty() ? "none" : known) + ")");
+    }
+    o.material = it->second;
+  } else if (type != "mesh") {
+    r.at("material");
+  }
+  if (auto v = r.find("transform")) {
+    o.transform = read_transform(*v, nullptr);
+    v->reject_unknown();
+  }
+  if (type == "sphere") {
+    o.type = SceneObject::Type::kSphere;
+    o.center = read_point(r.at("center"));
+    o.radius = r.at("radius").number_in(0.0, kMaxCoordinate, true);
+    const Vec3d s = o.transform.scale;
+    if (s.x != s.y || s.y != s.z) r.at("transform").fail("a sphere takes a uniform scale only");
+  } else if (type == "plane") {
+    o.type = SceneObject::Type::kPlane;
+    o.point = read_point(r.at("point"));
+    o.normal = read_direction(r.at("normal"));
+  } else {
+    o.type = SceneObject::Type::kMesh;
+    o.file = r.at("file").string();
+    if (o.file.empty()) r.at("file").fail("must name a mesh file");
+    if (auto v = r.find("exclude")) {
+      for (const auto& e : v->array()) exclude->push_back(e.string());
+    }
+  }
+  r.reject_unknown();
+  return o;
+}
+
+std::string line_col(const std::string& text, size_t byte) {
+  size_t line = 1, col = 1;
+  for (size_t i = 0; i < byte && i < text.size(); ++i) {
+    if (text[i] == '\n') { ++line; col = 1; } else { ++col; }
+  }
+  return std::to_string(line) + ":" + std::to_string(col);
+}
+
+}  // namespace
+
+std::optional<SamplerKind> sampler_from_name(const std::string& name) {
+  if (name == "stratified") return SamplerKind::kStratified;
+  if (name == "independent") return SamplerKind::kIndependent;
+  if (name == "center") return SamplerKind::kCenter;
+  return std::nullopt;
+}
+
+const char* sampler_name(SamplerKind kind) {
+  switch (kind) {
+    case SamplerKind::kStratified: return "stratified";
+    case SamplerKind::kIndependent: return "independent";
+    case SamplerKind::kCenter: return "center";
+  }
+  return "?";
+}
+
+Scene parse_scene(const std::string& text, const std::string& path) {
+  nlohmann::json root;
+  try {
+    root = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    std::string what = e.what();
+    // "[json.exception.parse_error.101] parse error at line 3, column 5: ..." -> keep the reason.
+    const auto colon = what.find(": ");
+    throw SceneError(path + ":" + line_col(text, e.byte == 0 ? 0 : e.byte - 1) +
+                     ": invalid JSON: " + (colon == std::string::npos ? what : what.substr(colon + 2)));
+  }
+  const JsonReader r(root, path, "");
+  if (!root.is_object()) r.fail("a scene file must be a JSON object");
+  Scene scene;
+  scene.path = path;
+
+  const JsonReader camera = r.at("camera");
+  scene.camera = read_camera_fields(camera, nullptr);
+  camera.reject_unknown();
+
+  if (auto img = r.find("image")) {
+    ImageSettings& s = scene.image;
+    if (auto v = img->find("width")) s.width = int(v->integer_in(1, SceneLimits::kMaxResolution));
+    if (auto v = img->find("height")) s.height = int(v->integer_in(1, SceneLimits::kMaxResolution));
+    if (auto v = img->find("spp")) s.spp = int(v->integer_in(1, SceneLimits::kMaxSpp));
+    if (auto v = img->find("max_depth")) s.max_depth = int(v->integer_in(0, SceneLimits::kMaxDepth));
+    if (auto v = img->find("seed")) s.seed = uint64_t(v->integer_in(0, int64_t(1) << 53));
+    if (auto v = img->find("sampler")) {
+      s.sampler = *sampler_from_name(v->one_of({"stratified", "independent", "center"}));
+    }
+    img->reject_unknown();
+  }
+  if (auto v = r.find("background")) scene.background = v->rgb(kMaxRadiance);
+
+  if (auto lights = r.find("lights")) {
+    for (const auto& l : lights->array()) {
+      Light light;
+      const std::string type = l.at("type").one_of({"point", "directional"});
+      if (type == "point") {
+        light.type = Light::Type::kPoint;
+        light.position = read_point(l.at("position"));
+        light.intensity = l.at("intensity").rgb(kMaxRadiance);
+      } else {
+        light.type = Light::Type::kDirectional;
+        light.direction = read_direction(l.at("direction"));
+        light.irradiance = l.at("irradiance").rgb(kMaxRadiance);
+      }
+      l.reject_unknown();
+      scene.lights.push_back(light);
+    }
+  }
+
+  std::map<std::string, int> material_index;
+  if (auto mats = r.find("materials")) {
+    for (const auto& [name, m] : mats->members()) {
+      material_index[name] = int(scene.materials.size());
+      scene.materials.push_back(read_material(m, name));
+    }
+  }
+
+  const fs::path dir = fs::path(path).parent_path();
+  std::map<std::string, int> object_index;
+  std::map<std::string, int> mesh_cache;  // (file + exclusions) -> mesh index
+  for (const auto& o : r.at("objects").array()) {
+    std::vector<std::string> exclude;
+    SceneObject obj = read_object(o, material_index, &exclude);
+    if (obj.type != SceneObject::Type::kMesh && obj.material >= 0 &&
+        scene.materials[size_t(obj.material)].is_emissive()) {
+      o.at("material").fail("emissive materials are area lights and are supported on meshes only");
+    }
+    if (obj.type == SceneObject::Type::kMesh) {
+      std::string key = obj.file;
+      for (const auto& e : exclude) key += "\n" + e;
+      auto it = mesh_cache.find(key);
+      if (it != mesh_cache.end()) {
+        obj.mesh = it->second;
+      } else {
+        const fs::path mesh_path = dir / obj.file;
+        MeshLoadResult loaded;
+        try {
+          loaded = load_mesh(mesh_path.string(), exclude);
+        } catch (const SceneError& e) {
+          o.at("file").fail(e.what());
+        }
+        if (loaded.dropped_degenerate + loaded.dropped_nonfinite > 0) {
+          spdlog::warn("{}: {}: dropped {} zero-area and {} non-finite triangles", path, obj.file,
+                       loaded.dropped_degenerate, loaded.dropped_nonfinite);
+        }
+        // File materials join the scene's list; the mesh's ids are remapped to scene indices.
+        const uint32_t offset = uint32_t(scene.materials.size());
+        for (auto& m : loaded.materials) scene.materials.push_back(std::move(m));
+        for (auto& id : loaded.mesh.material_ids) id += offset;
+        obj.mesh = int(scene.meshes.size());
+        scene.meshes.push_back(std::move(loaded.mesh));
+        mesh_cache[key] = obj.mesh;
+        scene.dependencies.push_back(obj.file);
+        const fs::path mesh_dir = fs::path(obj.file).parent_path();
+        for (const auto& lib : loaded.material_files) scene.dependencies.push_back((mesh_dir / lib).string());
+      }
+      if (obj.material >= 0) {
+        // An explicit material overrides the file's for every triangle.
+        Mesh copy = scene.meshes[size_t(obj.mesh)];
+        std::fill(copy.material_ids.begin(), copy.material_ids.end(), uint32_t(obj.material));
+        obj.mesh = int(scene.meshes.size());
+        scene.meshes.push_back(std::move(copy));
+      }
+    }
+    if (!obj.name.empty()) {
+      if (object_index.count(obj.name)) o.at("name").fail("duplicate object name '" + obj.name + "'");
+      object_index[obj.name] = int(scene.objects.size());
+    }
+    scene.objects.push_back(std::move(obj));
+  }
+  std::sort(scene.dependencies.begin(), scene.dependencies.end());
+  scene.dependencies.erase(std::unique(scene.dependencies.begin(), scene.dependencies.end()),
+                           scene.dependencies.end());
+
+  if (auto anim = r.find("animation")) {
+    Animation& a = scene.animation;
+    a.frame_count = int(anim->at("frames").integer_in(1, SceneLimits::kMaxFrames));
+    const int last = a.frame_count - 1;
+    if (auto cams = anim->find("camera")) {
+      for (const auto& k : cams->array()) {
+        CameraKey key;
+        key.frame = int(k.at("frame").integer_in(0, last));
+        key.camera = read_camera_fields(k, &scene.camera);
+        k.reject_unknown();
+        if (!a.camera.empty() && key.frame <= a.camera.back().frame) {
+          k.at("frame").fail("keyframes must be in strictly increasing frame order");
+        }
+        a.camera.push_back(key);
+      }
+    }
+    if (auto objs = anim->find("objects")) {
+      for (const auto& [name, keys] : objs->members()) {
+        auto it = object_index.find(name);
+        if (it == object_index.end()) keys.fail("no object is named '" + name + "'");
+        const SceneObject& obj = scene.objects[size_t(it->second)];
+        std::vector<TransformKey>& list = a.objects[it->second];
+        for (const auto& k : keys.array()) {
+          TransformKey key;
+          key.frame = int(k.at("frame").integer_in(0, last));
+          key.transform = read_transform(k, &obj.transform);
+          k.reject_unknown();
+          if (obj.type == SceneObject::Type::kSphere &&
+              (key.transform.scale.x != key.transform.scale.y || key.transform.scale.y != key.transform.scale.z)) {
+            k.fail("a sphere takes a uniform scale only");
+          }
+          if (!list.empty() && key.frame <= list.back().frame) {
+            k.at("frame").fail("keyframes must be in strictly increasing frame order");
+          }
+          list.push_back(key);
+        }
+      }
+    }
+    anim->reject_unknown();
+  }
+  r.reject_unknown();
+  return scene;
+}
+
+Scene load_scene(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw SceneError(path + ": scene file not found");
+  if (!fs::is_regular_file(path, ec)) throw SceneError(path + ": not a regular file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SceneError(path + ": cannot open scene file for reading");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return parse_scene(ss.str(), path);
+}
+
+void apply_overrides(Scene& scene, const ImageOverrides& o) {
+  auto check = [&](const char* field, int64_t v, int64_t lo, int64_t hi) {
+    if (v < lo || v > hi) {
+      throw SceneError(std::string("--") + field + ": must be in [" + std::to_string(lo) + ", " +
+                       std::to_string(hi) + "], got " + std::to_string(v));
+    }
+  };
+  if (o.width) { check("width", *o.width, 1, SceneLimits::kMaxResolution); scene.image.width = *o.width; }
+  if (o.height) { check("height", *o.height, 1, SceneLimits::kMaxResolution); scene.image.height = *o.height; }
+  if (o.spp) { check("spp", *o.spp, 1, SceneLimits::kMaxSpp); scene.image.spp = *o.spp; }
+  if (o.max_depth) { check("max-depth", *o.max_depth, 0, SceneLimits::kMaxDepth); scene.image.max_depth = *o.max_depth; }
+  if (o.seed) scene.image.seed = *o.seed;
+  if (o.sampler) scene.image.sampler = *o.sampler;
+}
+
+}  // namespace tessera

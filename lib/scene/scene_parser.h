@@ -1,0 +1,36 @@
+// Reads a scene file (JSON, see docs/scene-format.md) into a Scene, loading its meshes.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "scene/scene.h"
+#include "scene/scene_error.h"
+
+namespace tessera {
+
+// Command-line overrides of the file's `image` block; validated with the same ranges.
+struct ImageOverrides {
+  std::optional<int> width, height, spp, max_depth;
+  std::optional<uint64_t> seed;
+  std::optional<SamplerKind> sampler;
+};
+
+// Throws SceneError with a message naming the file, the JSON path and what is allowed.
+Scene load_scene(const std::string& path);
+// Parses scene JSON text; `path` names the file in messages and anchors relative mesh paths.
+Scene parse_scene(const std::string& json_text, const std::string& path);
+void apply_overrides(Scene& scene, const ImageOverrides& overrides);
+
+// Allowed ranges, shared by the parser, the CLI and the coordinator's limits.
+struct SceneLimits {
+  static constexpr int kMaxResolution = 16384;
+  static constexpr int kMaxSpp = 65536;
+  static constexpr int kMaxDepth = 64;
+  static constexpr int kMaxFrames = 100000;
+};
+
+std::optional<SamplerKind> sampler_from_name(const std::string& name);
+const char* sampler_name(SamplerKind kind);
+
+}  // namespace tessera

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Installs every Debian bookworm package Tessera needs to build, test and run.
+# Idempotent: only installs what is missing. Needs root (or sudo).
+set -euo pipefail
+
+BUILD_PKGS=(
+  build-essential cmake pkg-config git
+  libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
+  libembree-dev libtbb-dev libopenexr-dev libspdlog-dev libcli11-dev
+  nlohmann-json3-dev libassimp-dev libsqlite3-dev libpng-dev libssl-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+)
+# Independent checkers used by the tests (oiiotool/idiff, exrheader, Python gRPC client).
+CHECK_PKGS=(openimageio-tools openexr python3-grpcio python3-grpc-tools python3-numpy)
+
+want=("${BUILD_PKGS[@]}" "${CHECK_PKGS[@]}" "$@")
+missing=()
+for p in "${want[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#want[@]} packages present"
+  exit 0
+fi
+SUDO=""
+[ "$(id -u)" -eq 0 ] || SUDO="sudo"
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
