@@ -14,6 +14,10 @@ inline Vec3f reflect(const Vec3f& d, const Vec3f& n) { return d - n * (2.0f * do
 // polarizations (Born & Wolf; pbrt-v4 FrDielectric).
 inline float fresnel_dielectric(float cos_i, float eta_i, float eta_t, float* cos_t_out) {
   cos_i = std::fmin(std::fmax(cos_i, 0.0f), 1.0f);
+  if (eta_i == eta_t) {  // index-matched: no interface at all, exactly
+    *cos_t_out = cos_i;
+    return 0.0f;
+  }
   const float eta = eta_i / eta_t;
   const float sin2_t = eta * eta * std::fmax(0.0f, 1.0f - cos_i * cos_i);
   if (sin2_t >= 1.0f) {

@@ -66,7 +66,7 @@ Rgb direct_light(const Context& c, const Hit& hit, const Vec3f& n, const Vec3f& 
     if (!(r2 > 0.0f)) continue;
     const Vec3f w = to / std::sqrt(r2);
     const float cos_t = dot(n_f, w);
-    const float cos_l = std::abs(dot(nl, w));  // emitters are two-sided
+    const float cos_l = -dot(nl, w);  // emitters emit from their front (CCW) face only
     if (!(cos_t > 0.0f) || !(cos_l > 0.0f)) continue;
     const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
     const Vec3f target = offset_ray_origin(q, q_err, nl, -w);
@@ -86,9 +86,9 @@ Rgb radiance(const Context& c, const Ray& ray, const PrimRef& from, int depth, u
   Hit hit;
   if (!s.intersect(ray, from, &hit)) return s.background();
   const Material& m = s.material(hit.material);
-  Rgb L = m.emission;
-  // Shading happens on the side the ray came from.
+  // Shading happens on the side the ray came from; emitters are seen from their front only.
   const bool front = dot(ray.d, hit.n) < 0.0f;
+  Rgb L = front ? m.emission : Rgb(0.0f);
   const Vec3f n_facing = front ? hit.n : -hit.n;
   const bool can_recurse = depth < s.image().max_depth;
   switch (m.type) {

@@ -204,6 +204,12 @@ Scene parse_scene(const std::string& text, const std::string& path) {
     const auto colon = what.find(": ");
     throw SceneError(path + ":" + line_col(text, e.byte == 0 ? 0 : e.byte - 1) +
                      ": invalid JSON: " + (colon == std::string::npos ? what : what.substr(colon + 2)));
+  } catch (const nlohmann::json::exception& e) {
+    // nlohmann refuses numbers beyond double's range while parsing (e.g. 1e999).
+    std::string what = e.what();
+    const auto bracket = what.find("] ");
+    throw SceneError(path + ": invalid JSON: " + (bracket == std::string::npos ? what : what.substr(bracket + 2)) +
+                     " (numbers must be finite)");
   }
   const JsonReader r(root, path, "");
   if (!root.is_object()) r.fail("a scene file must be a JSON object");
