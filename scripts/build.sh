@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# Configures and builds Tessera into build/ (Release with debug info). Extra args go to cmake.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+jobs=$(nproc 2>/dev/null || echo 2)
+generator=()
+command -v ninja >/dev/null && generator=(-G Ninja)
+if [ ! -f build/CMakeCache.txt ]; then
+  cmake -S . -B build "${generator[@]}" -DCMAKE_BUILD_TYPE=RelWithDebInfo "$@"
+else
+  cmake -S . -B build "$@" >/dev/null
+fi
+cmake --build build -j "$jobs"
