@@ -12,9 +12,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_version_flag("--version", "tessera 0.1.0");
   tessera::cli::register_render_command(app);
-#ifndef TESSERA_DEV_NO_COLOR
   tessera::cli::register_color_commands(app);
-#endif
   tessera::cli::register_farm_commands(app);
   try {
     app.parse(argc, argv);

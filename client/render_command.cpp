@@ -2,11 +2,13 @@
 // exactly this code per tile, and this is the baseline the farm is measured against.
 #include <spdlog/spdlog.h>
 
+#include <cctype>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <string>
 
+#include "color/output_options.h"
 #include "commands.h"
 #include "image/exr_io.h"
 #include "image/output_path.h"
@@ -27,6 +29,7 @@ struct RenderArgs {
   int tile = 32;
   std::string sampler;
   bool quiet = false;
+  color::OutputOptions color;  // tone mapping / format when -o is not a float EXR
 };
 
 int run_render(const RenderArgs& a) {
@@ -74,9 +77,16 @@ int run_render(const RenderArgs& a) {
                       {"tessera:renderSeconds", r.seconds},
                       {"tessera:raysTraced", std::to_string(r.rays.total())},
                       {"tessera:estimatedRmse", r.estimated_rmse()}};
+  std::string ext = std::filesystem::path(out).extension().string();
+  for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+  const bool float_exr = (a.color.format.empty() && ext == ".exr") || a.color.format == "exr-float";
   try {
-    write_exr(out, r.image, attrs);
-  } catch (const ExrError& e) {
+    if (float_exr) {
+      write_exr(out, r.image, attrs);  // keeps the render's attributes
+    } else {
+      color::write_output(r.image, out, a.color, std::cout);  // tone map + quantize + report
+    }
+  } catch (const std::exception& e) {
     std::cerr << "tessera render: " << e.what() << "\n";
     return 1;
   }
@@ -108,6 +118,8 @@ void register_render_command(CLI::App& app) {
   cmd->add_option("--threads", args->threads, "Render threads (default: all cores)")->check(CLI::Range(0, 4096));
   cmd->add_option("--tile", args->tile, "Tile size in pixels (does not change the image)")->check(CLI::Range(1, 4096));
   cmd->add_flag("-q,--quiet", args->quiet, "No progress display");
+  // -o with another extension (or --format) writes that format directly: see `tessera convert`.
+  color::add_output_options(*cmd, args->color);
   cmd->callback([args] {
     const int rc = run_render(*args);
     if (rc != 0) throw CLI::RuntimeError(rc);

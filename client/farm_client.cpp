@@ -1,0 +1,49 @@
+#include "farm_client.h"
+
+#include <cstdlib>
+
+namespace tessera::cli {
+
+std::string resolve_coordinator(const std::string& flag) {
+  if (!flag.empty()) return flag;
+  const char* env = std::getenv("TESSERA_COORDINATOR");
+  if (env && *env) return env;
+  return kDefaultCoordinator;
+}
+
+FarmClient::FarmClient(std::string address, std::chrono::seconds timeout)
+    : address_(std::move(address)), timeout_(timeout) {
+  grpc::ChannelArguments args;
+  // Long-lived watch streams: keepalive pings detect a coordinator that vanished without
+  // closing the connection (machine down, network cut) within ~20 s.
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 10000);
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
+  args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  args.SetInt(GRPC_ARG_MAX_RECEIVE_MESSAGE_LENGTH, 64 << 20);
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
+  channel_ = grpc::CreateCustomChannel(address_, grpc::InsecureChannelCredentials(), args);
+  stub_ = tessera::v1::ClientService::NewStub(channel_);
+}
+
+std::unique_ptr<grpc::ClientContext> FarmClient::context() const { return context(timeout_); }
+
+std::unique_ptr<grpc::ClientContext> FarmClient::context(std::chrono::seconds deadline) {
+  auto ctx = std::make_unique<grpc::ClientContext>();
+  ctx->set_deadline(std::chrono::system_clock::now() + deadline);
+  return ctx;
+}
+
+std::string FarmClient::describe(const grpc::Status& s, const std::string& what) const {
+  switch (s.error_code()) {
+    case grpc::StatusCode::UNAVAILABLE:
+      return "cannot reach the coordinator at " + address_ + " (" + s.error_message() +
+             "). Is it running? Start one with: tessera-server --listen " + address_ +
+             " --data-dir DIR  (or point --coordinator / TESSERA_COORDINATOR at yours)";
+    case grpc::StatusCode::DEADLINE_EXCEEDED:
+      return "the coordinator at " + address_ + " did not answer " + what + " in time";
+    default:
+      return what + ": " + s.error_message();
+  }
+}
+
+}  // namespace tessera::cli

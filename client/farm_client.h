@@ -1,0 +1,40 @@
+// The client's connection to a coordinator: address resolution, channel settings, deadlines,
+// and error messages that say what is wrong and what to do about it.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <memory>
+#include <string>
+
+#include "tessera/v1/client_service.grpc.pb.h"
+
+namespace tessera::cli {
+
+inline constexpr const char* kDefaultCoordinator = "127.0.0.1:7878";
+
+// --coordinator if given, else $TESSERA_COORDINATOR, else 127.0.0.1:7878.
+std::string resolve_coordinator(const std::string& flag);
+
+class FarmClient {
+ public:
+  explicit FarmClient(std::string address, std::chrono::seconds timeout = std::chrono::seconds(15));
+
+  tessera::v1::ClientService::Stub& stub() { return *stub_; }
+  const std::string& address() const { return address_; }
+  // A context with the unary-call deadline.
+  std::unique_ptr<grpc::ClientContext> context() const;
+  // A context with a custom deadline.
+  static std::unique_ptr<grpc::ClientContext> context(std::chrono::seconds deadline);
+  // "cannot reach the coordinator at ... start one with ..." and friends.
+  std::string describe(const grpc::Status& s, const std::string& what) const;
+
+ private:
+  std::string address_;
+  std::chrono::seconds timeout_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<tessera::v1::ClientService::Stub> stub_;
+};
+
+}  // namespace tessera::cli

@@ -1,0 +1,93 @@
+#include "farm_frames.h"
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+
+#include "farm/codec.h"
+#include "image/output_path.h"
+#include "render/tile_renderer.h"
+
+namespace tessera::cli {
+
+namespace {
+double now_s() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+}  // namespace
+
+FrameAssembler::FrameAssembler(const tessera::v1::JobStatus& job) : job_(job) {}
+
+bool FrameAssembler::add(const tessera::v1::TileData& tile, std::string* error) {
+  if (tile.frame() < job_.first_frame() || tile.frame() > job_.last_frame() || tile.tile_index() < 0 ||
+      tile.tile_index() >= job_.tiles_per_frame()) {
+    *error = "tile " + std::to_string(tile.tile_index()) + " of frame " + std::to_string(tile.frame()) +
+             " is outside the job";
+    return false;
+  }
+  if (written_.count(tile.frame())) return false;
+  Frame& f = frames_[tile.frame()];
+  if (f.tiles.count(tile.tile_index())) return false;  // a second copy: the first one won
+  TileResult r;
+  *error = farm::decode_tile(tile, &r);
+  if (!error->empty()) return false;
+  if (r.rect.x0 < 0 || r.rect.y0 < 0 || r.rect.x0 + r.rect.width > job_.width() ||
+      r.rect.y0 + r.rect.height > job_.height()) {
+    *error = "tile rectangle outside the image";
+    return false;
+  }
+  if (f.image.width == 0) {
+    f.image = ImageRGB(job_.width(), job_.height());
+    f.variance.assign(f.image.pixel_count(), 0.0f);
+    f.first = now_s();
+  }
+  place_tile(r, &f.image, &f.variance);
+  f.tiles.insert(tile.tile_index());
+  f.last = now_s();
+  f.tile_seconds += r.seconds;
+  f.rays += r.rays.total();
+  f.workers.insert(tile.worker());
+  rays_ += r.rays.total();
+  ++tiles_;
+  return true;
+}
+
+bool FrameAssembler::complete(int frame) const {
+  auto it = frames_.find(frame);
+  return it != frames_.end() && int(it->second.tiles.size()) == job_.tiles_per_frame();
+}
+
+FrameReport FrameAssembler::write(int frame, const std::string& pattern, const std::string& scene_name) {
+  Frame& f = frames_.at(frame);
+  FrameReport rep;
+  rep.frame = frame;
+  rep.path = frame_output_path(pattern, frame);
+  rep.wall_seconds = f.last - f.first;
+  rep.tile_seconds = f.tile_seconds;
+  rep.rays = f.rays;
+  rep.workers = f.workers;
+  double sum = 0;
+  for (float v : f.variance) sum += v;
+  rep.estimated_rmse = f.variance.empty() ? 0.0 : std::sqrt(sum / double(f.variance.size()));
+  std::string workers;
+  for (const auto& w : f.workers) workers += (workers.empty() ? "" : ",") + w;
+  ExrAttributes attrs{{"renderer", std::string("tessera 0.1.0 (farm)")},
+                      {"tessera:scene", scene_name},
+                      {"tessera:job", job_.job_id()},
+                      {"tessera:frame", int64_t(frame)},
+                      {"tessera:spp", int64_t(job_.spp())},
+                      {"tessera:renderSeconds", rep.wall_seconds},
+                      {"tessera:tileSeconds", rep.tile_seconds},
+                      {"tessera:raysTraced", std::to_string(rep.rays)},
+                      {"tessera:estimatedRmse", rep.estimated_rmse},
+                      {"tessera:workers", workers}};
+  const auto parent = std::filesystem::path(rep.path).parent_path();
+  std::error_code ec;
+  if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+  write_exr(rep.path, f.image, attrs);
+  written_.insert(frame);
+  frames_.erase(frame);  // free the pixels
+  return rep;
+}
+
+}  // namespace tessera::cli

@@ -1,0 +1,58 @@
+// Assembles a job's finished tiles into frames on the client and writes each complete frame as
+// a float OpenEXR, exactly as `tessera render` lays out the pixels (place_tile), so the files
+// are bit-identical to an in-process render.
+#pragma once
+
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "image/exr_io.h"
+#include "image/image.h"
+#include "render/tile.h"
+#include "tessera/v1/client_service.pb.h"
+
+namespace tessera::cli {
+
+struct FrameReport {
+  int frame = 0;
+  std::string path;
+  double wall_seconds = 0;    // first to last tile arriving at this client
+  double tile_seconds = 0;    // sum of the tiles' render times (thread-seconds)
+  uint64_t rays = 0;
+  double estimated_rmse = 0;
+  std::set<std::string> workers;
+};
+
+class FrameAssembler {
+ public:
+  explicit FrameAssembler(const tessera::v1::JobStatus& job);
+
+  // Adds a tile; false if it was already there (a duplicate: ignored) or does not belong.
+  bool add(const tessera::v1::TileData& tile, std::string* error);
+  bool complete(int frame) const;
+  bool written(int frame) const { return written_.count(frame) > 0; }
+  // Writes the frame to frame_output_path(pattern, frame); throws ExrError.
+  FrameReport write(int frame, const std::string& pattern, const std::string& scene_name);
+  uint64_t rays_received() const { return rays_; }
+  int64_t tiles_received() const { return tiles_; }
+
+ private:
+  struct Frame {
+    ImageRGB image;
+    std::vector<float> variance;
+    std::set<int> tiles;
+    double first = 0, last = 0;  // arrival times
+    double tile_seconds = 0;
+    uint64_t rays = 0;
+    std::set<std::string> workers;
+  };
+  tessera::v1::JobStatus job_;
+  std::map<int, Frame> frames_;
+  std::set<int> written_;
+  uint64_t rays_ = 0;
+  int64_t tiles_ = 0;
+};
+
+}  // namespace tessera::cli

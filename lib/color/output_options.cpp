@@ -1,0 +1,75 @@
+#include "color/output_options.h"
+
+#include "color/color_error.h"
+
+namespace tessera::color {
+
+void add_output_options(CLI::App& cmd, OutputOptions& o) {
+  cmd.add_option("--tonemap", o.tonemap,
+                 "Tone mapping for 8-bit/565/palette outputs (HDR outputs stay linear)")
+      ->check(CLI::IsMember({"clamp", "reinhard", "aces", "pbr-neutral"}))
+      ->capture_default_str();
+  cmd.add_option("--exposure", o.exposure_ev, "Exposure in stops (EV), applied first")
+      ->capture_default_str();
+  cmd.add_option("--white", o.white,
+                 "Reinhard white point after exposure (default: the brightest pixel)");
+  cmd.add_option("--format", o.format, "Output format (default: from the file extension)")
+      ->check(CLI::IsMember({"rgba8", "rgb8", "rgb565", "palette", "rgbe", "rgb9e5", "exr-half",
+                             "exr-float"}));
+  cmd.add_option("--colors", o.colors, "Palette size, 2..256 (implies --format palette for .png)")
+      ->check(CLI::Range(2, 256));
+  cmd.add_option("--dither", o.dither,
+                 "bayer|blue-noise for rgb8/rgba8/rgb565, floyd-steinberg for palette")
+      ->check(CLI::IsMember({"none", "bayer", "blue-noise", "floyd-steinberg"}))
+      ->capture_default_str();
+  cmd.add_option("--report", o.report, "Report style")
+      ->check(CLI::IsMember({"text", "json"}))
+      ->capture_default_str();
+}
+
+ConvertOptions resolve_output_options(const OutputOptions& o, const std::string& out_path) {
+  ConvertOptions c;
+  const auto op = parse_tonemap(o.tonemap);
+  if (!op) throw ColorError("unknown --tonemap " + o.tonemap);
+  c.tonemap = {*op, o.exposure_ev, o.white};
+  const auto dither = parse_dither(o.dither);
+  if (!dither) throw ColorError("unknown --dither " + o.dither);
+  c.dither = *dither;
+  if (!o.format.empty()) {
+    const auto f = parse_format(o.format);
+    if (!f) throw ColorError("unknown --format " + o.format);
+    c.format = *f;
+  } else {
+    const auto f = format_from_extension(out_path);
+    if (!f) {
+      throw ColorError("cannot tell the format of " + out_path +
+                       " from its extension (.png .bmp .hdr .dds .exr); pass --format");
+    }
+    c.format = *f;
+    // `--colors N` on a .png means an indexed PNG; so does a Floyd-Steinberg request.
+    if (c.format == OutputFormat::kRgb8 &&
+        (o.colors != 0 || c.dither == DitherMethod::kFloydSteinberg)) {
+      c.format = OutputFormat::kPalette;
+    }
+  }
+  if (o.colors != 0 && c.format != OutputFormat::kPalette) {
+    throw ColorError("--colors applies to --format palette only");
+  }
+  c.colors = o.colors != 0 ? o.colors : 256;
+  validate(c);
+  return c;
+}
+
+ConversionReport write_output(const ImageRGB& image, const std::string& out_path,
+                              const OutputOptions& o, std::ostream& report_out) {
+  const ConvertOptions c = resolve_output_options(o, out_path);
+  const ConversionReport r = convert_image(image, out_path, c);
+  if (o.report == "json") {
+    report_out << report_json(r).dump() << "\n";
+  } else {
+    report_out << report_text(r) << "\n";
+  }
+  return r;
+}
+
+}  // namespace tessera::color

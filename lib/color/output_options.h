@@ -1,0 +1,42 @@
+// The output options of `tessera convert`, reusable by any command that produces a frame
+// (`tessera render`, `tessera submit`): add them to a CLI11 subcommand, then write the frame.
+//
+//   OutputOptions out;
+//   add_output_options(*render_cmd, out);
+//   ... after rendering ...
+//   write_output(image, out_path, out, std::cout);  // prints the one-line report
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <ostream>
+#include <string>
+
+#include "color/color_convert.h"
+#include "image/image.h"
+
+namespace tessera::color {
+
+struct OutputOptions {
+  std::string tonemap = "clamp";  // clamp | reinhard | aces | pbr-neutral
+  float exposure_ev = 0.0f;
+  float white = 0.0f;        // Reinhard white point; 0 = brightest pixel
+  std::string format;        // empty: from the output file's extension
+  int colors = 0;            // 0: not given (256 for palette); given with .png: palette
+  std::string dither = "none";  // none | bayer | blue-noise | floyd-steinberg
+  std::string report = "text";  // text | json
+};
+
+// Adds --tonemap, --exposure, --white, --format, --colors, --dither and --report.
+void add_output_options(CLI::App& command, OutputOptions& options);
+
+// Turns the parsed strings into ConvertOptions for this output path; throws ColorError when
+// the format cannot be told from the extension or options conflict.
+ConvertOptions resolve_output_options(const OutputOptions& options, const std::string& out_path);
+
+// Converts, writes out_path, prints the report line (text or JSON) to report_out and returns
+// it. Throws ColorError / ExrError naming the path.
+ConversionReport write_output(const ImageRGB& image, const std::string& out_path,
+                              const OutputOptions& options, std::ostream& report_out);
+
+}  // namespace tessera::color

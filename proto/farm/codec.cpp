@@ -1,0 +1,111 @@
+#include "farm/codec.h"
+
+#include <bit>
+#include <cstring>
+
+namespace tessera::farm {
+
+namespace {
+
+static_assert(sizeof(float) == 4);
+
+void floats_to_le(const std::vector<float>& v, std::string* out) {
+  out->resize(v.size() * 4);
+  if constexpr (std::endian::native == std::endian::little) {
+    std::memcpy(out->data(), v.data(), out->size());
+  } else {
+    for (size_t i = 0; i < v.size(); ++i) {
+      uint32_t u = std::bit_cast<uint32_t>(v[i]);
+      for (int b = 0; b < 4; ++b) (*out)[i * 4 + size_t(b)] = char((u >> (8 * b)) & 0xff);
+    }
+  }
+}
+
+void le_to_floats(const std::string& s, std::vector<float>* v) {
+  v->resize(s.size() / 4);
+  if constexpr (std::endian::native == std::endian::little) {
+    std::memcpy(v->data(), s.data(), v->size() * 4);
+  } else {
+    for (size_t i = 0; i < v->size(); ++i) {
+      uint32_t u = 0;
+      for (int b = 0; b < 4; ++b) u |= uint32_t(uint8_t(s[i * 4 + size_t(b)])) << (8 * b);
+      (*v)[i] = std::bit_cast<float>(u);
+    }
+  }
+}
+
+}  // namespace
+
+void encode_tile(const TileResult& tile, tessera::v1::TileData* out) {
+  auto* r = out->mutable_rect();
+  r->set_x0(tile.rect.x0);
+  r->set_y0(tile.rect.y0);
+  r->set_width(tile.rect.width);
+  r->set_height(tile.rect.height);
+  floats_to_le(tile.rgb, out->mutable_rgb());
+  floats_to_le(tile.variance, out->mutable_variance());
+  auto* rays = out->mutable_rays();
+  rays->set_camera(tile.rays.camera);
+  rays->set_shadow(tile.rays.shadow);
+  rays->set_secondary(tile.rays.secondary);
+  rays->set_nonfinite_samples(tile.rays.nonfinite_samples);
+  out->set_seconds(tile.seconds);
+}
+
+std::string check_tile(const tessera::v1::TileData& in, int w, int h) {
+  const auto& r = in.rect();
+  if (r.width() != w || r.height() != h) {
+    return "tile is " + std::to_string(r.width()) + "x" + std::to_string(r.height()) + ", expected " +
+           std::to_string(w) + "x" + std::to_string(h);
+  }
+  const size_t px = size_t(w) * size_t(h);
+  if (in.rgb().size() != px * 12) {
+    return "tile rgb has " + std::to_string(in.rgb().size()) + " bytes, expected " + std::to_string(px * 12);
+  }
+  if (in.variance().size() != px * 4) {
+    return "tile variance has " + std::to_string(in.variance().size()) + " bytes, expected " + std::to_string(px * 4);
+  }
+  return {};
+}
+
+std::string decode_tile(const tessera::v1::TileData& in, TileResult* out) {
+  if (in.rect().width() <= 0 || in.rect().height() <= 0) return "tile has an empty rectangle";
+  std::string err = check_tile(in, in.rect().width(), in.rect().height());
+  if (!err.empty()) return err;
+  out->rect = {in.rect().x0(), in.rect().y0(), in.rect().width(), in.rect().height()};
+  le_to_floats(in.rgb(), &out->rgb);
+  le_to_floats(in.variance(), &out->variance);
+  out->rays.camera = in.rays().camera();
+  out->rays.shadow = in.rays().shadow();
+  out->rays.secondary = in.rays().secondary();
+  out->rays.nonfinite_samples = in.rays().nonfinite_samples();
+  out->seconds = in.seconds();
+  return {};
+}
+
+void to_proto(const ImageOverrides& o, tessera::v1::ImageOverrides* out) {
+  if (o.width) out->set_width(*o.width);
+  if (o.height) out->set_height(*o.height);
+  if (o.spp) out->set_spp(*o.spp);
+  if (o.max_depth) out->set_max_depth(*o.max_depth);
+  if (o.seed) out->set_seed(*o.seed);
+  if (o.sampler) out->set_sampler(sampler_name(*o.sampler));
+}
+
+ImageOverrides from_proto(const tessera::v1::ImageOverrides& o) {
+  ImageOverrides out;
+  if (o.has_width()) out.width = o.width();
+  if (o.has_height()) out.height = o.height();
+  if (o.has_spp()) out.spp = o.spp();
+  if (o.has_max_depth()) out.max_depth = o.max_depth();
+  if (o.has_seed()) out.seed = o.seed();
+  if (o.has_sampler()) {
+    out.sampler = sampler_from_name(o.sampler());
+    if (!out.sampler) {
+      throw SceneError("overrides.sampler: must be one of stratified, independent, center, got '" + o.sampler() + "'");
+    }
+  }
+  return out;
+}
+
+}  // namespace tessera::farm

@@ -1,0 +1,26 @@
+// Conversions between the renderer's plain structs and the tessera.v1 wire messages. Pixels go
+// on the wire as little-endian IEEE-754 float32 (the byte order is fixed by the protocol, not by
+// the host), so a Python or big-endian client reads them the same way.
+#pragma once
+
+#include <string>
+
+#include "render/tile.h"
+#include "scene/scene_parser.h"
+#include "tessera/v1/common.pb.h"
+
+namespace tessera::farm {
+
+void encode_tile(const TileResult& tile, tessera::v1::TileData* out);
+// Checks sizes (rgb = 3*w*h floats, variance = w*h floats) and decodes. Returns an empty string
+// on success, else what is wrong (the caller turns it into INVALID_ARGUMENT or a log line).
+std::string decode_tile(const tessera::v1::TileData& in, TileResult* out);
+// Only the size checks of decode_tile, without copying the pixels (the coordinator forwards the
+// bytes untouched).
+std::string check_tile(const tessera::v1::TileData& in, int expected_width, int expected_height);
+
+void to_proto(const ImageOverrides& o, tessera::v1::ImageOverrides* out);
+// Throws SceneError naming the field for an unknown sampler name.
+ImageOverrides from_proto(const tessera::v1::ImageOverrides& o);
+
+}  // namespace tessera::farm

@@ -1,0 +1,33 @@
+// Content-addressed storage of scene bundles under <data-dir>/bundles: <sha256>.bundle holds the
+// bytes as uploaded (what workers fetch), <sha256>/ the extracted files (what the coordinator
+// parses to validate a job). Writes are atomic (temporary file + rename), so a crash never
+// leaves a bundle that looks complete but is not.
+#pragma once
+
+#include <filesystem>
+#include <mutex>
+#include <optional>
+#include <string>
+
+namespace tessera::server {
+
+class BundleStore {
+ public:
+  explicit BundleStore(std::filesystem::path data_dir);
+
+  bool has(const std::string& sha256) const;
+  // Checks that `bytes` hash to `sha256` and form a valid bundle, then stores and extracts it.
+  // Throws farm::BundleError naming the problem. Storing a bundle twice is harmless.
+  void put(const std::string& sha256, const std::string& bytes);
+  std::optional<std::string> read(const std::string& sha256) const;
+  // The scene file of a stored bundle (extracted on demand).
+  std::filesystem::path scene_path(const std::string& sha256);
+  const std::filesystem::path& dir() const { return dir_; }
+
+ private:
+  std::filesystem::path file_of(const std::string& sha256) const { return dir_ / (sha256 + ".bundle"); }
+  std::filesystem::path dir_;
+  std::mutex mu_;  // serializes extraction of the same bundle by concurrent submits
+};
+
+}  // namespace tessera::server

@@ -1,0 +1,111 @@
+// The coordinator's shared state: the Scheduler behind one mutex, the bundle store, and the open
+// streams (worker sessions, job watchers). The gRPC services are thin adapters onto this class.
+//
+// Locking: `mu_` guards the scheduler and the stream registries. Scheduler events (the
+// SchedulerListener methods) run under `mu_` and only queue messages into outboxes; the queued
+// outboxes are pumped after `mu_` is released (see stream_outbox.h for why).
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bundle_store.h"
+#include "scheduler.h"
+#include "stream_outbox.h"
+#include "tessera/v1/client_service.pb.h"
+#include "tessera/v1/worker_service.pb.h"
+
+namespace tessera::server {
+
+// Type-erased write side of a stream, so the coordinator does not depend on the reactor types.
+template <class Msg>
+class StreamSink {
+ public:
+  virtual ~StreamSink() = default;
+  virtual void push(Msg m) = 0;
+  virtual void finish(grpc::Status s) = 0;
+  virtual void pump() = 0;
+};
+using WorkerSink = StreamSink<tessera::v1::CoordinatorMessage>;
+using WatchSink = StreamSink<tessera::v1::WatchJobEvent>;
+
+struct CoordinatorOptions {
+  SchedulerOptions scheduler;
+  std::chrono::milliseconds heartbeat_interval{1000};
+  std::chrono::milliseconds expiry_check{200};
+};
+
+class Coordinator : private SchedulerListener {
+ public:
+  Coordinator(CoordinatorOptions options, BundleStore& store);
+  ~Coordinator() override;
+  Coordinator(const Coordinator&) = delete;
+  Coordinator& operator=(const Coordinator&) = delete;
+
+  BundleStore& bundles() { return store_; }
+
+  // --- client service -----------------------------------------------------------------------
+  grpc::Status submit(const tessera::v1::SubmitJobRequest& req, tessera::v1::JobStatus* out);
+  grpc::Status get_job(const std::string& id, tessera::v1::JobStatus* out);
+  void list_jobs(tessera::v1::ListJobsResponse* out);
+  grpc::Status cancel(const std::string& id, tessera::v1::JobStatus* out);
+  grpc::Status ack_frame(const std::string& id, int frame);
+  void list_workers(tessera::v1::ListWorkersResponse* out);
+  // Queues the job's status and every unacknowledged finished tile into `sink`, then keeps it
+  // attached for new tiles until the job ends. NOT_FOUND for an unknown job.
+  grpc::Status attach_watcher(const std::string& id, std::shared_ptr<WatchSink> sink);
+  void detach_watcher(const std::shared_ptr<WatchSink>& sink);
+
+  // --- worker service -----------------------------------------------------------------------
+  WorkerId register_worker(const WorkerInfo& info, std::shared_ptr<WorkerSink> sink);
+  void worker_gone(WorkerId id, std::string_view reason);
+  void worker_message(WorkerId id, const tessera::v1::WorkerMessage& msg);
+
+  // Stops the expiry thread (before the gRPC server shuts down).
+  void stop();
+
+ private:
+  // SchedulerListener: runs under mu_.
+  void job_submitted(const JobSnapshot&) override;
+  void job_state_changed(const JobId&, JobState) override;
+  void lease_ended(const Lease&, LeaseEnd) override;
+  void tile_finished(const TileKey&, const TileOutput&, WorkerId) override;
+  void frame_finished(const JobId&, int frame) override;
+  void frame_acknowledged(const JobId&, int frame) override;
+  void worker_joined(const WorkerStats&) override;
+  void worker_left(const WorkerStats&, std::string_view reason) override;
+
+  // Runs `f` under mu_, then pumps every outbox it touched.
+  template <class F>
+  auto locked(F&& f);
+  void dispatch_locked();
+  void tile_result_locked(WorkerId id, const tessera::v1::TileResult& r);
+  void status_proto(const JobSnapshot& s, tessera::v1::JobStatus* out) const;
+  void expiry_loop();
+
+  CoordinatorOptions options_;
+  BundleStore& store_;
+  std::mutex mu_;
+  Scheduler scheduler_;
+  std::map<WorkerId, std::shared_ptr<WorkerSink>> workers_;
+  std::multimap<JobId, std::shared_ptr<WatchSink>> watchers_;
+  std::set<std::string> isas_;  // Embree ISAs seen: bit-identity needs the same kernels
+  std::vector<std::shared_ptr<WorkerSink>> touched_workers_;
+  std::vector<std::shared_ptr<WatchSink>> touched_watchers_;
+
+  std::mutex stop_mu_;
+  std::condition_variable stop_cv_;
+  bool stopping_ = false;
+  std::thread expiry_;
+};
+
+}  // namespace tessera::server

@@ -1,0 +1,403 @@
+#include "scheduler.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <random>
+
+namespace tessera::server {
+
+const char* job_state_name(JobState s) {
+  switch (s) {
+    case JobState::kQueued: return "queued";
+    case JobState::kRunning: return "running";
+    case JobState::kDone: return "done";
+    case JobState::kCancelled: return "cancelled";
+  }
+  return "?";
+}
+
+const char* lease_end_name(LeaseEnd e) {
+  switch (e) {
+    case LeaseEnd::kCompleted: return "completed";
+    case LeaseEnd::kLostRace: return "lost the race to another copy";
+    case LeaseEnd::kCancelled: return "job cancelled";
+    case LeaseEnd::kExpired: return "expired";
+    case LeaseEnd::kReturned: return "returned";
+    case LeaseEnd::kWorkerLeft: return "worker left";
+  }
+  return "?";
+}
+
+namespace {
+JobId random_job_id() {
+  // 48 random bits: short enough to type, long enough that ids of a restarted coordinator do
+  // not collide with ones a stale client still holds.
+  static thread_local std::mt19937_64 rng{std::random_device{}()};
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "%012llx", static_cast<unsigned long long>(rng() & 0xffffffffffffULL));
+  return buf;
+}
+}  // namespace
+
+Scheduler::Scheduler(SchedulerOptions options, NowFn now, IdFn make_id)
+    : options_(options), now_(std::move(now)), make_id_(make_id ? std::move(make_id) : IdFn(random_job_id)) {}
+
+Scheduler::Job* Scheduler::find_job(const JobId& id) {
+  auto it = jobs_.find(id);
+  return it == jobs_.end() ? nullptr : &it->second;
+}
+const Scheduler::Job* Scheduler::find_job(const JobId& id) const {
+  auto it = jobs_.find(id);
+  return it == jobs_.end() ? nullptr : &it->second;
+}
+
+Rect Scheduler::rect_of(const Job& job, int tile) const {
+  const int ts = job.spec.tile_size;
+  Rect r;
+  r.x0 = (tile % job.tiles_x) * ts;
+  r.y0 = (tile / job.tiles_x) * ts;
+  r.width = std::min(ts, job.spec.width - r.x0);
+  r.height = std::min(ts, job.spec.height - r.y0);
+  return r;
+}
+
+JobId Scheduler::submit(const JobSpec& spec) {
+  JobId id = make_id_();
+  while (jobs_.count(id)) id = make_id_();
+  Job& job = jobs_[id];
+  job.id = id;
+  job.spec = spec;
+  job.spec.tile_size = std::max(1, spec.tile_size);
+  job.seq = next_seq_++;
+  job.submitted = now_();
+  job.tiles_x = (spec.width + job.spec.tile_size - 1) / job.spec.tile_size;
+  job.tiles_y = (spec.height + job.spec.tile_size - 1) / job.spec.tile_size;
+  const int frames = spec.last_frame - spec.first_frame + 1;
+  const int per_frame = job.tiles_x * job.tiles_y;
+  job.frames.resize(size_t(std::max(0, frames)));
+  for (int f = 0; f < frames; ++f) {
+    job.frames[size_t(f)].tiles.resize(size_t(per_frame));
+    for (int t = 0; t < per_frame; ++t) job.queue.emplace_back(f, t);
+  }
+  job_order_.push_back(id);
+  update_runnable(job);
+  events().job_submitted(snapshot(job));
+  if (job.queue.empty()) set_state(job, JobState::kDone);  // degenerate: nothing to render
+  return id;
+}
+
+void Scheduler::set_state(Job& job, JobState s) {
+  if (job.state == s) return;
+  job.state = s;
+  if (s == JobState::kDone || s == JobState::kCancelled) job.ended = now_();
+  events().job_state_changed(job.id, s);
+}
+
+void Scheduler::update_runnable(Job& job) {
+  const bool runnable = !job.queue.empty() && (job.state == JobState::kQueued || job.state == JobState::kRunning);
+  if (runnable) {
+    runnable_.insert(queue_key(job));
+  } else {
+    runnable_.erase(queue_key(job));
+  }
+}
+
+Scheduler::CancelResult Scheduler::cancel(const JobId& id) {
+  Job* job = find_job(id);
+  if (!job) return CancelResult::kUnknownJob;
+  if (job->state == JobState::kDone || job->state == JobState::kCancelled) return CancelResult::kAlreadyEnded;
+  job->queue.clear();
+  update_runnable(*job);
+  // Revoke every active lease of the job: results that still arrive are stale and ignored.
+  std::vector<LeaseId> active;
+  for (const auto& [lid, lease] : leases_) {
+    if (lease.tile.job == id) active.push_back(lid);
+  }
+  for (LeaseId lid : active) end_lease(lid, LeaseEnd::kCancelled, false);
+  set_state(*job, JobState::kCancelled);
+  return CancelResult::kCancelled;
+}
+
+Scheduler::AckResult Scheduler::acknowledge_frame(const JobId& id, int frame) {
+  Job* job = find_job(id);
+  if (!job) return AckResult::kUnknownJob;
+  const int fi = frame - job->spec.first_frame;
+  if (fi < 0 || fi >= int(job->frames.size())) return AckResult::kUnknownFrame;
+  Frame& fr = job->frames[size_t(fi)];
+  if (fr.done != int(fr.tiles.size())) return AckResult::kNotFinished;
+  if (!fr.acknowledged) {
+    fr.acknowledged = true;
+    for (Tile& t : fr.tiles) t.output = {};  // the client has them: free the pixels
+    events().frame_acknowledged(id, frame);
+  }
+  return AckResult::kAcknowledged;
+}
+
+WorkerId Scheduler::add_worker(const WorkerInfo& info) {
+  const WorkerId id = next_worker_++;
+  Worker& w = workers_[id];
+  w.stats.id = id;
+  w.stats.info = info;
+  w.stats.connected = w.stats.last_seen = now_();
+  events().worker_joined(w.stats);
+  return id;
+}
+
+void Scheduler::remove_worker(WorkerId id, std::string_view reason) {
+  auto it = workers_.find(id);
+  if (it == workers_.end()) return;
+  const std::vector<LeaseId> leases(it->second.leases.begin(), it->second.leases.end());
+  WorkerStats stats = it->second.stats;  // in_flight: the leases it held when it left
+  wanting_.erase(id);
+  for (LeaseId lid : leases) end_lease(lid, LeaseEnd::kWorkerLeft, true);
+  workers_.erase(it);
+  events().worker_left(stats, reason);
+}
+
+void Scheduler::heartbeat(WorkerId id) {
+  auto it = workers_.find(id);
+  if (it == workers_.end()) return;
+  const TimePoint now = now_();
+  it->second.stats.last_seen = now;
+  for (LeaseId lid : it->second.leases) leases_[lid].deadline = now + options_.lease_timeout;
+}
+
+void Scheduler::request_tiles(WorkerId id, int count) {
+  auto it = workers_.find(id);
+  if (it == workers_.end() || count <= 0) return;
+  int& wanted = it->second.stats.wanted;
+  wanted = std::min(options_.max_wanted_per_worker, wanted + count);
+  wanting_.insert(id);
+}
+
+std::vector<Assignment> Scheduler::dispatch() {
+  std::vector<Assignment> out;
+  bool progress = true;
+  while (progress && !wanting_.empty()) {
+    progress = false;
+    const std::vector<WorkerId> ids(wanting_.begin(), wanting_.end());
+    for (WorkerId id : ids) {
+      Worker& w = workers_.at(id);
+      std::optional<Assignment> a = next_for(w);
+      if (!a && options_.speculate) a = speculate_for(w);
+      if (!a) continue;
+      if (--w.stats.wanted <= 0) wanting_.erase(id);
+      out.push_back(std::move(*a));
+      progress = true;
+    }
+  }
+  return out;
+}
+
+std::optional<Assignment> Scheduler::next_for(Worker& w) {
+  if (runnable_.empty()) return std::nullopt;
+  Job& job = *find_job(std::get<2>(*runnable_.begin()));
+  const auto [fi, t] = job.queue.front();
+  job.queue.pop_front();
+  update_runnable(job);
+  return issue(w, job, fi, t, false);
+}
+
+std::optional<Assignment> Scheduler::speculate_for(Worker& w) {
+  // The oldest lease whose tile has a single copy in flight, held by someone else: if its
+  // worker is slow or dying, the second copy finishes the job sooner.
+  for (const auto& [lid, lease] : leases_) {
+    if (lease.worker == w.stats.id) continue;
+    Job& job = *find_job(lease.tile.job);
+    if (job.state != JobState::kRunning) continue;
+    const int fi = lease.tile.frame - job.spec.first_frame;
+    Tile& tile = job.frames[size_t(fi)].tiles[size_t(lease.tile.tile)];
+    if (tile.state != TileState::kLeased || tile.leases.size() != 1) continue;
+    return issue(w, job, fi, lease.tile.tile, true);
+  }
+  return std::nullopt;
+}
+
+Assignment Scheduler::issue(Worker& w, Job& job, int fi, int t, bool speculative) {
+  Tile& tile = job.frames[size_t(fi)].tiles[size_t(t)];
+  const TimePoint now = now_();
+  Assignment a;
+  a.lease.id = next_lease_++;
+  a.lease.worker = w.stats.id;
+  a.lease.tile = {job.id, job.spec.first_frame + fi, t};
+  a.lease.issued = now;
+  a.lease.deadline = now + options_.lease_timeout;
+  a.lease.speculative = speculative;
+  a.rect = rect_of(job, t);
+  a.bundle_sha256 = job.spec.bundle_sha256;
+  a.overrides = job.spec.overrides;
+  tile.state = TileState::kLeased;
+  tile.leases.push_back(a.lease.id);
+  leases_[a.lease.id] = a.lease;
+  w.leases.insert(a.lease.id);
+  w.stats.in_flight = int(w.leases.size());
+  if (job.state == JobState::kQueued) set_state(job, JobState::kRunning);
+  events().tile_leased(a);
+  return a;
+}
+
+void Scheduler::end_lease(LeaseId id, LeaseEnd why, bool requeue) {
+  auto it = leases_.find(id);
+  if (it == leases_.end()) return;
+  const Lease lease = it->second;
+  leases_.erase(it);
+  if (auto wit = workers_.find(lease.worker); wit != workers_.end()) {
+    wit->second.leases.erase(id);
+    wit->second.stats.in_flight = int(wit->second.leases.size());
+  }
+  Job& job = *find_job(lease.tile.job);
+  const int fi = lease.tile.frame - job.spec.first_frame;
+  Tile& tile = job.frames[size_t(fi)].tiles[size_t(lease.tile.tile)];
+  std::erase(tile.leases, id);
+  events().lease_ended(lease, why);
+  const bool live = job.state == JobState::kQueued || job.state == JobState::kRunning;
+  if (requeue && live && tile.state == TileState::kLeased && tile.leases.empty()) {
+    tile.state = TileState::kQueued;
+    job.queue.emplace_front(fi, lease.tile.tile);  // oldest work first
+    update_runnable(job);
+  }
+}
+
+Scheduler::ResultOutcome Scheduler::complete(WorkerId worker, LeaseId lease_id, TileOutput output) {
+  auto it = leases_.find(lease_id);
+  if (it == leases_.end() || it->second.worker != worker) {
+    // Revoked, expired or foreign. If the tile is done anyway, count the wasted render.
+    return ResultOutcome::kStaleLease;
+  }
+  const Lease lease = it->second;
+  Job& job = *find_job(lease.tile.job);
+  const int fi = lease.tile.frame - job.spec.first_frame;
+  Frame& frame = job.frames[size_t(fi)];
+  Tile& tile = frame.tiles[size_t(lease.tile.tile)];
+  if (auto wit = workers_.find(worker); wit != workers_.end()) {
+    wit->second.stats.rays += output.rays;
+    wit->second.stats.seconds += output.seconds;
+  }
+  if (tile.state == TileState::kDone) {
+    ++job.duplicates;
+    end_lease(lease_id, LeaseEnd::kLostRace, false);
+    return ResultOutcome::kDuplicate;
+  }
+  if (auto wit = workers_.find(worker); wit != workers_.end()) ++wit->second.stats.tiles_done;
+  tile.state = TileState::kDone;
+  tile.output = std::move(output);
+  ++frame.done;
+  ++job.tiles_done;
+  job.rays += tile.output.rays;
+  end_lease(lease_id, LeaseEnd::kCompleted, false);
+  // First copy wins: the other copy's worker should stop wasting time on it.
+  const std::vector<LeaseId> others = tile.leases;
+  for (LeaseId other : others) end_lease(other, LeaseEnd::kLostRace, false);
+  events().tile_finished(lease.tile, tile.output, worker);
+  if (frame.done == int(frame.tiles.size())) events().frame_finished(job.id, lease.tile.frame);
+  if (job.tiles_done == int64_t(job.frames.size()) * int64_t(job.tiles_x * job.tiles_y)) {
+    set_state(job, JobState::kDone);
+  }
+  return ResultOutcome::kAccepted;
+}
+
+void Scheduler::return_leases(WorkerId worker, const std::vector<LeaseId>& leases) {
+  for (LeaseId lid : leases) {
+    auto it = leases_.find(lid);
+    if (it != leases_.end() && it->second.worker == worker) end_lease(lid, LeaseEnd::kReturned, true);
+  }
+}
+
+std::vector<WorkerId> Scheduler::expire() {
+  const TimePoint now = now_();
+  std::vector<WorkerId> silent;
+  for (const auto& [id, w] : workers_) {
+    if (now - w.stats.last_seen > options_.lease_timeout) silent.push_back(id);
+  }
+  for (WorkerId id : silent) remove_worker(id, "missed heartbeats");
+  std::vector<LeaseId> expired;
+  for (const auto& [lid, lease] : leases_) {
+    if (lease.deadline < now) expired.push_back(lid);
+  }
+  for (LeaseId lid : expired) end_lease(lid, LeaseEnd::kExpired, true);
+  return silent;
+}
+
+JobSnapshot Scheduler::snapshot(const Job& job) const {
+  JobSnapshot s;
+  s.id = job.id;
+  s.spec = job.spec;
+  s.state = job.state;
+  s.tiles_per_frame = job.tiles_x * job.tiles_y;
+  s.tiles_total = int64_t(job.frames.size()) * s.tiles_per_frame;
+  s.tiles_done = job.tiles_done;
+  s.duplicates_discarded = job.duplicates;
+  s.rays = job.rays;
+  s.submitted = job.submitted;
+  s.ended = job.ended;
+  for (size_t f = 0; f < job.frames.size(); ++f) {
+    const Frame& fr = job.frames[f];
+    for (const Tile& t : fr.tiles) s.tiles_leased += t.state == TileState::kLeased;
+    if (fr.done == int(fr.tiles.size())) s.frames_done.push_back(job.spec.first_frame + int(f));
+    if (fr.acknowledged) s.frames_acknowledged.push_back(job.spec.first_frame + int(f));
+  }
+  return s;
+}
+
+std::optional<JobSnapshot> Scheduler::job(const JobId& id) const {
+  const Job* j = find_job(id);
+  if (!j) return std::nullopt;
+  return snapshot(*j);
+}
+
+std::vector<JobSnapshot> Scheduler::jobs() const {
+  std::vector<JobSnapshot> out;
+  for (const JobId& id : job_order_) out.push_back(snapshot(*find_job(id)));
+  return out;
+}
+
+std::vector<WorkerStats> Scheduler::workers() const {
+  std::vector<WorkerStats> out;
+  for (const auto& [id, w] : workers_) out.push_back(w.stats);
+  return out;
+}
+
+std::optional<WorkerStats> Scheduler::worker(WorkerId id) const {
+  auto it = workers_.find(id);
+  if (it == workers_.end()) return std::nullopt;
+  return it->second.stats;
+}
+
+std::optional<Lease> Scheduler::lease(LeaseId id) const {
+  auto it = leases_.find(id);
+  if (it == leases_.end()) return std::nullopt;
+  return it->second;
+}
+
+std::vector<std::pair<TileKey, TileOutput>> Scheduler::finished_tiles(const JobId& id) const {
+  std::vector<std::pair<TileKey, TileOutput>> out;
+  const Job* job = find_job(id);
+  if (!job) return out;
+  for (size_t f = 0; f < job->frames.size(); ++f) {
+    const Frame& fr = job->frames[f];
+    if (fr.acknowledged) continue;
+    for (size_t t = 0; t < fr.tiles.size(); ++t) {
+      if (fr.tiles[t].state != TileState::kDone) continue;
+      out.push_back({TileKey{id, job->spec.first_frame + int(f), int(t)}, fr.tiles[t].output});
+    }
+  }
+  return out;
+}
+
+std::optional<Rect> Scheduler::tile_rect(const JobId& id, int frame, int tile) const {
+  const Job* job = find_job(id);
+  if (!job) return std::nullopt;
+  const int fi = frame - job->spec.first_frame;
+  if (fi < 0 || fi >= int(job->frames.size()) || tile < 0 || tile >= job->tiles_x * job->tiles_y) {
+    return std::nullopt;
+  }
+  return rect_of(*job, tile);
+}
+
+size_t Scheduler::queued_tiles() const {
+  size_t n = 0;
+  for (const auto& key : runnable_) n += find_job(std::get<2>(key))->queue.size();
+  return n;
+}
+
+}  // namespace tessera::server

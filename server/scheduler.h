@@ -1,0 +1,268 @@
+// The farm's bookkeeping: jobs -> frames -> tiles, the priority queue of tiles waiting for a
+// worker, leases on the tiles being rendered, speculative duplicates, and the finished tiles a
+// client has not yet acknowledged. Plain C++: no gRPC, no Embree, no threads, no I/O. The
+// caller serializes access (the coordinator holds one mutex around every call) and supplies the
+// time, so tests drive it deterministically.
+//
+// Every state change goes through the few mutating methods below and is reported, in order, to
+// a SchedulerListener: the coordinator uses it to log and to wake streams; a persistent journal
+// (SQLite, issue 8) can write the same events down and replay them on restart.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <string_view>
+#include <tuple>
+#include <vector>
+
+namespace tessera::server {
+
+using Clock = std::chrono::steady_clock;
+using TimePoint = Clock::time_point;
+using JobId = std::string;
+using WorkerId = uint64_t;
+using LeaseId = uint64_t;
+
+struct Rect {
+  int x0 = 0, y0 = 0, width = 0, height = 0;
+  bool operator==(const Rect&) const = default;
+};
+
+// What the coordinator decided at submit time (after validating the scene).
+struct JobSpec {
+  std::string name;
+  std::string bundle_sha256;
+  std::string overrides;   // opaque to the scheduler (the service stores serialized overrides)
+  int first_frame = 0;
+  int last_frame = 0;      // inclusive
+  int width = 0, height = 0, spp = 0;
+  int tile_size = 32;
+  int priority = 0;        // higher first; ties in submit order
+};
+
+enum class JobState { kQueued, kRunning, kDone, kCancelled };
+const char* job_state_name(JobState s);
+
+// A finished tile as the scheduler keeps it: the encoded result (opaque bytes, shared so that
+// any number of watch streams can send it without copies) and the statistics it reports.
+struct TileOutput {
+  std::shared_ptr<const std::string> payload;
+  uint64_t rays = 0;
+  double seconds = 0;
+};
+
+struct TileKey {
+  JobId job;
+  int frame = 0;  // absolute frame number
+  int tile = 0;   // row-major index within the frame
+};
+
+struct Lease {
+  LeaseId id = 0;
+  WorkerId worker = 0;
+  TileKey tile;
+  TimePoint issued;
+  TimePoint deadline;
+  bool speculative = false;  // a second copy of a tile already leased to another worker
+};
+
+// A tile handed to a worker: the lease plus everything the worker needs to render it.
+struct Assignment {
+  Lease lease;
+  Rect rect;
+  std::string bundle_sha256;
+  std::string overrides;
+};
+
+enum class LeaseEnd {
+  kCompleted,      // its result was accepted
+  kLostRace,       // another copy of the tile finished first: the worker should drop it
+  kCancelled,      // the job was cancelled: the worker should drop it
+  kExpired,        // deadline passed without renewal
+  kReturned,       // the worker gave it back unrendered
+  kWorkerLeft,     // the worker disconnected or was dropped
+};
+const char* lease_end_name(LeaseEnd e);
+
+struct WorkerInfo {
+  std::string name;
+  std::string peer;
+  int threads = 1;
+  std::string embree_isa;
+};
+
+struct WorkerStats {
+  WorkerId id = 0;
+  WorkerInfo info;
+  TimePoint connected;
+  TimePoint last_seen;
+  int wanted = 0;          // tiles requested and not yet assigned
+  int in_flight = 0;       // active leases
+  int64_t tiles_done = 0;  // accepted results
+  uint64_t rays = 0;
+  double seconds = 0;
+};
+
+struct JobSnapshot {
+  JobId id;
+  JobSpec spec;
+  JobState state = JobState::kQueued;
+  int tiles_per_frame = 0;
+  int64_t tiles_total = 0;
+  int64_t tiles_done = 0;
+  int64_t tiles_leased = 0;        // tiles with at least one active lease
+  int64_t duplicates_discarded = 0;
+  uint64_t rays = 0;
+  TimePoint submitted;
+  std::optional<TimePoint> ended;  // done or cancelled
+  std::vector<int> frames_done;
+  std::vector<int> frames_acknowledged;
+};
+
+class SchedulerListener {
+ public:
+  virtual ~SchedulerListener() = default;
+  virtual void job_submitted(const JobSnapshot&) {}
+  virtual void job_state_changed(const JobId&, JobState) {}
+  virtual void tile_leased(const Assignment&) {}
+  virtual void lease_ended(const Lease&, LeaseEnd) {}
+  virtual void tile_finished(const TileKey&, const TileOutput&, WorkerId) {}
+  virtual void frame_finished(const JobId&, int frame) {}
+  virtual void frame_acknowledged(const JobId&, int frame) {}
+  virtual void worker_joined(const WorkerStats&) {}
+  virtual void worker_left(const WorkerStats&, std::string_view reason) {}
+};
+
+struct SchedulerOptions {
+  // A worker silent for longer than this loses its leases (heartbeats renew them).
+  std::chrono::milliseconds lease_timeout{15000};
+  // When nothing is queued, idle workers take a second copy of the oldest in-flight tiles.
+  bool speculate = true;
+  int max_wanted_per_worker = 1024;  // caps a worker's standing request
+};
+
+class Scheduler {
+ public:
+  using NowFn = std::function<TimePoint()>;
+  using IdFn = std::function<JobId()>;
+
+  // `now` is the clock (tests inject a fake one); `make_id` names jobs (default: random hex).
+  explicit Scheduler(SchedulerOptions options = {}, NowFn now = Clock::now, IdFn make_id = {});
+
+  void set_listener(SchedulerListener* listener) { listener_ = listener; }
+  const SchedulerOptions& options() const { return options_; }
+
+  // --- jobs -------------------------------------------------------------------------------
+  JobId submit(const JobSpec& spec);
+  enum class CancelResult { kCancelled, kAlreadyEnded, kUnknownJob };
+  CancelResult cancel(const JobId& id);
+  // A client has every tile of the frame: release them. Only finished frames can be acked.
+  enum class AckResult { kAcknowledged, kNotFinished, kUnknownFrame, kUnknownJob };
+  AckResult acknowledge_frame(const JobId& id, int frame);
+
+  // --- workers ----------------------------------------------------------------------------
+  WorkerId add_worker(const WorkerInfo& info);
+  // Drops the worker; its leases go back to the queue. No-op for an unknown id.
+  void remove_worker(WorkerId id, std::string_view reason);
+  // Any sign of life: renews the worker's leases.
+  void heartbeat(WorkerId id);
+  // Pull: the worker can take `count` more tiles. Assignments come from dispatch().
+  void request_tiles(WorkerId id, int count);
+  // Hands out tiles to every worker with a standing request, one tile per worker per round so
+  // that a worker asking for many cannot starve the others of the last tiles.
+  std::vector<Assignment> dispatch();
+  enum class ResultOutcome {
+    kAccepted,
+    kDuplicate,     // another copy of the tile already finished (first copy wins)
+    kStaleLease,    // the lease was revoked, expired, or is not this worker's
+  };
+  ResultOutcome complete(WorkerId worker, LeaseId lease, TileOutput output);
+  // The worker gives leases back unrendered (shutdown): requeued at the front.
+  void return_leases(WorkerId worker, const std::vector<LeaseId>& leases);
+  // Drops workers silent for longer than the lease timeout and requeues expired leases.
+  // Returns the workers dropped (the coordinator ends their streams).
+  std::vector<WorkerId> expire();
+
+  // --- queries ----------------------------------------------------------------------------
+  std::optional<JobSnapshot> job(const JobId& id) const;
+  std::vector<JobSnapshot> jobs() const;  // in submit order
+  std::vector<WorkerStats> workers() const;
+  std::optional<WorkerStats> worker(WorkerId id) const;
+  std::optional<Lease> lease(LeaseId id) const;
+  // Every finished, unacknowledged tile of the job, by frame then tile (for a client attaching).
+  std::vector<std::pair<TileKey, TileOutput>> finished_tiles(const JobId& id) const;
+  std::optional<Rect> tile_rect(const JobId& id, int frame, int tile) const;
+  size_t queued_tiles() const;
+
+ private:
+  enum class TileState { kQueued, kLeased, kDone };
+  struct Tile {
+    TileState state = TileState::kQueued;
+    std::vector<LeaseId> leases;  // active leases (at most 2: the original and a speculative copy)
+    TileOutput output;            // when done and not yet acknowledged
+  };
+  struct Frame {
+    std::vector<Tile> tiles;
+    int done = 0;
+    bool acknowledged = false;
+  };
+  struct Job {
+    JobId id;
+    JobSpec spec;
+    uint64_t seq = 0;
+    JobState state = JobState::kQueued;
+    int tiles_x = 0, tiles_y = 0;
+    std::vector<Frame> frames;
+    std::deque<std::pair<int, int>> queue;  // (frame index, tile) waiting for a worker
+    int64_t tiles_done = 0;
+    int64_t duplicates = 0;
+    uint64_t rays = 0;
+    TimePoint submitted;
+    std::optional<TimePoint> ended;
+  };
+  struct Worker {
+    WorkerStats stats;
+    std::set<LeaseId> leases;
+  };
+  // Runnable jobs in dispatch order: (-priority, submit sequence, id).
+  using QueueKey = std::tuple<int, uint64_t, JobId>;
+
+  Job* find_job(const JobId& id);
+  const Job* find_job(const JobId& id) const;
+  static QueueKey queue_key(const Job& j) { return {-j.spec.priority, j.seq, j.id}; }
+  void update_runnable(Job& job);
+  std::optional<Assignment> next_for(Worker& w);
+  std::optional<Assignment> speculate_for(Worker& w);
+  Assignment issue(Worker& w, Job& job, int frame_index, int tile, bool speculative);
+  // Ends a lease; requeues its tile (at the front) when `requeue` and no other copy is active.
+  void end_lease(LeaseId id, LeaseEnd why, bool requeue);
+  void set_state(Job& job, JobState s);
+  JobSnapshot snapshot(const Job& job) const;
+  Rect rect_of(const Job& job, int tile) const;
+
+  SchedulerOptions options_;
+  NowFn now_;
+  IdFn make_id_;
+  SchedulerListener* listener_ = nullptr;
+  SchedulerListener null_listener_;
+  SchedulerListener& events() { return listener_ ? *listener_ : null_listener_; }
+
+  std::map<JobId, Job> jobs_;
+  std::vector<JobId> job_order_;      // submit order
+  std::set<QueueKey> runnable_;       // jobs with queued tiles
+  std::map<WorkerId, Worker> workers_;
+  std::set<WorkerId> wanting_;        // workers with a standing request: dispatch() looks only here
+  std::map<LeaseId, Lease> leases_;   // ids grow with time: begin() is the oldest lease
+  uint64_t next_seq_ = 1;
+  WorkerId next_worker_ = 1;
+  LeaseId next_lease_ = 1;
+};
+
+}  // namespace tessera::server

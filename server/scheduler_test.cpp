@@ -1,0 +1,260 @@
+// Scheduler unit tests: deterministic time through an injected clock, no network.
+#include "scheduler.h"
+
+#include <gtest/gtest.h>
+
+#include <set>
+
+namespace tessera::server {
+namespace {
+
+using namespace std::chrono_literals;
+
+struct Recorder : SchedulerListener {
+  std::vector<std::string> log;
+  std::vector<std::pair<Lease, LeaseEnd>> ended;
+  std::vector<TileKey> finished;
+  std::vector<int> frames;
+  void job_state_changed(const JobId& id, JobState s) override { log.push_back(id + ":" + job_state_name(s)); }
+  void lease_ended(const Lease& l, LeaseEnd e) override { ended.emplace_back(l, e); }
+  void tile_finished(const TileKey& k, const TileOutput&, WorkerId) override { finished.push_back(k); }
+  void frame_finished(const JobId&, int frame) override { frames.push_back(frame); }
+};
+
+class SchedulerTest : public ::testing::Test {
+ protected:
+  TimePoint now{};
+  int next_id = 0;
+  SchedulerOptions opts() {
+    SchedulerOptions o;
+    o.lease_timeout = 10s;
+    return o;
+  }
+  Scheduler s{opts(), [this] { return now; }, [this] { return "job" + std::to_string(++next_id); }};
+  Recorder rec;
+  void SetUp() override { s.set_listener(&rec); }
+
+  JobSpec spec(int w, int h, int tile, int frames = 1, int priority = 0) {
+    JobSpec j;
+    j.name = "test";
+    j.bundle_sha256 = "abc";
+    j.width = w;
+    j.height = h;
+    j.tile_size = tile;
+    j.first_frame = 0;
+    j.last_frame = frames - 1;
+    j.priority = priority;
+    return j;
+  }
+  WorkerId worker(const std::string& name) { return s.add_worker({name, "", 1, "AVX2"}); }
+  static TileOutput out(uint64_t rays = 10) {
+    return {std::make_shared<const std::string>("pixels"), rays, 0.5};
+  }
+  std::vector<Assignment> pull(WorkerId w, int n) {
+    s.request_tiles(w, n);
+    return s.dispatch();
+  }
+};
+
+TEST_F(SchedulerTest, SplitsFramesIntoTilesWithEdgeTiles) {
+  const JobId id = s.submit(spec(40, 20, 16, 2));
+  auto j = s.job(id);
+  ASSERT_TRUE(j);
+  EXPECT_EQ(j->tiles_per_frame, 3 * 2);
+  EXPECT_EQ(j->tiles_total, 12);
+  EXPECT_EQ(j->state, JobState::kQueued);
+  EXPECT_EQ(*s.tile_rect(id, 0, 2), (Rect{32, 0, 8, 16}));
+  EXPECT_EQ(*s.tile_rect(id, 1, 5), (Rect{32, 16, 8, 4}));
+  EXPECT_FALSE(s.tile_rect(id, 2, 0));
+}
+
+TEST_F(SchedulerTest, PullAssignsInOrderAndCompletesJob) {
+  const JobId id = s.submit(spec(32, 16, 16, 2));
+  const WorkerId w = worker("a");
+  auto as = pull(w, 10);
+  ASSERT_EQ(as.size(), 4u);
+  EXPECT_EQ(as[0].lease.tile.frame, 0);
+  EXPECT_EQ(as[0].lease.tile.tile, 0);
+  EXPECT_EQ(as[3].lease.tile.frame, 1);
+  EXPECT_EQ(s.job(id)->state, JobState::kRunning);
+  for (const auto& a : as) EXPECT_EQ(s.complete(w, a.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  auto j = s.job(id);
+  EXPECT_EQ(j->state, JobState::kDone);
+  EXPECT_EQ(j->tiles_done, 4);
+  EXPECT_EQ(j->rays, 40u);
+  EXPECT_EQ(rec.frames, (std::vector<int>{0, 1}));
+  EXPECT_EQ(s.worker(w)->tiles_done, 4);
+  // The standing request for 6 more tiles is still there but there is nothing to do.
+  EXPECT_TRUE(s.dispatch().empty());
+}
+
+TEST_F(SchedulerTest, FastWorkersGetMoreBecauseTheyPull) {
+  s.submit(spec(64, 64, 16));  // 16 tiles
+  const WorkerId fast = worker("fast"), slow = worker("slow");
+  s.request_tiles(slow, 1);
+  auto slow_tiles = s.dispatch();
+  ASSERT_EQ(slow_tiles.size(), 1u);
+  int fast_done = 0;
+  while (true) {
+    auto a = pull(fast, 1);
+    if (a.empty() || a[0].lease.speculative) break;
+    s.complete(fast, a[0].lease.id, out());
+    ++fast_done;
+  }
+  EXPECT_EQ(fast_done, 15);
+}
+
+TEST_F(SchedulerTest, HigherPriorityFirstThenSubmitOrder) {
+  const JobId low = s.submit(spec(16, 16, 16, 1, 0));
+  const JobId low2 = s.submit(spec(16, 16, 16, 1, 0));
+  const JobId high = s.submit(spec(16, 16, 16, 1, 5));
+  const WorkerId w = worker("a");
+  auto as = pull(w, 3);
+  ASSERT_EQ(as.size(), 3u);
+  EXPECT_EQ(as[0].lease.tile.job, high);
+  EXPECT_EQ(as[1].lease.tile.job, low);
+  EXPECT_EQ(as[2].lease.tile.job, low2);
+}
+
+TEST_F(SchedulerTest, WorkerLeavingRequeuesItsTilesAtTheFront) {
+  const JobId id = s.submit(spec(48, 16, 16));  // 3 tiles
+  const WorkerId a = worker("a");
+  auto got = pull(a, 2);
+  ASSERT_EQ(got.size(), 2u);
+  s.remove_worker(a, "disconnected");
+  EXPECT_EQ(s.queued_tiles(), 3u);
+  const WorkerId b = worker("b");
+  auto again = pull(b, 3);
+  ASSERT_EQ(again.size(), 3u);
+  std::set<int> tiles;
+  for (auto& x : again) tiles.insert(x.lease.tile.tile);
+  EXPECT_EQ(tiles, (std::set<int>{0, 1, 2}));
+  // A late result of the dead worker's lease is ignored.
+  EXPECT_EQ(s.complete(a, got[0].lease.id, out()), Scheduler::ResultOutcome::kStaleLease);
+  for (auto& x : again) s.complete(b, x.lease.id, out());
+  EXPECT_EQ(s.job(id)->state, JobState::kDone);
+  EXPECT_EQ(s.job(id)->tiles_done, 3);
+}
+
+TEST_F(SchedulerTest, MissedHeartbeatsExpireTheWorker) {
+  s.submit(spec(16, 16, 16));
+  const WorkerId a = worker("a"), b = worker("b");
+  auto got = pull(a, 1);
+  ASSERT_EQ(got.size(), 1u);
+  now += 6s;
+  s.heartbeat(a);
+  s.heartbeat(b);
+  now += 6s;  // a renewed at 6 s: alive until 16 s
+  EXPECT_TRUE(s.expire().empty());
+  now += 5s;
+  s.heartbeat(b);
+  auto dropped = s.expire();
+  EXPECT_EQ(dropped, (std::vector<WorkerId>{a}));
+  EXPECT_FALSE(s.worker(a));
+  auto re = pull(b, 1);
+  ASSERT_EQ(re.size(), 1u);
+  EXPECT_EQ(re[0].lease.tile.tile, 0);
+  EXPECT_FALSE(re[0].lease.speculative);
+}
+
+TEST_F(SchedulerTest, IdleWorkerDuplicatesOldestInFlightTileFirstCopyWins) {
+  const JobId id = s.submit(spec(32, 16, 16));  // 2 tiles
+  const WorkerId a = worker("a"), b = worker("b");
+  auto ta = pull(a, 2);
+  ASSERT_EQ(ta.size(), 2u);
+  auto tb = pull(b, 1);
+  ASSERT_EQ(tb.size(), 1u);
+  EXPECT_TRUE(tb[0].lease.speculative);
+  EXPECT_EQ(tb[0].lease.tile.tile, 0);  // the oldest
+  // Never a third copy, never a copy of its own tile.
+  EXPECT_EQ(pull(b, 1).size(), 1u);  // tile 1's copy
+  EXPECT_TRUE(pull(b, 1).empty());
+  EXPECT_TRUE(pull(a, 1).empty());
+  // b finishes tile 0 first: a's copy is revoked, its late result is stale.
+  EXPECT_EQ(s.complete(b, tb[0].lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  bool revoked = false;
+  for (auto& [l, why] : rec.ended) revoked |= l.id == ta[0].lease.id && why == LeaseEnd::kLostRace;
+  EXPECT_TRUE(revoked);
+  EXPECT_EQ(s.complete(a, ta[0].lease.id, out()), Scheduler::ResultOutcome::kStaleLease);
+  EXPECT_EQ(s.job(id)->tiles_done, 1);
+  EXPECT_EQ(rec.finished.size(), 1u);
+}
+
+TEST_F(SchedulerTest, NoSpeculationWhenDisabled) {
+  SchedulerOptions o = opts();
+  o.speculate = false;
+  Scheduler t(o, [this] { return now; });
+  t.submit(spec(16, 16, 16));
+  const WorkerId a = t.add_worker({"a", "", 1, ""}), b = t.add_worker({"b", "", 1, ""});
+  t.request_tiles(a, 1);
+  EXPECT_EQ(t.dispatch().size(), 1u);
+  t.request_tiles(b, 1);
+  EXPECT_TRUE(t.dispatch().empty());
+}
+
+TEST_F(SchedulerTest, CancelStopsHandingOutAndRevokesLeases) {
+  const JobId id = s.submit(spec(64, 16, 16));
+  const WorkerId a = worker("a");
+  auto got = pull(a, 2);
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_EQ(s.cancel(id), Scheduler::CancelResult::kCancelled);
+  EXPECT_EQ(s.job(id)->state, JobState::kCancelled);
+  EXPECT_TRUE(pull(a, 4).empty());
+  EXPECT_EQ(s.complete(a, got[0].lease.id, out()), Scheduler::ResultOutcome::kStaleLease);
+  int cancelled = 0;
+  for (auto& [l, why] : rec.ended) cancelled += why == LeaseEnd::kCancelled;
+  EXPECT_EQ(cancelled, 2);
+  EXPECT_EQ(s.cancel(id), Scheduler::CancelResult::kAlreadyEnded);
+  EXPECT_EQ(s.cancel("nope"), Scheduler::CancelResult::kUnknownJob);
+}
+
+TEST_F(SchedulerTest, FinishedTilesKeptUntilFrameAcknowledged) {
+  const JobId id = s.submit(spec(32, 16, 16, 2));
+  const WorkerId a = worker("a");
+  auto got = pull(a, 3);
+  for (auto& x : got) s.complete(a, x.lease.id, out());
+  EXPECT_EQ(s.finished_tiles(id).size(), 3u);
+  EXPECT_EQ(s.acknowledge_frame(id, 1), Scheduler::AckResult::kNotFinished);
+  EXPECT_EQ(s.acknowledge_frame(id, 0), Scheduler::AckResult::kAcknowledged);
+  EXPECT_EQ(s.acknowledge_frame(id, 0), Scheduler::AckResult::kAcknowledged);  // idempotent
+  EXPECT_EQ(s.acknowledge_frame(id, 7), Scheduler::AckResult::kUnknownFrame);
+  EXPECT_EQ(s.acknowledge_frame("x", 0), Scheduler::AckResult::kUnknownJob);
+  auto left = s.finished_tiles(id);
+  ASSERT_EQ(left.size(), 1u);
+  EXPECT_EQ(left[0].first.frame, 1);
+  EXPECT_EQ(s.job(id)->frames_acknowledged, (std::vector<int>{0}));
+}
+
+TEST_F(SchedulerTest, ReturnedLeasesAreRequeued) {
+  s.submit(spec(32, 16, 16));
+  const WorkerId a = worker("a");
+  auto got = pull(a, 2);
+  s.return_leases(a, {got[1].lease.id});
+  EXPECT_EQ(s.queued_tiles(), 1u);
+  EXPECT_EQ(s.worker(a)->in_flight, 1);
+}
+
+TEST_F(SchedulerTest, ForeignLeaseIsStale) {
+  s.submit(spec(16, 16, 16));
+  const WorkerId a = worker("a"), b = worker("b");
+  auto got = pull(a, 1);
+  EXPECT_EQ(s.complete(b, got[0].lease.id, out()), Scheduler::ResultOutcome::kStaleLease);
+  EXPECT_EQ(s.complete(a, got[0].lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+}
+
+TEST_F(SchedulerTest, FrameRangeUsesAbsoluteFrameNumbers) {
+  JobSpec j = spec(16, 16, 16);
+  j.first_frame = 5;
+  j.last_frame = 6;
+  const JobId id = s.submit(j);
+  const WorkerId a = worker("a");
+  auto got = pull(a, 2);
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_EQ(got[0].lease.tile.frame, 5);
+  EXPECT_EQ(got[1].lease.tile.frame, 6);
+  for (auto& x : got) s.complete(a, x.lease.id, out());
+  EXPECT_EQ(s.job(id)->frames_done, (std::vector<int>{5, 6}));
+}
+
+}  // namespace
+}  // namespace tessera::server

@@ -1,0 +1,94 @@
+// The write side of a server-streaming callback RPC: a queue of messages written one at a time,
+// then Finish. gRPC allows one outstanding write per stream, and reactions may run inline on the
+// thread that starts an operation, so StartWrite/Finish are only ever called here, with no lock
+// held; callers queue under their own locks and call pump() after releasing them.
+//
+// Lifetime: the reactor owns a shared_ptr to its outbox and calls on_done() from OnDone() before
+// deleting itself; others (the coordinator) may keep the outbox longer and push into the void.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <deque>
+#include <memory>
+#include <mutex>
+
+namespace tessera::server {
+
+template <class Reactor, class Msg>
+class Outbox {
+ public:
+  explicit Outbox(Reactor* reactor) : reactor_(reactor) {}
+
+  // Queues a message; call pump() afterwards (outside other locks) to get it moving.
+  void push(Msg msg) {
+    std::lock_guard lock(mu_);
+    if (finish_requested_ || !reactor_) return;
+    queue_.push_back(std::move(msg));
+  }
+  // Finishes the stream with `status` once the queued messages are written (the first status
+  // requested wins).
+  void finish(grpc::Status status) {
+    std::lock_guard lock(mu_);
+    if (finish_requested_) return;
+    finish_requested_ = true;
+    status_ = std::move(status);
+  }
+  void pump() {
+    std::unique_lock lock(mu_);
+    if (!reactor_ || writing_ || finish_called_) return;
+    if (!queue_.empty()) {
+      current_ = std::move(queue_.front());
+      queue_.pop_front();
+      writing_ = true;
+      Reactor* r = reactor_;
+      lock.unlock();
+      r->StartWrite(&current_);
+      return;
+    }
+    if (finish_requested_) {
+      finish_called_ = true;
+      Reactor* r = reactor_;
+      grpc::Status s = status_;
+      lock.unlock();
+      r->Finish(s);
+    }
+  }
+  // From the reactor's OnWriteDone.
+  void on_write_done(bool ok) {
+    {
+      std::lock_guard lock(mu_);
+      writing_ = false;
+      if (!ok) {  // the stream is broken: nothing more will get through
+        queue_.clear();
+        if (!finish_requested_) {
+          finish_requested_ = true;
+          status_ = grpc::Status(grpc::StatusCode::UNAVAILABLE, "stream broken");
+        }
+      }
+    }
+    pump();
+  }
+  // From the reactor's OnDone: the reactor is about to be deleted.
+  void on_done() {
+    std::lock_guard lock(mu_);
+    reactor_ = nullptr;
+    queue_.clear();
+  }
+  bool finishing() {
+    std::lock_guard lock(mu_);
+    return finish_requested_;
+  }
+
+ private:
+  std::mutex mu_;
+  Reactor* reactor_;
+  std::deque<Msg> queue_;
+  Msg current_;
+  bool writing_ = false;
+  bool finish_requested_ = false;
+  bool finish_called_ = false;
+  grpc::Status status_;
+};
+
+}  // namespace tessera::server

@@ -1,0 +1,137 @@
+#include "worker_service.h"
+
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+
+#include "farm/bundle.h"
+
+namespace tessera::server {
+
+namespace v1 = tessera::v1;
+using grpc::Status;
+using grpc::StatusCode;
+
+namespace {
+
+constexpr size_t kChunkBytes = size_t(1) << 20;
+
+// One worker's session. Reads drive the scheduler through the coordinator; writes (welcome,
+// assignments, revocations) come from the coordinator through the outbox.
+class WorkerSession : public grpc::ServerBidiReactor<v1::WorkerMessage, v1::CoordinatorMessage> {
+ public:
+  struct Sink : WorkerSink {
+    explicit Sink(WorkerSession* s) : box(s) {}
+    void push(v1::CoordinatorMessage m) override { box.push(std::move(m)); }
+    void finish(Status s) override { box.finish(std::move(s)); }
+    void pump() override { box.pump(); }
+    Outbox<WorkerSession, v1::CoordinatorMessage> box;
+  };
+
+  WorkerSession(Coordinator& c, std::string peer)
+      : coord_(c), peer_(std::move(peer)), sink_(std::make_shared<Sink>(this)) {
+    StartRead(&in_);
+  }
+
+  void OnReadDone(bool ok) override {
+    if (!ok) {  // the worker closed its side, or the connection broke
+      leave("disconnected");
+      finish(Status::OK);
+      return;
+    }
+    if (id_ == 0) {
+      if (in_.msg_case() != v1::WorkerMessage::kRegister) {
+        finish(Status(StatusCode::FAILED_PRECONDITION, "the first message of a worker session must be `register`"));
+        return;
+      }
+      const auto& r = in_.register_();
+      WorkerInfo info{r.name().empty() ? peer_ : r.name(), peer_, std::max(1, r.threads()), r.embree_isa()};
+      id_ = coord_.register_worker(info, sink_);
+    } else if (in_.msg_case() == v1::WorkerMessage::kRegister) {
+      finish(Status(StatusCode::FAILED_PRECONDITION, "worker already registered on this stream"));
+      return;
+    } else {
+      coord_.worker_message(id_, in_);
+    }
+    StartRead(&in_);
+  }
+  void OnWriteDone(bool ok) override { sink_->box.on_write_done(ok); }
+  void OnCancel() override {
+    leave("connection lost");
+    finish(Status(StatusCode::CANCELLED, "session cancelled"));
+  }
+  void OnDone() override {
+    leave("stream ended");
+    sink_->box.on_done();
+    delete this;
+  }
+
+ private:
+  void leave(std::string_view reason) {
+    if (id_ != 0 && !left_.exchange(true)) coord_.worker_gone(id_, reason);
+  }
+  void finish(Status s) {
+    sink_->finish(std::move(s));
+    sink_->pump();
+  }
+
+  Coordinator& coord_;
+  std::string peer_;
+  std::shared_ptr<Sink> sink_;
+  v1::WorkerMessage in_;
+  std::atomic<WorkerId> id_{0};  // 0 until registered (read by OnCancel on another thread)
+  std::atomic<bool> left_{false};
+};
+
+class FetchReactor : public grpc::ServerWriteReactor<v1::BundleChunk> {
+ public:
+  FetchReactor(BundleStore& store, const std::string& sha) {
+    auto bytes = store.read(sha);
+    if (!bytes) {
+      Finish(Status(StatusCode::NOT_FOUND, "bundle " + sha + " is not on this coordinator"));
+      return;
+    }
+    bytes_ = std::move(*bytes);
+    sha_ = sha;
+    next();
+  }
+  void OnWriteDone(bool ok) override {
+    if (!ok) {
+      Finish(Status(StatusCode::UNAVAILABLE, "fetch interrupted"));
+      return;
+    }
+    next();
+  }
+  void OnDone() override { delete this; }
+
+ private:
+  void next() {
+    if (offset_ >= bytes_.size() && offset_ > 0) {
+      Finish(Status::OK);
+      return;
+    }
+    chunk_.Clear();
+    if (offset_ == 0) chunk_.set_sha256(sha_);
+    const size_t n = std::min(kChunkBytes, bytes_.size() - offset_);
+    chunk_.set_data(bytes_.substr(offset_, n));
+    offset_ += std::max<size_t>(n, 1);  // an empty bundle still sends one chunk
+    StartWrite(&chunk_);
+  }
+  std::string bytes_, sha_;
+  size_t offset_ = 0;
+  v1::BundleChunk chunk_;
+};
+
+}  // namespace
+
+grpc::ServerBidiReactor<v1::WorkerMessage, v1::CoordinatorMessage>* WorkerServiceImpl::Connect(
+    grpc::CallbackServerContext* ctx) {
+  return new WorkerSession(coord_, ctx->peer());
+}
+
+grpc::ServerWriteReactor<v1::BundleChunk>* WorkerServiceImpl::FetchBundle(grpc::CallbackServerContext*,
+                                                                         const v1::FetchBundleRequest* req) {
+  return new FetchReactor(coord_.bundles(), req->sha256());
+}
+
+}  // namespace tessera::server

@@ -1,0 +1,23 @@
+// tessera.v1.WorkerService on the callback API: one bidirectional session per worker, and bundle
+// fetches.
+#pragma once
+
+#include "coordinator.h"
+#include "tessera/v1/worker_service.grpc.pb.h"
+
+namespace tessera::server {
+
+class WorkerServiceImpl final : public tessera::v1::WorkerService::CallbackService {
+ public:
+  explicit WorkerServiceImpl(Coordinator& c) : coord_(c) {}
+
+  grpc::ServerBidiReactor<tessera::v1::WorkerMessage, tessera::v1::CoordinatorMessage>* Connect(
+      grpc::CallbackServerContext* ctx) override;
+  grpc::ServerWriteReactor<tessera::v1::BundleChunk>* FetchBundle(grpc::CallbackServerContext* ctx,
+                                                                  const tessera::v1::FetchBundleRequest* req) override;
+
+ private:
+  Coordinator& coord_;
+};
+
+}  // namespace tessera::server

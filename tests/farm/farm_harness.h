@@ -1,0 +1,82 @@
+// Real processes on loopback for the farm tests: a coordinator on an ephemeral port, workers,
+// and the CLI, all in a temporary directory. Every child gets PR_SET_PDEATHSIG, so a test that
+// crashes or is killed by CTest's timeout takes its processes with it; destructors SIGKILL
+// whatever is still running when a test fails early.
+#pragma once
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace tessera::farmtest {
+
+namespace fs = std::filesystem;
+
+class Process {
+ public:
+  Process(const std::vector<std::string>& argv, const fs::path& log);
+  ~Process();
+  Process(const Process&) = delete;
+  Process& operator=(const Process&) = delete;
+
+  void signal(int sig);
+  // Exit code, 128+signal if killed, or -1 on timeout (the process is then killed).
+  int wait(std::chrono::milliseconds timeout);
+  bool running();
+  std::string log() const;
+  int pid() const { return pid_; }
+
+ private:
+  int pid_ = -1;
+  int status_ = -1;
+  bool reaped_ = false;
+  fs::path log_;
+};
+
+struct CliResult {
+  int code = -1;
+  std::string output;  // stdout and stderr
+};
+
+fs::path bin(const std::string& name);  // built binaries
+fs::path source(const std::string& rel);
+std::string read_text(const fs::path& p);
+
+class Farm {
+ public:
+  Farm();  // a fresh temporary directory
+  ~Farm();
+
+  // Starts tessera-server on 127.0.0.1:0 and waits for its "listening on" line.
+  void start_server(const std::vector<std::string>& extra = {});
+  Process& start_worker(const std::string& name, int threads = 1, int delay_ms = 0);
+  // Runs `tessera ARGS --coordinator ADDRESS`-style commands (address appended by the caller).
+  CliResult cli(const std::vector<std::string>& args, std::chrono::seconds timeout = std::chrono::seconds(120));
+  std::unique_ptr<Process> cli_async(const std::vector<std::string>& args, const std::string& log_name);
+  // Polls `tessera status JOB --json` until tiles_done >= n (or the job ended). False on timeout.
+  bool wait_tiles_done(const std::string& job, int n, std::chrono::seconds timeout = std::chrono::seconds(60));
+  int tiles_done(const std::string& job, std::string* state = nullptr);
+
+  const std::string& address() const { return address_; }
+  const fs::path& dir() const { return dir_; }
+  Process& server() { return *server_; }
+  std::vector<std::unique_ptr<Process>>& workers() { return workers_; }
+
+ private:
+  fs::path dir_;
+  std::string address_;
+  std::unique_ptr<Process> server_;
+  std::vector<std::unique_ptr<Process>> workers_;
+  int cli_runs_ = 0;
+};
+
+// Renders frame F of the scene in-process with `tessera render` (cached per scene+args).
+fs::path reference_frame(const fs::path& scene, int frame, const std::vector<std::string>& args);
+// Empty if the two EXRs have identical pixels; else a description of the first difference.
+std::string compare_exr(const fs::path& a, const fs::path& b);
+// The job id from a `tessera submit` output ("job ID submitted ...").
+std::string job_id_from(const std::string& output);
+
+}  // namespace tessera::farmtest

@@ -1,0 +1,267 @@
+#include "connection.h"
+
+#include <spdlog/spdlog.h>
+
+#include <random>
+#include <thread>
+
+#include "farm/codec.h"
+#include "render/embree_device.h"
+#include "render/tile_renderer.h"
+
+namespace tessera::worker {
+
+namespace v1 = tessera::v1;
+
+// One stream to the coordinator. Writes come from the reader thread, the heartbeat thread and
+// the render threads, so they are serialized by `write_mu`; once `alive` is false nothing more
+// is written (results for a dead session are useless: the coordinator requeued those tiles).
+struct WorkerConnection::Session {
+  grpc::ClientContext ctx;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::WorkerMessage, v1::CoordinatorMessage>> stream;
+  std::mutex write_mu;
+  bool alive = true;
+  bool draining = false;                // stop requested: take no new work
+  std::set<uint64_t> revoked;           // leases revoked while their tile was rendering
+  int outstanding = 0;                  // tiles requested or assigned and not yet finished
+  std::chrono::milliseconds heartbeat{1000};
+
+  bool write(const v1::WorkerMessage& m) {
+    std::lock_guard lock(write_mu);
+    if (!alive) return false;
+    if (!stream->Write(m)) alive = false;
+    return alive;
+  }
+};
+
+WorkerConnection::WorkerConnection(WorkerOptions options)
+    : options_(std::move(options)),
+      cache_(options_.cache_dir, [this](const std::string& sha) { return fetch_bundle(sha); }),
+      pool_(options_.threads) {
+  grpc::ChannelArguments args;
+  // Keepalive pings notice a dead coordinator (or a broken network path) on an idle stream.
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 10000);
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
+  args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  args.SetInt(GRPC_ARG_MAX_RECEIVE_MESSAGE_LENGTH, 64 << 20);
+  // Our own backoff governs reconnects; keep gRPC's short so a restarted coordinator is found.
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
+  channel_ = grpc::CreateCustomChannel(options_.coordinator, grpc::InsecureChannelCredentials(), args);
+  stub_ = v1::WorkerService::NewStub(channel_);
+}
+
+WorkerConnection::~WorkerConnection() = default;
+
+std::string WorkerConnection::fetch_bundle(const std::string& sha256) {
+  grpc::ClientContext ctx;
+  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));
+  v1::FetchBundleRequest req;
+  req.set_sha256(sha256);
+  auto reader = stub_->FetchBundle(&ctx, req);
+  std::string bytes;
+  v1::BundleChunk chunk;
+  while (reader->Read(&chunk)) bytes += chunk.data();
+  grpc::Status s = reader->Finish();
+  if (!s.ok()) throw std::runtime_error("cannot fetch bundle " + sha256 + ": " + s.error_message());
+  return bytes;
+}
+
+void WorkerConnection::request_stop() {
+  stop_ = true;
+  std::shared_ptr<Session> s;
+  {
+    std::lock_guard lock(mu_);
+    s = current_;
+  }
+  cv_.notify_all();
+  if (!s) return;
+  // Give back what has not started, let the running tiles finish (their results are sent by
+  // the render threads), then close our side: the coordinator ends the stream.
+  std::vector<uint64_t> unstarted;
+  {
+    std::lock_guard lock(s->write_mu);
+    s->draining = true;
+  }
+  unstarted = pool_.remove_all();
+  if (!unstarted.empty()) {
+    v1::WorkerMessage m;
+    for (uint64_t id : unstarted) m.mutable_returned()->add_lease_ids(id);
+    s->write(m);
+    spdlog::info("returned {} unstarted tiles", unstarted.size());
+  }
+  pool_.wait_idle();
+  std::lock_guard lock(s->write_mu);
+  if (s->alive) s->stream->WritesDone();
+  s->alive = false;
+}
+
+void WorkerConnection::sleep_backoff(std::chrono::milliseconds d) {
+  std::unique_lock lock(mu_);
+  cv_.wait_for(lock, d, [this] { return stop_.load(); });
+}
+
+int WorkerConnection::run() {
+  static thread_local std::mt19937 rng{std::random_device{}()};
+  auto backoff = options_.backoff_initial;
+  while (!stop_) {
+    if (run_session()) backoff = options_.backoff_initial;
+    if (stop_) break;
+    std::uniform_real_distribution<double> jitter(0.8, 1.2);
+    const auto wait = std::chrono::milliseconds(int64_t(double(backoff.count()) * jitter(rng)));
+    spdlog::info("reconnecting to {} in {:.1f} s", options_.coordinator, wait.count() / 1000.0);
+    sleep_backoff(wait);
+    backoff = std::min(options_.backoff_max, backoff * 2);
+  }
+  spdlog::info("worker stopped");
+  return 0;
+}
+
+bool WorkerConnection::run_session() {
+  auto s = std::make_shared<Session>();
+  s->stream = stub_->Connect(&s->ctx);
+  {
+    std::lock_guard lock(mu_);
+    current_ = s;
+  }
+  v1::WorkerMessage reg;
+  reg.mutable_register_()->set_name(options_.name);
+  reg.mutable_register_()->set_threads(pool_.threads());
+  reg.mutable_register_()->set_embree_isa(embree_isa());
+  reg.mutable_register_()->set_version("tessera-worker 0.1.0");
+  bool accepted = false;
+  std::thread heartbeat;
+  std::mutex hb_mu;
+  std::condition_variable hb_cv;
+  bool hb_stop = false;
+
+  if (s->write(reg)) {
+    v1::CoordinatorMessage msg;
+    while (s->stream->Read(&msg)) {
+      switch (msg.msg_case()) {
+        case v1::CoordinatorMessage::kWelcome: {
+          accepted = true;
+          s->heartbeat = std::chrono::milliseconds(std::max(50, msg.welcome().heartbeat_interval_ms()));
+          spdlog::info("connected to {} as worker {} ({} threads, Embree {})", options_.coordinator,
+                       msg.welcome().worker_id(), pool_.threads(), embree_isa());
+          heartbeat = std::thread([&, s] {
+            std::unique_lock lock(hb_mu);
+            while (!hb_cv.wait_for(lock, s->heartbeat, [&] { return hb_stop; })) {
+              v1::WorkerMessage hb;
+              hb.mutable_heartbeat();
+              s->write(hb);
+            }
+          });
+          // Pull: keep twice as many tiles as threads on hand so no thread waits for the network.
+          v1::WorkerMessage req;
+          {
+            std::lock_guard lock(s->write_mu);
+            const int want = 2 * pool_.threads();
+            s->outstanding = want;
+            req.mutable_request()->set_count(want);
+          }
+          if (!stop_) s->write(req);
+          break;
+        }
+        case v1::CoordinatorMessage::kAssignment:
+          handle_assignment(s, msg.assignment());
+          break;
+        case v1::CoordinatorMessage::kRevoke: {
+          int freed = 0;
+          for (uint64_t id : msg.revoke().lease_ids()) {
+            if (pool_.remove(id)) {
+              ++freed;
+            } else {
+              std::lock_guard lock(s->write_mu);
+              s->revoked.insert(id);
+            }
+          }
+          if (freed > 0) {
+            v1::WorkerMessage req;
+            {
+              std::lock_guard lock(s->write_mu);
+              if (s->draining) break;
+              req.mutable_request()->set_count(freed);
+            }
+            s->write(req);
+          }
+          break;
+        }
+        default:
+          break;
+      }
+    }
+  }
+  {
+    std::lock_guard lock(s->write_mu);
+    s->alive = false;
+  }
+  {
+    std::lock_guard lock(hb_mu);
+    hb_stop = true;
+  }
+  hb_cv.notify_all();
+  if (heartbeat.joinable()) heartbeat.join();
+  // Tiles of a dead session are requeued by the coordinator: do not render them.
+  if (!stop_) pool_.remove_all();
+  grpc::Status status = s->stream->Finish();
+  {
+    std::lock_guard lock(mu_);
+    current_.reset();
+  }
+  if (stop_) {
+    spdlog::info("left the coordinator");
+  } else if (status.error_code() == grpc::StatusCode::UNAVAILABLE && !accepted) {
+    spdlog::warn("coordinator at {} unreachable: {}", options_.coordinator, status.error_message());
+  } else {
+    spdlog::warn("session with {} ended: {} ({})", options_.coordinator, status.error_message(),
+                 int(status.error_code()));
+  }
+  return accepted;
+}
+
+void WorkerConnection::handle_assignment(const std::shared_ptr<Session>& s, const v1::Assignment& a) {
+  bool draining;
+  {
+    std::lock_guard lock(s->write_mu);
+    draining = s->draining;
+  }
+  if (draining) {  // arrived after we returned our tiles: give it back too
+    v1::WorkerMessage m;
+    m.mutable_returned()->add_lease_ids(a.lease_id());
+    s->write(m);
+    return;
+  }
+  pool_.post(a.lease_id(), [this, s, a] { render(s, a); });
+}
+
+void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assignment& a) {
+  v1::WorkerMessage out;
+  try {
+    auto scene = cache_.frame(a.bundle_sha256(), a.overrides().SerializeAsString(), a.frame());
+    const TileRect rect{a.rect().x0(), a.rect().y0(), a.rect().width(), a.rect().height()};
+    const TileResult tile = render_tile(*scene, rect);
+    auto* r = out.mutable_result();
+    r->set_lease_id(a.lease_id());
+    r->mutable_tile()->set_job_id(a.job_id());
+    r->mutable_tile()->set_frame(a.frame());
+    r->mutable_tile()->set_tile_index(a.tile_index());
+    r->mutable_tile()->set_worker(options_.name);
+    farm::encode_tile(tile, r->mutable_tile());
+    if (options_.extra_delay_ms > 0) std::this_thread::sleep_for(std::chrono::milliseconds(options_.extra_delay_ms));
+  } catch (const std::exception& e) {
+    // The coordinator validated the scene; failing here means this machine cannot render it
+    // (bundle download failed, mesh unreadable...). Give the tile back for someone else.
+    spdlog::error("job {} frame {}: cannot render: {}", a.job_id(), a.frame(), e.what());
+    out.mutable_returned()->add_lease_ids(a.lease_id());
+  }
+  v1::WorkerMessage req;
+  {
+    std::lock_guard lock(s->write_mu);
+    if (s->revoked.erase(a.lease_id())) out.Clear();  // another copy won, or the job was cancelled
+    if (!s->draining) req.mutable_request()->set_count(1);
+  }
+  if (out.msg_case() != v1::WorkerMessage::MSG_NOT_SET) s->write(out);
+  if (req.has_request()) s->write(req);
+}
+
+}  // namespace tessera::worker

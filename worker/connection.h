@@ -1,0 +1,62 @@
+// The worker's life: connect to the coordinator, register, pull tiles, render them on the pool,
+// stream results back; on a lost connection, reconnect with exponential backoff (with jitter, so
+// a restarted coordinator is not hit by every worker at the same instant). request_stop()
+// leaves cleanly: unstarted tiles are returned, running ones finished and sent.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+
+#include "bundle_cache.h"
+#include "render_pool.h"
+#include "tessera/v1/worker_service.grpc.pb.h"
+
+namespace tessera::worker {
+
+struct WorkerOptions {
+  std::string coordinator = "127.0.0.1:7878";
+  std::string name;
+  int threads = 1;
+  std::filesystem::path cache_dir;
+  int extra_delay_ms = 0;  // testing only: sleep after each tile so jobs last long enough
+  std::chrono::milliseconds backoff_initial{200};
+  std::chrono::milliseconds backoff_max{10000};
+};
+
+class WorkerConnection {
+ public:
+  explicit WorkerConnection(WorkerOptions options);
+  ~WorkerConnection();
+  // Runs sessions until request_stop(). Returns the process exit code.
+  int run();
+  // Thread-safe; called from the signal thread.
+  void request_stop();
+
+ private:
+  struct Session;
+  // One connected session; returns true if the coordinator accepted us (resets the backoff).
+  bool run_session();
+  void handle_assignment(const std::shared_ptr<Session>& s, const tessera::v1::Assignment& a);
+  void render(const std::shared_ptr<Session>& s, const tessera::v1::Assignment& a);
+  std::string fetch_bundle(const std::string& sha256);
+  void sleep_backoff(std::chrono::milliseconds d);
+
+  WorkerOptions options_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<tessera::v1::WorkerService::Stub> stub_;
+  BundleCache cache_;
+  RenderPool pool_;
+  std::atomic<bool> stop_{false};
+  std::mutex mu_;                      // guards current_ and the backoff wait
+  std::condition_variable cv_;
+  std::shared_ptr<Session> current_;
+};
+
+}  // namespace tessera::worker

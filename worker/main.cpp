@@ -1,0 +1,70 @@
+// tessera-worker: renders tiles for a Tessera coordinator.
+#include <signal.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdlib>
+#include <filesystem>
+#include <thread>
+
+#include "connection.h"
+
+int main(int argc, char** argv) {
+  using namespace tessera::worker;
+  WorkerOptions o;
+  const char* env = std::getenv("TESSERA_COORDINATOR");
+  if (env && *env) o.coordinator = env;
+  o.threads = int(std::max(1u, std::thread::hardware_concurrency()));
+  char host[256] = "worker";
+  gethostname(host, sizeof host);
+  o.name = std::string(host) + "-" + std::to_string(getpid());
+  std::string cache = (std::filesystem::temp_directory_path() / "tessera-worker-cache").string();
+  std::string log_level = "info";
+
+  CLI::App app{"tessera-worker: renders tiles for a Tessera render farm coordinator"};
+  app.add_option("--coordinator", o.coordinator, "Coordinator HOST:PORT (env TESSERA_COORDINATOR)")
+      ->capture_default_str();
+  app.add_option("--threads", o.threads, "Render threads (default: all cores)")->check(CLI::Range(1, 4096));
+  app.add_option("--name", o.name, "Name shown by `tessera workers` (default: host-pid)");
+  app.add_option("--cache-dir", cache, "Where fetched scene bundles are kept")->capture_default_str();
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
+  app.add_option("--test-delay-ms", o.extra_delay_ms, "Testing only: sleep this long after each tile")
+      ->check(CLI::Range(0, 60000));
+  app.set_version_flag("--version", "tessera-worker 0.1.0");
+  CLI11_PARSE(app, argc, argv);
+  o.cache_dir = cache;
+  spdlog::set_level(spdlog::level::from_str(log_level));
+  spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ [" + o.name + "] %v");
+
+  sigset_t sigs;
+  sigemptyset(&sigs);
+  sigaddset(&sigs, SIGINT);
+  sigaddset(&sigs, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &sigs, nullptr);  // before any thread exists: all inherit it
+
+  std::unique_ptr<WorkerConnection> conn;
+  try {
+    conn = std::make_unique<WorkerConnection>(o);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  }
+  // First SIGTERM/SIGINT: leave cleanly (return unstarted tiles, finish running ones).
+  // A second one: leave now.
+  std::thread signals([&] {
+    int sig = 0;
+    sigwait(&sigs, &sig);
+    spdlog::info("signal {}: finishing current tiles and leaving (again to quit at once)", sig);
+    std::thread([&] {
+      int again = 0;
+      sigwait(&sigs, &again);
+      std::_Exit(128 + again);
+    }).detach();
+    conn->request_stop();
+  });
+  const int rc = conn->run();
+  // run() returns only after a stop request, so the signal thread has been through sigwait.
+  signals.join();
+  return rc;
+}

@@ -1,0 +1,68 @@
+#include "render_pool.h"
+
+#include <algorithm>
+
+namespace tessera::worker {
+
+RenderPool::RenderPool(int threads) {
+  for (int i = 0; i < std::max(1, threads); ++i) threads_.emplace_back([this] { run(); });
+}
+
+RenderPool::~RenderPool() {
+  {
+    std::lock_guard lock(mu_);
+    stop_ = true;
+    queue_.clear();
+  }
+  cv_.notify_all();
+  for (auto& t : threads_) t.join();
+}
+
+void RenderPool::post(uint64_t key, std::function<void()> task) {
+  {
+    std::lock_guard lock(mu_);
+    queue_.emplace_back(key, std::move(task));
+  }
+  cv_.notify_one();
+}
+
+bool RenderPool::remove(uint64_t key) {
+  std::lock_guard lock(mu_);
+  auto it = std::find_if(queue_.begin(), queue_.end(), [&](const auto& t) { return t.first == key; });
+  if (it == queue_.end()) return false;
+  queue_.erase(it);
+  if (queue_.empty() && running_ == 0) idle_cv_.notify_all();
+  return true;
+}
+
+std::vector<uint64_t> RenderPool::remove_all() {
+  std::lock_guard lock(mu_);
+  std::vector<uint64_t> keys;
+  for (const auto& t : queue_) keys.push_back(t.first);
+  queue_.clear();
+  if (running_ == 0) idle_cv_.notify_all();
+  return keys;
+}
+
+void RenderPool::wait_idle() {
+  std::unique_lock lock(mu_);
+  idle_cv_.wait(lock, [this] { return queue_.empty() && running_ == 0; });
+}
+
+void RenderPool::run() {
+  std::unique_lock lock(mu_);
+  while (true) {
+    cv_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+    if (stop_) return;
+    auto task = std::move(queue_.front().second);
+    queue_.pop_front();
+    ++running_;
+    lock.unlock();
+    task();
+    lock.lock();
+    --running_;
+    if (queue_.empty() && running_ == 0) idle_cv_.notify_all();
+  }
+}
+
+}  // namespace tessera::worker
