@@ -38,6 +38,12 @@ struct FarmError {
   std::string message;
 };
 
+// A failed call about one job: an unknown job id is the user's input error (exit 2).
+FarmError job_error(const FarmClient& client, const grpc::Status& s, const std::string& what) {
+  return FarmError{s.error_code() == grpc::StatusCode::NOT_FOUND ? kExitBadInput : kExitFailure,
+                   client.describe(s, what)};
+}
+
 const char* state_name(v1::JobState s) {
   switch (s) {
     case v1::JOB_STATE_QUEUED: return "queued";
@@ -127,6 +133,7 @@ struct WatchOptions {
   std::string output;        // empty: progress only, frames are neither written nor acknowledged
   std::string scene_name;
   bool quiet = false;
+  color::OutputOptions color;  // tone mapping / format when the output is not a float EXR
 };
 
 int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions& o) {
@@ -176,7 +183,7 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
         if (o.output.empty() || frames->written(f) || !frames->complete(f)) continue;
         FrameReport rep;
         try {
-          rep = frames->write(f, o.output, o.scene_name);
+          rep = frames->write(f, o.output, o.scene_name, o.color);
         } catch (const std::exception& e) {
           throw FarmError{kExitFailure, std::string("cannot write frame ") + std::to_string(f) + ": " + e.what()};
         }
@@ -233,6 +240,7 @@ struct SubmitArgs {
   int priority = 0;
   bool detach = false;
   bool quiet = false;
+  color::OutputOptions color;
 };
 
 void upload_if_missing(FarmClient& client, const farm::BuiltBundle& b) {
@@ -326,12 +334,13 @@ int run_submit(const SubmitArgs& a) {
                 a.output.empty() ? "OUT_####.exr" : a.output.c_str());
     return 0;
   }
-  return watch_job(client, st.job_id(), {a.output, req.name(), a.quiet});
+  return watch_job(client, st.job_id(), {a.output, req.name(), a.quiet, a.color});
 }
 
 struct JobArgs {
   std::string coordinator, job, output;
   bool json = false, quiet = false;
+  color::OutputOptions color;
 };
 
 int run_watch(const JobArgs& a) {
@@ -342,11 +351,10 @@ int run_watch(const JobArgs& a) {
   auto ctx = client.context();
   grpc::Status s = client.stub().GetJob(ctx.get(), req, &st);
   if (!s.ok()) {
-    throw FarmError{s.error_code() == grpc::StatusCode::NOT_FOUND ? kExitBadInput : kExitFailure,
-                    client.describe(s, "looking up job " + a.job)};
+    throw job_error(client, s, "looking up job " + a.job);
   }
   if (!a.output.empty()) check_output_writable(a.output, st.first_frame());
-  return watch_job(client, a.job, {a.output, st.name(), a.quiet});
+  return watch_job(client, a.job, {a.output, st.name(), a.quiet, a.color});
 }
 
 nlohmann::json job_json(const v1::JobStatus& j) {
@@ -390,8 +398,7 @@ int run_status(const JobArgs& a) {
     auto ctx = client.context();
     grpc::Status s = client.stub().GetJob(ctx.get(), req, &st);
     if (!s.ok()) {
-      throw FarmError{s.error_code() == grpc::StatusCode::NOT_FOUND ? kExitBadInput : kExitFailure,
-                      client.describe(s, "looking up job " + a.job)};
+      throw job_error(client, s, "looking up job " + a.job);
     }
     jobs.push_back(st);
   } else {
@@ -425,8 +432,7 @@ int run_cancel(const JobArgs& a) {
   auto ctx = client.context();
   grpc::Status s = client.stub().CancelJob(ctx.get(), req, &st);
   if (!s.ok()) {
-    throw FarmError{s.error_code() == grpc::StatusCode::NOT_FOUND ? kExitBadInput : kExitFailure,
-                    client.describe(s, "cancelling job " + a.job)};
+    throw job_error(client, s, "cancelling job " + a.job);
   }
   std::printf("job %s: %s (%lld/%lld tiles were done)\n", st.job_id().c_str(), state_name(st.state()),
               (long long)st.tiles_done(), (long long)st.tiles_total());
@@ -505,6 +511,7 @@ void register_farm_commands(CLI::App& app) {
     cmd->add_option("--name", a->name, "Job name (default: the scene file name)");
     cmd->add_flag("--detach", a->detach, "Submit and return; fetch the frames later with `tessera watch`");
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
+    color::add_output_options(*cmd, a->color);  // -o frame_####.png etc.: see `tessera convert`
     cmd->callback([a] {
       guarded("submit", [&] {
         if (a->output.empty() && !a->detach) throw FarmError{kExitBadInput, "-o/--output is required (or --detach)"};
@@ -519,6 +526,7 @@ void register_farm_commands(CLI::App& app) {
     cmd->add_option("-o,--output", a->output, "Write frames here ('#' runs become the frame number)");
     add_coordinator_option(cmd, &a->coordinator);
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
+    color::add_output_options(*cmd, a->color);
     cmd->callback([a] { guarded("watch", [&] { return run_watch(*a); }); });
   }
   {

@@ -1,3 +1,4 @@
+#include <iostream>
 #include "farm_frames.h"
 
 #include <chrono>
@@ -57,7 +58,8 @@ bool FrameAssembler::complete(int frame) const {
   return it != frames_.end() && int(it->second.tiles.size()) == job_.tiles_per_frame();
 }
 
-FrameReport FrameAssembler::write(int frame, const std::string& pattern, const std::string& scene_name) {
+FrameReport FrameAssembler::write(int frame, const std::string& pattern, const std::string& scene_name,
+                                  const color::OutputOptions& color) {
   Frame& f = frames_.at(frame);
   FrameReport rep;
   rep.frame = frame;
@@ -84,7 +86,11 @@ FrameReport FrameAssembler::write(int frame, const std::string& pattern, const s
   const auto parent = std::filesystem::path(rep.path).parent_path();
   std::error_code ec;
   if (!parent.empty()) std::filesystem::create_directories(parent, ec);
-  write_exr(rep.path, f.image, attrs);
+  if (color::is_float_exr_output(color, rep.path)) {
+    write_exr(rep.path, f.image, attrs);
+  } else {
+    color::write_output(f.image, rep.path, color, std::cout);
+  }
   written_.insert(frame);
   frames_.erase(frame);  // free the pixels
   return rep;

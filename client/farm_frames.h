@@ -13,6 +13,8 @@
 #include "render/tile.h"
 #include "tessera/v1/client_service.pb.h"
 
+#include "color/output_options.h"
+
 namespace tessera::cli {
 
 struct FrameReport {
@@ -33,8 +35,11 @@ class FrameAssembler {
   bool add(const tessera::v1::TileData& tile, std::string* error);
   bool complete(int frame) const;
   bool written(int frame) const { return written_.count(frame) > 0; }
-  // Writes the frame to frame_output_path(pattern, frame); throws ExrError.
-  FrameReport write(int frame, const std::string& pattern, const std::string& scene_name);
+  // Writes the frame to frame_output_path(pattern, frame): a float EXR with the job's
+  // attributes, or (other extensions / --format) tone-mapped and quantized by `color`.
+  // Throws ExrError / ColorError naming the path.
+  FrameReport write(int frame, const std::string& pattern, const std::string& scene_name,
+                    const color::OutputOptions& color);
   uint64_t rays_received() const { return rays_; }
   int64_t tiles_received() const { return tiles_; }
 

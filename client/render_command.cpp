@@ -2,7 +2,6 @@
 // exactly this code per tile, and this is the baseline the farm is measured against.
 #include <spdlog/spdlog.h>
 
-#include <cctype>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -77,9 +76,7 @@ int run_render(const RenderArgs& a) {
                       {"tessera:renderSeconds", r.seconds},
                       {"tessera:raysTraced", std::to_string(r.rays.total())},
                       {"tessera:estimatedRmse", r.estimated_rmse()}};
-  std::string ext = std::filesystem::path(out).extension().string();
-  for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
-  const bool float_exr = (a.color.format.empty() && ext == ".exr") || a.color.format == "exr-float";
+  const bool float_exr = color::is_float_exr_output(a.color, out);
   try {
     if (float_exr) {
       write_exr(out, r.image, attrs);  // keeps the render's attributes

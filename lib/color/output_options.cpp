@@ -1,3 +1,5 @@
+#include <cctype>
+#include <filesystem>
 #include "color/output_options.h"
 
 #include "color/color_error.h"
@@ -70,6 +72,13 @@ ConversionReport write_output(const ImageRGB& image, const std::string& out_path
     report_out << report_text(r) << "\n";
   }
   return r;
+}
+
+bool is_float_exr_output(const OutputOptions& options, const std::string& out_path) {
+  if (!options.format.empty()) return options.format == "exr-float";
+  std::string ext = std::filesystem::path(out_path).extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".exr";
 }
 
 }  // namespace tessera::color

@@ -34,6 +34,10 @@ void add_output_options(CLI::App& command, OutputOptions& options);
 // the format cannot be told from the extension or options conflict.
 ConvertOptions resolve_output_options(const OutputOptions& options, const std::string& out_path);
 
+// True when out_path with these options is a plain 32-bit float EXR. Renderers write those
+// themselves so the EXR keeps their header attributes (spp, rays, render time).
+bool is_float_exr_output(const OutputOptions& options, const std::string& out_path);
+
 // Converts, writes out_path, prints the report line (text or JSON) to report_out and returns
 // it. Throws ColorError / ExrError naming the path.
 ConversionReport write_output(const ImageRGB& image, const std::string& out_path,
