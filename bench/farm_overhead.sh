@@ -4,11 +4,11 @@
 #
 #   bench/farm_overhead.sh [BUILD_DIR] [SCENE] [WIDTH] [HEIGHT] [SPP] [THREADS_PER_WORKER]
 #
-# Defaults: build-farm, scenes/whitted.json, 1920x1080, 16 spp, and workers with
+# Defaults: build, scenes/whitted.json, 1920x1080, 16 spp, and workers with
 # nproc/N threads each (so 1 worker and 2 workers use the same cores as the in-process render).
 # Times include everything the user waits for: bundle upload, scheduling, network, EXR writing.
 set -euo pipefail
-BUILD=${1:-build-farm}
+BUILD=${1:-build}
 SCENE=${2:-scenes/whitted.json}
 W=${3:-1920}
 H=${4:-1080}

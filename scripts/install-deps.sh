@@ -12,8 +12,10 @@ BUILD_PKGS=(
 )
 # Independent checkers used by the tests (oiiotool/idiff, exrheader, Python gRPC client).
 CHECK_PKGS=(openimageio-tools openexr python3-grpcio python3-grpc-tools python3-numpy)
+# Used by the benchmarks in bench/ only (pngquant is a GPL comparator, run, never linked).
+BENCH_PKGS=(bc time pngquant)
 
-want=("${BUILD_PKGS[@]}" "${CHECK_PKGS[@]}" "$@")
+want=("${BUILD_PKGS[@]}" "${CHECK_PKGS[@]}" "${BENCH_PKGS[@]}" "$@")
 missing=()
 for p in "${want[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
