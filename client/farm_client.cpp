@@ -2,6 +2,8 @@
 
 #include <cstdlib>
 
+#include "farm/channel.h"
+
 namespace tessera::cli {
 
 std::string resolve_coordinator(const std::string& flag) {
@@ -13,15 +15,7 @@ std::string resolve_coordinator(const std::string& flag) {
 
 FarmClient::FarmClient(std::string address, std::chrono::seconds timeout)
     : address_(std::move(address)), timeout_(timeout) {
-  grpc::ChannelArguments args;
-  // Long-lived watch streams: keepalive pings detect a coordinator that vanished without
-  // closing the connection (machine down, network cut) within ~20 s.
-  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 10000);
-  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
-  args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
-  args.SetInt(GRPC_ARG_MAX_RECEIVE_MESSAGE_LENGTH, 64 << 20);
-  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
-  channel_ = grpc::CreateCustomChannel(address_, grpc::InsecureChannelCredentials(), args);
+  channel_ = farm::make_coordinator_channel(address_);
   stub_ = tessera::v1::ClientService::NewStub(channel_);
 }
 

@@ -19,6 +19,7 @@
 #include "farm/codec.h"
 #include "farm_client.h"
 #include "farm_frames.h"
+#include "image_options.h"
 #include "image/output_path.h"
 #include "scene/scene_parser.h"
 
@@ -234,8 +235,7 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
 
 struct SubmitArgs {
   std::string scene, output, coordinator, frames, name;
-  ImageOverrides overrides;
-  std::string sampler;
+  ImageOptions image;
   int tile = 32;
   int priority = 0;
   bool detach = false;
@@ -274,14 +274,9 @@ void upload_if_missing(FarmClient& client, const farm::BuiltBundle& b) {
 int run_submit(const SubmitArgs& a) {
   // Validate locally first: the same message as `tessera render` for a bad scene.
   Scene scene;
-  ImageOverrides o = a.overrides;
+  ImageOverrides o;
   try {
-    scene = load_scene(a.scene);
-    if (!a.sampler.empty()) {
-      o.sampler = sampler_from_name(a.sampler);
-      if (!o.sampler) throw SceneError("--sampler: must be one of stratified, independent, center");
-    }
-    apply_overrides(scene, o);
+    scene = load_scene_with(a.scene, a.image, &o);
   } catch (const SceneError& e) {
     throw FarmError{kExitBadInput, e.what()};
   }
@@ -500,12 +495,7 @@ void register_farm_commands(CLI::App& app) {
     cmd->add_option("-o,--output", a->output, "Output EXR path; '#' runs become the frame number");
     add_coordinator_option(cmd, &a->coordinator);
     cmd->add_option("--frames", a->frames, "Frames A-B (inclusive) or A (default: all)");
-    cmd->add_option("--spp", a->overrides.spp, "Samples per pixel (overrides the scene)");
-    cmd->add_option("--width", a->overrides.width, "Image width (overrides the scene)");
-    cmd->add_option("--height", a->overrides.height, "Image height (overrides the scene)");
-    cmd->add_option("--max-depth", a->overrides.max_depth, "Maximum reflection/refraction depth");
-    cmd->add_option("--seed", a->overrides.seed, "Sampler seed");
-    cmd->add_option("--sampler", a->sampler, "stratified (default), independent or center");
+    add_image_options(*cmd, a->image);
     cmd->add_option("--tile", a->tile, "Tile size in pixels (does not change the image)")->check(CLI::Range(4, 256));
     cmd->add_option("--priority", a->priority, "Higher runs first (default 0)");
     cmd->add_option("--name", a->name, "Job name (default: the scene file name)");

@@ -9,6 +9,7 @@
 
 #include "color/output_options.h"
 #include "commands.h"
+#include "image_options.h"
 #include "image/exr_io.h"
 #include "image/output_path.h"
 #include "render/embree_device.h"
@@ -22,11 +23,10 @@ namespace {
 struct RenderArgs {
   std::string scene;
   std::string output;
-  ImageOverrides overrides;
+  ImageOptions image;
   int frame = 0;
   int threads = 0;
   int tile = 32;
-  std::string sampler;
   bool quiet = false;
   color::OutputOptions color;  // tone mapping / format when -o is not a float EXR
 };
@@ -34,13 +34,7 @@ struct RenderArgs {
 int run_render(const RenderArgs& a) {
   Scene scene;
   try {
-    scene = load_scene(a.scene);
-    ImageOverrides o = a.overrides;
-    if (!a.sampler.empty()) {
-      o.sampler = sampler_from_name(a.sampler);
-      if (!o.sampler) throw SceneError("--sampler: must be one of stratified, independent, center");
-    }
-    apply_overrides(scene, o);
+    scene = load_scene_with(a.scene, a.image);
   } catch (const SceneError& e) {
     std::cerr << "tessera render: " << e.what() << "\n";
     return 2;
@@ -105,12 +99,7 @@ void register_render_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("render", "Render a scene in-process to a float OpenEXR file");
   cmd->add_option("scene", args->scene, "Scene file (JSON, see docs/scene-format.md)")->required();
   cmd->add_option("-o,--output", args->output, "Output EXR path; '#' runs become the frame number")->required();
-  cmd->add_option("--spp", args->overrides.spp, "Samples per pixel (overrides the scene)");
-  cmd->add_option("--width", args->overrides.width, "Image width (overrides the scene)");
-  cmd->add_option("--height", args->overrides.height, "Image height (overrides the scene)");
-  cmd->add_option("--max-depth", args->overrides.max_depth, "Maximum reflection/refraction depth");
-  cmd->add_option("--seed", args->overrides.seed, "Sampler seed");
-  cmd->add_option("--sampler", args->sampler, "stratified (default), independent or center");
+  add_image_options(*cmd, args->image);
   cmd->add_option("--frame", args->frame, "Frame number to render (default 0)");
   cmd->add_option("--threads", args->threads, "Render threads (default: all cores)")->check(CLI::Range(0, 4096));
   cmd->add_option("--tile", args->tile, "Tile size in pixels (does not change the image)")->check(CLI::Range(1, 4096));

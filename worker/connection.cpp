@@ -5,6 +5,7 @@
 #include <random>
 #include <thread>
 
+#include "farm/channel.h"
 #include "farm/codec.h"
 #include "render/embree_device.h"
 #include "render/tile_renderer.h"
@@ -38,15 +39,7 @@ WorkerConnection::WorkerConnection(WorkerOptions options)
     : options_(std::move(options)),
       cache_(options_.cache_dir, [this](const std::string& sha) { return fetch_bundle(sha); }),
       pool_(options_.threads) {
-  grpc::ChannelArguments args;
-  // Keepalive pings notice a dead coordinator (or a broken network path) on an idle stream.
-  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 10000);
-  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
-  args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
-  args.SetInt(GRPC_ARG_MAX_RECEIVE_MESSAGE_LENGTH, 64 << 20);
-  // Our own backoff governs reconnects; keep gRPC's short so a restarted coordinator is found.
-  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
-  channel_ = grpc::CreateCustomChannel(options_.coordinator, grpc::InsecureChannelCredentials(), args);
+  channel_ = farm::make_coordinator_channel(options_.coordinator);
   stub_ = v1::WorkerService::NewStub(channel_);
 }
 

@@ -1,0 +1,26 @@
+#include "image_options.h"
+
+namespace tessera::cli {
+
+void add_image_options(CLI::App& cmd, ImageOptions& o) {
+  cmd.add_option("--spp", o.overrides.spp, "Samples per pixel (overrides the scene)");
+  cmd.add_option("--width", o.overrides.width, "Image width (overrides the scene)");
+  cmd.add_option("--height", o.overrides.height, "Image height (overrides the scene)");
+  cmd.add_option("--max-depth", o.overrides.max_depth, "Maximum reflection/refraction depth");
+  cmd.add_option("--seed", o.overrides.seed, "Sampler seed");
+  cmd.add_option("--sampler", o.sampler, "stratified (default), independent or center");
+}
+
+Scene load_scene_with(const std::string& path, const ImageOptions& o, ImageOverrides* resolved) {
+  Scene scene = load_scene(path);
+  ImageOverrides overrides = o.overrides;
+  if (!o.sampler.empty()) {
+    overrides.sampler = sampler_from_name(o.sampler);
+    if (!overrides.sampler) throw SceneError("--sampler: must be one of stratified, independent, center");
+  }
+  apply_overrides(scene, overrides);
+  if (resolved) *resolved = overrides;
+  return scene;
+}
+
+}  // namespace tessera::cli

@@ -1,0 +1,25 @@
+// The scene overrides shared by `tessera render` and `tessera submit`: one set of flags, one
+// validation, so both commands accept and refuse exactly the same values.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <string>
+
+#include "scene/scene_parser.h"
+
+namespace tessera::cli {
+
+struct ImageOptions {
+  ImageOverrides overrides;
+  std::string sampler;  // empty: the scene's
+};
+
+// Adds --spp, --width, --height, --max-depth, --seed and --sampler.
+void add_image_options(CLI::App& command, ImageOptions& options);
+
+// Loads the scene and applies the overrides; throws SceneError naming the file or flag.
+// `resolved` (optional) receives the overrides with the sampler name parsed, as sent to a farm.
+Scene load_scene_with(const std::string& path, const ImageOptions& options, ImageOverrides* resolved = nullptr);
+
+}  // namespace tessera::cli
