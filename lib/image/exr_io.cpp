@@ -10,6 +10,7 @@
 #include <ImfStringAttribute.h>
 #include <Iex.h>
 #include <half.h>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <cmath>
@@ -58,6 +59,16 @@ void write_exr(const std::string& path, const ImageRGB& image, const ExrAttribut
     } else {
       halfs.resize(image.rgb.size());
       std::transform(image.rgb.begin(), image.rgb.end(), halfs.begin(), to_half_clamped);
+      // Clamping changes the picture: say so (once per file), never silently.
+      size_t clamped = 0, nans = 0;
+      for (float v : image.rgb) {
+        nans += std::isnan(v);
+        clamped += std::abs(v) > 65504.0f;
+      }
+      if (clamped || nans) {
+        spdlog::warn("{}: {} values beyond half-float range clamped to +-65504, {} NaN written as 0", path, clamped,
+                     nans);
+      }
       char* base = reinterpret_cast<char*>(halfs.data());
       const size_t hxs = 3 * sizeof(half), hys = hxs * size_t(image.width);
       for (int c = 0; c < 3; ++c) {

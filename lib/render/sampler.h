@@ -31,6 +31,9 @@ constexpr float to_unit_float(uint32_t bits) { return float(bits >> 8) * 0x1p-24
 uint32_t cmj_permute(uint32_t i, uint32_t l, uint32_t p);
 float cmj_randfloat(uint32_t i, uint32_t p);
 void cmj_sample(uint32_t s, uint32_t n, uint32_t p, float* x, float* y);
+// Columns of the m x k grid cmj_sample stratifies n samples into (m k = n whenever n has a
+// factorization of aspect <= 4).
+uint32_t cmj_columns(uint32_t n);
 
 // Sample source for one pixel sample. A "dimension key" names which 2D decision is being made
 // (pixel position, area-light sample for light L at path node K, ...).

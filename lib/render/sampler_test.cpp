@@ -27,6 +27,26 @@ TEST(Sampler, CmjIsAPermutationStratifiedInBothAxes) {
   }
 }
 
+TEST(Sampler, CmjFillsEveryCellOfAnExactGridWhenOneExists) {
+  // n = 32 used to get a 5 x 7 grid with 3 empty cells; now 4 x 8, every cell (and every one of
+  // the n fine x strata) holding exactly one sample. Primes keep Kensler's partial grid.
+  for (uint32_t n : {2u, 8u, 18u, 32u, 128u, 512u, 2048u}) {
+    const uint32_t m = cmj_columns(n), k = n / m;
+    ASSERT_EQ(m * k, n) << n;
+    ASSERT_LE(k, 4 * m) << n;
+    std::set<uint32_t> cells, fine_x;
+    for (uint32_t s = 0; s < n; ++s) {
+      float x, y;
+      cmj_sample(s, n, 99, &x, &y);
+      cells.insert(uint32_t(x * float(m)) * k + uint32_t(y * float(k)));
+      fine_x.insert(uint32_t(x * float(n)));
+    }
+    EXPECT_EQ(cells.size(), n) << n;
+    EXPECT_EQ(fine_x.size(), n) << n;
+  }
+  EXPECT_EQ(cmj_columns(31), 5u);  // prime: Kensler's 5 x 7
+}
+
 TEST(Sampler, PermuteIsABijection) {
   for (uint32_t l : {1u, 3u, 16u, 1000u}) {
     std::set<uint32_t> seen;

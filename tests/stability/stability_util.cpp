@@ -1,0 +1,70 @@
+#include "stability_util.h"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <stdexcept>
+
+#include "scene/scene_parser.h"
+
+namespace tessera::stability {
+
+bool full_mode() {
+#ifdef TESSERA_STABILITY_FULL
+  return true;
+#else
+  const char* v = std::getenv("TESSERA_STABILITY_FULL");
+  return v && std::string(v) == "1";
+#endif
+}
+
+namespace {
+
+void append_row(const std::string& case_id, const std::string& quantity, double measured,
+                const std::string& bound, const std::string& verdict) {
+  static std::mutex mutex;
+  std::lock_guard lock(mutex);
+  std::printf("[accuracy] %-28s %-58s %12.4g  bound %-12s %s\n", case_id.c_str(), quantity.c_str(), measured,
+              bound.c_str(), verdict.c_str());
+  const char* out = std::getenv("TESSERA_ACCURACY_OUT");
+  if (!out || !*out) return;
+  std::ofstream f(out, std::ios::app);
+  char value[64];
+  std::snprintf(value, sizeof value, "%.4g", measured);
+  f << case_id << '\t' << quantity << '\t' << value << '\t' << bound << '\t' << verdict << '\n';
+}
+
+}  // namespace
+
+bool check(const std::string& case_id, const std::string& quantity, double measured, Bound kind, double bound) {
+  const bool pass = kind == Bound::kAtMost ? measured <= bound : measured >= bound;  // NaN fails
+  char b[64];
+  std::snprintf(b, sizeof b, "%s %.4g", kind == Bound::kAtMost ? "<=" : ">=", bound);
+  append_row(case_id, quantity, measured, b, pass ? "pass" : "FAIL");
+  return pass;
+}
+
+void report(const std::string& case_id, const std::string& quantity, double measured, const std::string& note) {
+  append_row(case_id, quantity, measured, note, "info");
+}
+
+Scene scene_from(const std::string& json, const std::string& path) { return parse_scene(json, path); }
+
+std::string make_temp_dir(const std::string& tag) {
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("tessera_stability_" + tag + "_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  return dir.string();
+}
+
+void write_text(const std::string& path, const std::string& text) {
+  std::ofstream f(path);
+  f << text;
+  if (!f) throw std::runtime_error("cannot write " + path);
+}
+
+}  // namespace tessera::stability
