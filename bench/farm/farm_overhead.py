@@ -1,90 +1,284 @@
-#!/usr/bin/env bash
-# Farm overhead: wall time of `tessera submit` on a local farm with 1 and 2 workers, against
-# `tessera render` in-process, same scene, same settings. Prints JSON on stdout.
-#
-#   bench/farm_overhead.sh [BUILD_DIR] [SCENE] [WIDTH] [HEIGHT] [SPP] [THREADS_PER_WORKER]
-#
-# Defaults: build, scenes/whitted.json, 1920x1080, 16 spp, and workers with
-# nproc/N threads each (so 1 worker and 2 workers use the same cores as the in-process render).
-# Times include everything the user waits for: bundle upload, scheduling, network, EXR writing.
-set -euo pipefail
-BUILD=${1:-build}
-SCENE=${2:-scenes/whitted.json}
-W=${3:-1920}
-H=${4:-1080}
-SPP=${5:-16}
-NPROC=$(nproc)
-TMP=$(mktemp -d)
-PIDS=()
-cleanup() { for p in "${PIDS[@]}"; do kill -KILL "$p" 2>/dev/null || true; done; rm -rf "$TMP"; }
-trap cleanup EXIT
+#!/usr/bin/env python3
+"""Farm overhead and scaling: the same frame rendered in-process (`tessera render`) and on a
+local farm (`tessera submit` to a tessera-server with N tessera-workers of T threads each).
 
-now() { date +%s.%N; }
-elapsed() { echo "$2 - $1" | bc -l; }
+    bench/farm/farm_overhead.py [--build DIR] [--scene S] [--width W] [--height H] [--spp N]
+                                [--configs 1x0,2x1,2x0] [--repeat R] [--json FILE] [--markdown FILE]
 
-# CPU seconds (user+sys) of a live process, from /proc: the machine may be shared, and CPU time
-# shows the farm's overhead even when wall time is disturbed by other load.
-cpu_of() { awk -v hz="$(getconf CLK_TCK)" '{printf "%.3f", ($14 + $15) / hz}' "/proc/$1/stat"; }
+A config NxT is N workers with T threads each; T = 0 means all cores. For a speedup curve on a
+big machine: --configs 1x1,2x1,4x1,8x1,16x1 (or 1x0 against 16x1, and so on).
 
-t0=$(now)
-/usr/bin/time -f "%U %S" -o "$TMP/inproc.cpu" \
-  "$BUILD/client/tessera" render "$SCENE" -o "$TMP/inproc.exr" --width "$W" --height "$H" --spp "$SPP" -q >/dev/null
-t1=$(now)
-inproc=$(elapsed "$t0" "$t1")
-inproc_cpu=$(awk '{printf "%.3f", $1 + $2}' "$TMP/inproc.cpu")
+For each run it reports:
+  - wall seconds of what the user waits for (`tessera submit`: bundle upload, scheduling,
+    network, frame assembly, EXR writing) and the ratio to `tessera render`;
+  - CPU seconds (user + system) of every process involved (client, coordinator, workers; from
+    wait4 and /proc/PID/stat, counted from just before the submit) and the ratio to the
+    in-process render's CPU seconds: this shows the farm's cost even on a busy shared machine;
+  - bytes on the wire per pixel: the loopback interface's byte counter (/proc/net/dev, "lo")
+    over the submit. The benchmark re-executes itself in a private network namespace
+    (`unshare -n`) so that only its own processes use that loopback; where that is not
+    allowed it reads the shared loopback and says so ("bytes_source"). The count includes
+    TCP/IP and HTTP/2 framing, the bundle upload, both tile hops (worker -> coordinator ->
+    client, 16 bytes of pixel data per pixel each) and keepalives;
+  - time from submit to first tile: bench/farm first_tile_probe attaches a WatchJob stream as
+    soon as the job exists and timestamps the first tile it receives, measured both from the
+    start of `tessera submit` and from the coordinator's submit time of the job.
 
-run_farm() {  # $1 = workers, $2 = threads per worker
-  local n=$1 threads=$2
-  "$BUILD/server/tessera-server" --listen 127.0.0.1:0 --data-dir "$TMP/data$n" --log-level warn >"$TMP/server$n.log" 2>&1 &
-  local spid=$!
-  PIDS+=("$spid")
-  local addr=""
-  for _ in $(seq 200); do
-    addr=$(grep -o 'listening on 127.0.0.1:[0-9]*' "$TMP/server$n.log" | awk '{print $3}' || true)
-    [ -n "$addr" ] && break
-    sleep 0.05
-  done
-  local wpids=()
-  for i in $(seq "$n"); do
-    "$BUILD/worker/tessera-worker" --coordinator "$addr" --threads "$threads" --name "bench$i" \
-      --cache-dir "$TMP/cache$n-$i" --log-level warn >"$TMP/worker$n-$i.log" 2>&1 &
-    wpids+=($!)
-    PIDS+=($!)
-  done
-  # Wait until the workers are registered: their start-up is not what we measure.
-  for _ in $(seq 200); do
-    [ "$("$BUILD/client/tessera" workers --coordinator "$addr" --json | grep -c '"name"')" -ge "$n" ] && break
-    sleep 0.05
-  done
-  local s=$(now)
-  /usr/bin/time -f "%U %S" -o "$TMP/client$n.cpu" \
-    "$BUILD/client/tessera" submit "$SCENE" --coordinator "$addr" -o "$TMP/farm$n.exr" \
-    --width "$W" --height "$H" --spp "$SPP" -q >"$TMP/submit$n.log" 2>&1
-  local e=$(now)
-  local cpu
-  cpu=$(awk '{printf "%.3f", $1 + $2}' "$TMP/client$n.cpu")
-  local server_cpu
-  server_cpu=$(cpu_of "$spid")
-  for p in "${wpids[@]}"; do cpu=$(echo "$cpu + $(cpu_of "$p")" | bc -l); done
-  cpu=$(echo "$cpu + $server_cpu" | bc -l)
-  kill -TERM "${wpids[@]}" "$spid" 2>/dev/null || true
-  wait "${wpids[@]}" "$spid" 2>/dev/null || true
-  echo "$(elapsed "$s" "$e") $cpu $server_cpu"
-}
+Prints a markdown table on stdout and JSON (to --json, or stdout after the table). Asserts
+nothing about time; exits non-zero only if a process fails.
+"""
+import argparse
+import json
+import os
+import re
+import shutil
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
 
-t_per_worker1=${6:-$NPROC}
-t_per_worker2=${6:-$(( NPROC / 2 > 0 ? NPROC / 2 : 1 ))}
-read -r farm1 cpu1 scpu1 <<<"$(run_farm 1 "$t_per_worker1")"
-read -r farm2 cpu2 scpu2 <<<"$(run_farm 2 "$t_per_worker2")"
-load=$(cut -d' ' -f1 /proc/loadavg)
-cat <<JSON
-{
-  "scene": "$SCENE", "width": $W, "height": $H, "spp": $SPP, "cores": $NPROC,
-  "load_average_after": $load,
-  "inprocess": {"seconds": $(printf %.3f "$inproc"), "cpu_seconds": $inproc_cpu},
-  "farm_1_worker": {"threads_per_worker": $t_per_worker1, "seconds": $(printf %.3f "$farm1"), "ratio": $(printf %.3f "$(echo "$farm1 / $inproc" | bc -l)"),
-                    "cpu_seconds_all_processes": $(printf %.3f "$cpu1"), "cpu_ratio": $(printf %.3f "$(echo "$cpu1 / $inproc_cpu" | bc -l)"), "coordinator_cpu_seconds": $scpu1},
-  "farm_2_workers": {"threads_per_worker": $t_per_worker2, "seconds": $(printf %.3f "$farm2"), "ratio": $(printf %.3f "$(echo "$farm2 / $inproc" | bc -l)"),
-                    "cpu_seconds_all_processes": $(printf %.3f "$cpu2"), "cpu_ratio": $(printf %.3f "$(echo "$cpu2 / $inproc_cpu" | bc -l)"), "coordinator_cpu_seconds": $scpu2}
-}
-JSON
+NETNS_ENV = "TESSERA_BENCH_NETNS"
+
+
+def cores():
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+def lo_bytes():
+    with open("/proc/net/dev") as f:
+        for line in f:
+            name, _, rest = line.partition(":")
+            if name.strip() == "lo":
+                return int(rest.split()[0])  # received bytes; on loopback rx == tx
+    return None
+
+
+def cpu_of(pid):
+    """utime + stime of a live process, seconds."""
+    with open(f"/proc/{pid}/stat") as f:
+        rest = f.read().rsplit(")", 1)[1].split()
+    return (int(rest[11]) + int(rest[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def run_timed(argv, log):
+    """Runs argv to completion; returns (wall seconds, CPU seconds of the child, exit code)."""
+    with open(log, "w") as out:
+        t0 = time.monotonic()
+        p = subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT)
+        _, status, ru = os.wait4(p.pid, 0)
+        wall = time.monotonic() - t0
+    p.returncode = os.waitstatus_to_exitcode(status)
+    return wall, ru.ru_utime + ru.ru_stime, p.returncode
+
+
+def maybe_enter_netns(argv):
+    """Re-executes this script in a private network namespace (own loopback) if possible."""
+    if os.environ.get(NETNS_ENV) or not shutil.which("unshare") or not shutil.which("ip"):
+        return
+    flags = "-n" if os.geteuid() == 0 else "-rn"
+    probe = subprocess.run(["unshare", flags, "ip", "link", "set", "lo", "up"], capture_output=True)
+    if probe.returncode != 0:
+        return
+    env = dict(os.environ, **{NETNS_ENV: "1"})
+    cmd = 'ip link set lo up && exec "$@"'
+    os.execvpe("unshare", ["unshare", flags, "sh", "-c", cmd, "sh", sys.executable, os.path.abspath(__file__)] + argv,
+              env)
+
+
+class Farm:
+    def __init__(self, build, tmp, name, workers, threads):
+        self.build, self.tmp, self.name = build, tmp, name
+        self.procs = []
+        log = open(os.path.join(tmp, f"server-{name}.log"), "w")
+        self.server = subprocess.Popen(
+            [f"{build}/server/tessera-server", "--listen", "127.0.0.1:0", "--data-dir",
+             os.path.join(tmp, f"data-{name}"), "--log-level", "info"], stdout=log, stderr=subprocess.STDOUT)
+        self.procs.append(self.server)
+        self.address = None
+        for _ in range(400):
+            m = re.search(r"listening on (\S+:\d+)", open(log.name).read())
+            if m:
+                self.address = m.group(1)
+                break
+            if self.server.poll() is not None:
+                break
+            time.sleep(0.05)
+        if not self.address:
+            self.close()
+            raise RuntimeError(f"tessera-server did not start (see {log.name})")
+        self.workers = []
+        for i in range(workers):
+            wlog = open(os.path.join(tmp, f"worker-{name}-{i}.log"), "w")
+            w = subprocess.Popen(
+                [f"{build}/worker/tessera-worker", "--coordinator", self.address, "--threads", str(threads),
+                 "--name", f"bench{i}", "--cache-dir", os.path.join(tmp, f"cache-{name}-{i}"),
+                 "--log-level", "warn"], stdout=wlog, stderr=subprocess.STDOUT)
+            self.workers.append(w)
+            self.procs.append(w)
+        # Wait until every worker is registered: their start-up is not what we measure.
+        for _ in range(400):
+            r = subprocess.run([f"{build}/client/tessera", "workers", "--coordinator", self.address, "--json"],
+                               capture_output=True, text=True)
+            if r.returncode == 0 and len(json.loads(r.stdout or "[]")) >= workers:
+                return
+            time.sleep(0.05)
+        self.close()
+        raise RuntimeError(f"{workers} workers did not register with {self.address}")
+
+    def cpu(self):
+        return sum(cpu_of(p.pid) for p in self.procs)
+
+    def close(self):
+        for p in self.procs:
+            if p.poll() is None:
+                p.send_signal(signal.SIGTERM)
+        for p in self.procs:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+
+def run_farm(args, tmp, name, workers, threads):
+    farm = Farm(args.build, tmp, name, workers, threads)
+    try:
+        probe = subprocess.Popen([args.probe or f"{args.build}/bench/farm/first_tile_probe", "--coordinator",
+                                  farm.address],
+                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        time.sleep(0.1)  # the probe's channel is connected before the clock starts
+        cpu0 = farm.cpu()
+        lo0 = lo_bytes()
+        t_submit = time.time()
+        wall, client_cpu, code = run_timed(
+            [f"{args.build}/client/tessera", "submit", args.scene, "--coordinator", farm.address, "-o",
+             os.path.join(tmp, f"farm-{name}.exr"), "--width", str(args.width), "--height", str(args.height),
+             "--spp", str(args.spp), "--tile", str(args.tile), "-q"], os.path.join(tmp, f"submit-{name}.log"))
+        lo1 = lo_bytes()
+        server_cpu = cpu_of(farm.server.pid)  # since start: its idle time before the submit is ~0
+        farm_cpu = farm.cpu() - cpu0
+        if code != 0:
+            raise RuntimeError(f"tessera submit failed ({code}): {open(os.path.join(tmp, f'submit-{name}.log')).read()}")
+        try:
+            out, _ = probe.communicate(timeout=10)
+            p = json.loads(out.strip().splitlines()[-1])
+            first = {"from_command_s": p["first_tile_unix"] - t_submit,
+                     "from_job_submitted_s": p["first_tile_unix"] - p["submitted_unix"], "exact": p["exact"]}
+        except Exception as e:  # noqa: BLE001 - the probe is best effort; report why
+            probe.kill()
+            first = {"error": str(e)}
+        pixels = args.width * args.height
+        return {"workers": workers, "threads_per_worker": threads, "seconds": wall,
+                "cpu_seconds": client_cpu + farm_cpu, "client_cpu_seconds": client_cpu,
+                "coordinator_cpu_seconds": server_cpu,
+                "wire_bytes": (lo1 - lo0) if lo0 is not None else None,
+                "wire_bytes_per_pixel": (lo1 - lo0) / pixels if lo0 is not None else None,
+                "first_tile": first}
+    finally:
+        farm.close()
+
+
+def parse_configs(text, ncores):
+    out = []
+    for c in text.split(","):
+        m = re.fullmatch(r"\s*(\d+)x(\d+)\s*", c)
+        if not m or int(m.group(1)) < 1:
+            raise SystemExit(f"--configs: '{c}' is not NxT (N workers >= 1, T threads each, 0 = all {ncores} cores)")
+        n, t = int(m.group(1)), int(m.group(2))
+        out.append((n, t if t > 0 else ncores))
+    return out
+
+
+def fmt(v, spec):
+    return "n/a" if v is None else format(v, spec)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--build", default="build")
+    ap.add_argument("--scene", default="scenes/whitted.json")
+    ap.add_argument("--width", type=int, default=1920)
+    ap.add_argument("--height", type=int, default=1080)
+    ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--tile", type=int, default=32)
+    ap.add_argument("--configs", default="1x0,2x1,2x0", help="NxT,...: N workers of T threads (0 = all cores)")
+    ap.add_argument("--repeat", type=int, default=1, help="runs of everything, interleaved; medians reported")
+    ap.add_argument("--json", help="write JSON here (default: stdout, after the table)")
+    ap.add_argument("--markdown", help="write the markdown table here too")
+    ap.add_argument("--probe", help="first_tile_probe binary (default: BUILD/bench/farm/first_tile_probe)")
+    ap.add_argument("--no-netns", action="store_true", help="do not use a private network namespace")
+    args = ap.parse_args()
+    if not args.no_netns:
+        maybe_enter_netns(sys.argv[1:])
+    ncores = cores()
+    configs = parse_configs(args.configs, ncores)
+    tmp = tempfile.mkdtemp(prefix="tessera-farm-overhead-")
+    inproc, farms = [], {c: [] for c in configs}
+    try:
+        for r in range(args.repeat):
+            wall, cpu, code = run_timed(
+                [f"{args.build}/client/tessera", "render", args.scene, "-o", os.path.join(tmp, "inproc.exr"),
+                 "--width", str(args.width), "--height", str(args.height), "--spp", str(args.spp),
+                 "--tile", str(args.tile), "-q"], os.path.join(tmp, "render.log"))
+            if code != 0:
+                raise RuntimeError(f"tessera render failed ({code}): {open(os.path.join(tmp, 'render.log')).read()}")
+            inproc.append({"seconds": wall, "cpu_seconds": cpu})
+            for (n, t) in configs:
+                farms[(n, t)].append(run_farm(args, tmp, f"{n}x{t}-{r}", n, t))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+    med = lambda xs: statistics.median(xs) if xs else None  # noqa: E731
+    in_wall = med([x["seconds"] for x in inproc])
+    in_cpu = med([x["cpu_seconds"] for x in inproc])
+    rows = []
+    for (n, t), runs in farms.items():
+        wall = med([x["seconds"] for x in runs])
+        cpu = med([x["cpu_seconds"] for x in runs])
+        bpp = [x["wire_bytes_per_pixel"] for x in runs if x["wire_bytes_per_pixel"] is not None]
+        ft = [x["first_tile"]["from_command_s"] for x in runs if "from_command_s" in x["first_tile"]]
+        ftj = [x["first_tile"]["from_job_submitted_s"] for x in runs if "from_job_submitted_s" in x["first_tile"]]
+        rows.append({"workers": n, "threads_per_worker": t, "seconds": wall, "wall_ratio": wall / in_wall,
+                     "speedup_vs_inprocess": in_wall / wall, "cpu_seconds": cpu, "cpu_ratio": cpu / in_cpu,
+                     "coordinator_cpu_seconds": med([x["coordinator_cpu_seconds"] for x in runs]),
+                     "wire_bytes_per_pixel": med(bpp), "first_tile_s": med(ft), "first_tile_after_job_s": med(ftj),
+                     "first_tile_exact": all(x["first_tile"].get("exact", False) for x in runs), "runs": runs})
+    in_netns = bool(os.environ.get(NETNS_ENV))
+    result = {"benchmark": "farm_overhead", "scene": args.scene, "width": args.width, "height": args.height,
+              "spp": args.spp, "tile": args.tile, "cores": ncores, "repeat": args.repeat,
+              "load_average_after": float(open("/proc/loadavg").read().split()[0]),
+              "bytes_source": "private network namespace: /proc/net/dev lo" if in_netns
+              else "shared loopback /proc/net/dev lo (other traffic on this machine is counted too)",
+              "inprocess": {"seconds": in_wall, "cpu_seconds": in_cpu, "runs": inproc}, "farm": rows}
+
+    lines = [f"{args.width}x{args.height}, {args.spp} spp, {args.tile} px tiles, {ncores} cores, "
+             f"median of {args.repeat}; bytes: {result['bytes_source']}", "",
+             "| setup | wall s | wall ratio | CPU s | CPU ratio | coord. CPU s | wire B/px | first tile s (from job) |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|",
+             f"| in-process, {ncores} threads | {in_wall:.3f} | 1.000 | {in_cpu:.2f} | 1.000 | - | - | - |"]
+    for r in rows:
+        exact = "" if r["first_tile_exact"] else " (upper bound)"
+        lines.append(f"| farm, {r['workers']} worker(s) x {r['threads_per_worker']} thread(s) | {r['seconds']:.3f} | "
+                     f"{r['wall_ratio']:.3f} | {r['cpu_seconds']:.2f} | {r['cpu_ratio']:.3f} | "
+                     f"{fmt(r['coordinator_cpu_seconds'], '.2f')} | {fmt(r['wire_bytes_per_pixel'], '.1f')} | "
+                     f"{fmt(r['first_tile_s'], '.3f')} ({fmt(r['first_tile_after_job_s'], '.3f')}){exact} |")
+    table = "\n".join(lines) + "\n"
+    sys.stdout.write(table)
+    if args.markdown:
+        with open(args.markdown, "w") as f:
+            f.write(table)
+    text = json.dumps(result, indent=2)
+    if args.json:
+        with open(args.json, "w") as f:
+            f.write(text + "\n")
+    else:
+        sys.stdout.write("\n" + text + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include "render/fresnel.h"
 
@@ -19,10 +20,18 @@ struct Context {
   RayCounts* counts;
 };
 
-// Direct lighting at a diffuse point: sum over lights of albedo/pi * irradiance * visibility.
-Rgb direct_light(const Context& c, const Hit& hit, const Vec3f& n, const Vec3f& albedo, uint64_t node) {
+// One shadow ray of direct lighting: the light's contribution is transmittance * a * b.
+struct ShadowQuery {
+  Ray ray;
+  Rgb a;
+  float b;
+};
+
+// Calls f(query) for each light that can light the diffuse point, in light order (point,
+// directional, area). Shared by the scalar path and the packet path, so both do the same math.
+template <typename F>
+void for_each_shadow_query(const Context& c, const Hit& hit, const Vec3f& n, uint64_t node, F&& f) {
   const RenderScene& s = c.scene;
-  Rgb sum(0.0f);
   const Vec3f n_f = n;  // faces the viewer
   for (const auto& l : s.point_lights()) {
     const Vec3f to = l.position - hit.p;
@@ -32,17 +41,14 @@ Rgb direct_light(const Context& c, const Hit& hit, const Vec3f& n, const Vec3f& 
     const float cos_t = dot(n_f, w);
     if (!(cos_t > 0.0f)) continue;
     const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
-    ++c.counts->shadow;
-    const Rgb T = s.transmittance({o, w, length(l.position - o)}, hit.prim);
-    sum += T * l.intensity * (cos_t / r2);
+    f(ShadowQuery{{o, w, length(l.position - o)}, l.intensity, cos_t / r2});
   }
   for (const auto& l : s.directional_lights()) {
     const Vec3f w = -l.direction;
     const float cos_t = dot(n_f, w);
     if (!(cos_t > 0.0f)) continue;
     const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
-    ++c.counts->shadow;
-    sum += s.transmittance({o, w}, hit.prim) * l.irradiance * cos_t;
+    f(ShadowQuery{{o, w}, l.irradiance, cos_t});
   }
   const auto& area = s.area_lights();
   for (size_t li = 0; li < area.size(); ++li) {
@@ -73,18 +79,33 @@ Rgb direct_light(const Context& c, const Hit& hit, const Vec3f& n, const Vec3f& 
     const Vec3f seg = target - o;
     const float dist = length(seg);
     if (!(dist > 0.0f)) continue;
-    ++c.counts->shadow;
-    const Rgb T = s.transmittance({o, seg / dist, dist * (1.0f - kShadowEpsilon)}, hit.prim);
     // Irradiance estimate: Le cos_t cos_l / r^2 divided by the pdf 1/area.
-    sum += T * L.emission * (cos_t * cos_l / r2 * L.area);
+    f(ShadowQuery{{o, seg / dist, dist * (1.0f - kShadowEpsilon)}, L.emission, cos_t * cos_l / r2 * L.area});
   }
-  return albedo * sum * kInvPi;
 }
 
+// Direct lighting at a diffuse point, before albedo/pi: sum over lights of irradiance * visibility.
+Rgb direct_sum(const Context& c, const Hit& hit, const Vec3f& n, uint64_t node) {
+  Rgb sum(0.0f);
+  for_each_shadow_query(c, hit, n, node, [&](const ShadowQuery& q) {
+    ++c.counts->shadow;
+    sum += c.scene.transmittance(q.ray, hit.prim) * q.a * q.b;
+  });
+  return sum;
+}
+
+Rgb shade(const Context& c, const Ray& ray, const Hit& hit, int depth, uint64_t node, const Rgb* direct);
+
 Rgb radiance(const Context& c, const Ray& ray, const PrimRef& from, int depth, uint64_t node) {
-  const RenderScene& s = c.scene;
   Hit hit;
-  if (!s.intersect(ray, from, &hit)) return s.background();
+  if (!c.scene.intersect(ray, from, &hit)) return c.scene.background();
+  return shade(c, ray, hit, depth, node, nullptr);
+}
+
+// Radiance leaving `hit` back along `ray`. `direct` (optional): the hit's direct_sum, already
+// traced (by the packet path).
+Rgb shade(const Context& c, const Ray& ray, const Hit& hit, int depth, uint64_t node, const Rgb* direct) {
+  const RenderScene& s = c.scene;
   const Material& m = s.material(hit.material);
   // Shading happens on the side the ray came from; emitters are seen from their front only.
   const bool front = dot(ray.d, hit.n) < 0.0f;
@@ -94,7 +115,7 @@ Rgb radiance(const Context& c, const Ray& ray, const PrimRef& from, int depth, u
   switch (m.type) {
     case Material::Type::kDiffuse: {
       const Rgb albedo = m.checker && s.checker_parity(hit, m) ? m.albedo2 : m.albedo;
-      L += direct_light(c, hit, n_facing, albedo, node);
+      L += albedo * (direct ? *direct : direct_sum(c, hit, n_facing, node)) * kInvPi;
       break;
     }
     case Material::Type::kMirror: {
@@ -134,6 +155,75 @@ Rgb radiance(const Context& c, const Ray& ray, const PrimRef& from, int depth, u
 Rgb trace_radiance(const RenderScene& scene, const Ray& ray, const PixelSampler& sampler, RayCounts* counts) {
   const Context c{scene, sampler, counts};
   return radiance(c, ray, PrimRef{}, 0, 1);
+}
+
+void trace_radiance_packet(const RenderScene& scene, const Ray* rays, const PixelSampler* samplers, int n,
+                           RayCounts* counts, Rgb* out) {
+  constexpr int P = RenderScene::kPacket;
+  const PrimRef none[P] = {};
+  Hit hits[P];
+  bool found[P];
+  scene.intersect_packet(rays, none, n, hits, found);
+
+  // The shadow rays of every diffuse hit, grouped by light (light-major: the rays to one light
+  // from the samples of one pixel are coherent), traced in packets of P.
+  struct Query {
+    ShadowQuery q;
+    PrimRef from;
+    int lane;
+    int light;
+    Rgb T;
+  };
+  static thread_local std::vector<Query> queries;
+  static thread_local std::vector<int> order;
+  queries.clear();
+  Vec3f n_facing[P];
+  for (int i = 0; i < n; ++i) {
+    if (!found[i]) continue;
+    const Material& m = scene.material(hits[i].material);
+    if (m.type != Material::Type::kDiffuse) continue;
+    n_facing[i] = dot(rays[i].d, hits[i].n) < 0.0f ? hits[i].n : -hits[i].n;
+    const Context c{scene, samplers[i], counts};
+    int light = 0;
+    for_each_shadow_query(c, hits[i], n_facing[i], 1, [&](const ShadowQuery& q) {
+      queries.push_back({q, hits[i].prim, i, light++, Rgb(0.0f)});
+    });
+  }
+  counts->shadow += queries.size();
+  order.resize(queries.size());
+  for (size_t k = 0; k < order.size(); ++k) order[k] = int(k);
+  // Stable insertion sort by light (a handful of elements; std::stable_sort would allocate).
+  for (size_t k = 1; k < order.size(); ++k) {
+    const int v = order[k];
+    size_t j = k;
+    for (; j > 0 && queries[order[j - 1]].light > queries[v].light; --j) order[j] = order[j - 1];
+    order[j] = v;
+  }
+  for (size_t k = 0; k < order.size(); k += P) {
+    const int m = int(std::min<size_t>(P, order.size() - k));
+    Ray r[P];
+    PrimRef from[P];
+    Rgb T[P];
+    for (int j = 0; j < m; ++j) {
+      r[j] = queries[order[k + j]].q.ray;
+      from[j] = queries[order[k + j]].from;
+    }
+    scene.transmittance_packet(r, from, m, T);
+    for (int j = 0; j < m; ++j) queries[order[k + j]].T = T[j];
+  }
+
+  // Per lane, sum in light order exactly as direct_sum does, then shade.
+  size_t qi = 0;
+  for (int i = 0; i < n; ++i) {
+    const Context c{scene, samplers[i], counts};
+    if (!found[i]) {
+      out[i] = scene.background();
+      continue;
+    }
+    Rgb sum(0.0f);
+    for (; qi < queries.size() && queries[qi].lane == i; ++qi) sum += queries[qi].T * queries[qi].q.a * queries[qi].q.b;
+    out[i] = shade(c, rays[i], hits[i], 0, 1, &sum);
+  }
 }
 
 }  // namespace tessera

@@ -12,4 +12,10 @@ namespace tessera {
 // Radiance arriving at the eye along `ray` for one pixel sample.
 Rgb trace_radiance(const RenderScene& scene, const Ray& ray, const PixelSampler& sampler, RayCounts* counts);
 
+// The same for n <= RenderScene::kPacket camera rays (lane i with samplers[i]), traced as one
+// packet, their direct-lighting shadow rays in packets too; reflections and refractions go on
+// ray by ray. Pack rays as a pure function of the pixel (see RenderScene::intersect_packet).
+void trace_radiance_packet(const RenderScene& scene, const Ray* rays, const PixelSampler* samplers, int n,
+                           RayCounts* counts, Rgb* out);
+
 }  // namespace tessera

@@ -7,6 +7,7 @@
 
 #include "math/transform.h"
 #include "render/plane.h"
+#include "render/ray_log.h"
 #include "render/sphere.h"
 #include "scene/animation.h"
 
@@ -14,17 +15,25 @@ namespace tessera {
 
 namespace {
 
-constexpr uint32_t kOpaqueMask = 1;
-constexpr uint32_t kGlassMask = 2;
+constexpr uint32_t kOpaqueMask = RenderScene::kOpaqueMask;
+constexpr uint32_t kGlassMask = RenderScene::kGlassMask;
 constexpr int kMaxGlassCrossings = 256;
 constexpr double kDoubleEps = 0x1p-52;
 
-// Embree's context, extended (as in Embree's tutorials) with what our callbacks need.
-struct TraceContext {
-  RTCIntersectContext rtc;
-  const RenderScene* scene;
-  PrimRef from;
-};
+using TraceContext = RenderScene::TraceContext;
+
+// The primitive lane i's ray leaves (per lane for packets, see TraceContext).
+const PrimRef& from_of(const TraceContext* ctx, RTCRayN* ray, unsigned N, unsigned i) {
+  return ctx->from_by_id ? ctx->from_by_id[RTCRayN_id(ray, N, i)] : ctx->from;
+}
+
+void add_glass_hit(RenderScene::GlassHits* g, float t, uint32_t material) {
+  if (g->count == RenderScene::kMaxGlassHits) {
+    g->overflow = true;
+    return;
+  }
+  g->hits[g->count++] = {t, material};
+}
 
 using SphereGeomData = RenderScene::SphereGeomData;
 
@@ -91,7 +100,8 @@ void sphere_intersect(const RTCIntersectFunctionNArguments* args) {
     if (!args->valid[i] || !(RTCRayN_mask(ray, N, i) & data->bucket->mask)) continue;
     const Vec3d o(RTCRayN_org_x(ray, N, i), RTCRayN_org_y(ray, N, i), RTCRayN_org_z(ray, N, i));
     const Vec3d d(RTCRayN_dir_x(ray, N, i), RTCRayN_dir_y(ray, N, i), RTCRayN_dir_z(ray, N, i));
-    const double t = sphere_root(s, index, ctx->from, o, d, RTCRayN_tnear(ray, N, i), RTCRayN_tfar(ray, N, i));
+    const double t = sphere_root(s, index, from_of(ctx, ray, N, i), o, d, RTCRayN_tnear(ray, N, i),
+                                 RTCRayN_tfar(ray, N, i));
     if (t < 0) continue;
     RTCRayN_tfar(ray, N, i) = float(t);
     const Vec3d n = o + d * t - s.center;
@@ -117,9 +127,41 @@ void sphere_occluded(const RTCOccludedFunctionNArguments* args) {
     if (!args->valid[i] || !(RTCRayN_mask(ray, N, i) & data->bucket->mask)) continue;
     const Vec3d o(RTCRayN_org_x(ray, N, i), RTCRayN_org_y(ray, N, i), RTCRayN_org_z(ray, N, i));
     const Vec3d d(RTCRayN_dir_x(ray, N, i), RTCRayN_dir_y(ray, N, i), RTCRayN_dir_z(ray, N, i));
-    if (sphere_root(s, index, ctx->from, o, d, RTCRayN_tnear(ray, N, i), RTCRayN_tfar(ray, N, i)) >= 0) {
+    const PrimRef& from = from_of(ctx, ray, N, i);
+    const float tnear = RTCRayN_tnear(ray, N, i), tfar = RTCRayN_tfar(ray, N, i);
+    if (ctx->glass && data->bucket->mask == kGlassMask) {
+      // A shadow ray collecting glass crossings: every root in (tnear, tfar), not just the first
+      // (the same roots the old crossing-by-crossing walk found, in one traversal).
+      double t[2];
+      if (intersect_sphere(o, d, s.center, s.radius, t) == 0) continue;
+      int first = 0;
+      if (from.kind == PrimRef::Kind::kSphere && from.id == index) {
+        if (dot(d, o - s.center) >= 0) continue;
+        first = 1;
+      }
+      for (int k = first; k < 2; ++k) {
+        const float tf = float(t[k]);
+        if (tf > tnear && tf < tfar) add_glass_hit(&ctx->glass[RTCRayN_id(ray, N, i)], tf, s.material);
+      }
+      continue;
+    }
+    if (sphere_root(s, index, from, o, d, tnear, tfar) >= 0) {
       RTCRayN_tfar(ray, N, i) = -std::numeric_limits<float>::infinity();
     }
+  }
+}
+
+// Occlusion filter of the glass triangles: while a shadow ray collects glass crossings, record
+// the candidate and reject it so traversal goes on (Embree sets tfar to the candidate's t).
+void glass_triangle_occluded_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* ctx = reinterpret_cast<const TraceContext*>(args->context);
+  if (!ctx->glass) return;
+  const auto* bucket = static_cast<const RenderScene::TriangleBucket*>(args->geometryUserPtr);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    add_glass_hit(&ctx->glass[RTCRayN_id(args->ray, args->N, i)], RTCRayN_tfar(args->ray, args->N, i),
+                  bucket->material_ids[RTCHitN_primID(args->hit, args->N, i)]);
+    args->valid[i] = 0;
   }
 }
 
@@ -251,6 +293,10 @@ void RenderScene::build(const Scene& scene, int frame) {
     rtcSetSharedGeometryBuffer(g.get(), RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, b.indices.data(), 0,
                                3 * sizeof(uint32_t), b.material_ids.size());
     rtcSetGeometryMask(g.get(), k == 0 ? kOpaqueMask : kGlassMask);
+    if (k == 1) {
+      rtcSetGeometryUserData(g.get(), &b);
+      rtcSetGeometryOccludedFilterFunction(g.get(), glass_triangle_occluded_filter);
+    }
     rtcCommitGeometry(g.get());
     b.geom_id = rtcAttachGeometry(s, g.get());
   }
@@ -299,17 +345,25 @@ bool RenderScene::intersect(const Ray& ray, const PrimRef& from, Hit* hit) const
   ctx.from = from;
   // Embree only needs to look closer than the nearest plane.
   RTCRayHit rh = make_rayhit(ray, 0.0f, plane >= 0 ? float(tp) : ray.tmax, 0xFFFFFFFFu);
+  if (RayLog* log = thread_ray_log()) {
+    log->rays.push_back({rh.ray, from, from.kind == PrimRef::Kind::kNone ? LoggedRay::Kind::kCamera
+                                                                         : LoggedRay::Kind::kSecondary});
+  }
   rtcIntersect1(rtc_scene_.get(), &ctx.rtc, &rh);
-  const uint32_t g = rh.hit.geomID;
+  return finish_hit(o, d, plane, tp, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, rh.ray.tfar, hit);
+}
+
+bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double tp, uint32_t g, uint32_t prim_id,
+                             float hit_u, float hit_v, float tfar, Hit* hit) const {
   if (g != RTC_INVALID_GEOMETRY_ID) {
-    hit->t = rh.ray.tfar;
+    hit->t = tfar;
     for (int k = 0; k < 2; ++k) {
       if (g == triangles_[k].geom_id) {
         const TriangleBucket& b = triangles_[k];
-        const uint32_t pid = rh.hit.primID;
+        const uint32_t pid = prim_id;
         const Vec3f v0 = b.positions[b.indices[3 * pid]], v1 = b.positions[b.indices[3 * pid + 1]],
                     v2 = b.positions[b.indices[3 * pid + 2]];
-        const float u = rh.hit.u, v = rh.hit.v, w = 1.0f - u - v;
+        const float u = hit_u, v = hit_v, w = 1.0f - u - v;
         // Interpolating the vertices (not o + t d) bounds the error by the vertices' magnitude.
         hit->p = v0 * w + v1 * u + v2 * v;
         hit->p_err = (abs(v0 * w) + abs(v1 * u) + abs(v2 * v)) * gamma_bound(7);
@@ -319,10 +373,10 @@ bool RenderScene::intersect(const Ray& ray, const PrimRef& from, Hit* hit) const
         return true;
       }
       if (g == sphere_buckets_[k].geom_id) {
-        const uint32_t index = sphere_buckets_[k].ids[rh.hit.primID];
+        const uint32_t index = sphere_buckets_[k].ids[prim_id];
         const Sphere& s = spheres_[index];
         // Recompute in double and project back onto the sphere (pbrt-v4's re-projection).
-        const Vec3d pd = o + d * double(rh.ray.tfar);
+        const Vec3d pd = o + d * double(tfar);
         const Vec3d nd = normalize(pd - s.center);
         const Vec3d pr = s.center + nd * s.radius;
         hit->p = Vec3f(pr);
@@ -348,27 +402,46 @@ bool RenderScene::intersect(const Ray& ray, const PrimRef& from, Hit* hit) const
   return true;
 }
 
-Rgb RenderScene::transmittance(const Ray& ray, const PrimRef& from) const {
+bool RenderScene::opaque_plane_blocks(const Ray& ray, const PrimRef& from) const {
   const Vec3d o(ray.o), d(ray.d);
-  // Opaque planes first: cheapest.
   for (size_t i = 0; i < planes_.size(); ++i) {
     if ((from.kind == PrimRef::Kind::kPlane && from.id == i) ||
         materials_[planes_[i].material].type == Material::Type::kGlass) {
       continue;
     }
     const double t = intersect_plane(o, d, planes_[i].point, planes_[i].normal);
-    if (t > 0.0 && t < double(ray.tmax)) return Rgb(0.0f);
+    if (t > 0.0 && t < double(ray.tmax)) return true;
   }
+  return false;
+}
+
+Rgb RenderScene::transmittance(const Ray& ray, const PrimRef& from) const {
+  // Opaque planes first: cheapest.
+  if (opaque_plane_blocks(ray, from)) return Rgb(0.0f);
   TraceContext ctx;
   rtcInitIntersectContext(&ctx.rtc);
   ctx.scene = this;
   ctx.from = from;
-  RTCRay r = make_rayhit(ray, 0.0f, ray.tmax, kOpaqueMask).ray;
+  GlassHits glass;
+  // With glass in the scene, one traversal over both classes: opaque hits end it, glass
+  // crossings are collected (sphere callback, triangle filter) and multiplied in order below.
+  // This replaced an occlusion query plus a crossing-by-crossing glass walk (two or more
+  // traversals for every unblocked shadow ray).
+  if (has_glass_) ctx.glass = &glass;
+  RTCRay r = make_rayhit(ray, 0.0f, ray.tmax, has_glass_ ? kOpaqueMask | kGlassMask : kOpaqueMask).ray;
+  if (RayLog* log = thread_ray_log()) log->rays.push_back({r, from, LoggedRay::Kind::kShadow});
   rtcOccluded1(rtc_scene_.get(), &ctx.rtc, &r);
   if (r.tfar < 0.0f) return Rgb(0.0f);
   if (!has_glass_) return Rgb(1.0f);
+  ctx.glass = nullptr;
+  return glass_product(ray, &ctx, &glass);
+}
 
-  // Glass between the point and the light: walk the crossings in order along the ray, so the
+Rgb RenderScene::glass_product(const Ray& ray, TraceContext* ctx, GlassHits* glass_hits) const {
+  const Vec3d o(ray.o), d(ray.d);
+  const PrimRef& from = ctx->from;
+  GlassHits& glass = *glass_hits;
+  // Glass between the point and the light: multiply the crossings in order along the ray, so the
   // product is formed in the same order every time (bit-identical results).
   Rgb T(1.0f);
   for (size_t i = 0; i < planes_.size(); ++i) {
@@ -379,10 +452,27 @@ Rgb RenderScene::transmittance(const Ray& ray, const PrimRef& from) const {
     const double t = intersect_plane(o, d, planes_[i].point, planes_[i].normal);
     if (t > 0.0 && t < double(ray.tmax)) T *= materials_[planes_[i].material].transmittance;
   }
+  if (glass.overflow) return glass_transmittance_walk(ray, ctx, T);
+  // Embree reports candidates in traversal order: sort by t (ties by material, so the order is
+  // total), and count crossings at the same t once, as the walk stepping past each t did.
+  std::sort(glass.hits, glass.hits + glass.count, [](const GlassHit& a, const GlassHit& b) {
+    return a.t < b.t || (a.t == b.t && a.material < b.material);
+  });
+  for (int i = 0; i < glass.count; ++i) {
+    if (i > 0 && glass.hits[i].t == glass.hits[i - 1].t) continue;
+    T *= materials_[glass.hits[i].material].transmittance;
+    if (!(T.x > 0 || T.y > 0 || T.z > 0)) break;
+  }
+  return T;
+}
+
+// The crossing-by-crossing walk, kept for rays that cross more than kMaxGlassHits glass surfaces.
+Rgb RenderScene::glass_transmittance_walk(const Ray& ray, TraceContext* ctx, Rgb T) const {
   float tnear = 0.0f;
   for (int crossing = 0; crossing < kMaxGlassCrossings; ++crossing) {
     RTCRayHit rh = make_rayhit(ray, tnear, ray.tmax, kGlassMask);
-    rtcIntersect1(rtc_scene_.get(), &ctx.rtc, &rh);
+    if (RayLog* log = thread_ray_log()) log->rays.push_back({rh.ray, ctx->from, LoggedRay::Kind::kGlassWalk});
+    rtcIntersect1(rtc_scene_.get(), &ctx->rtc, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) break;
     uint32_t m = 0;
     if (rh.hit.geomID == triangles_[1].geom_id) m = triangles_[1].material_ids[rh.hit.primID];

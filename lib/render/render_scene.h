@@ -46,6 +46,13 @@ class RenderScene {
 
   // Nearest hit along the ray in (0, ray.tmax]; `from` is the primitive the ray leaves.
   bool intersect(const Ray& ray, const PrimRef& from, Hit* hit) const;
+  // The same for n <= kPacket rays at once, traced as one Embree packet (render_scene_packet.cpp).
+  // A lane's result depends only on its own ray, except that exact ties between two primitives
+  // at the same t may resolve by the packet's traversal order: callers must form packets as a
+  // pure function of the pixel (the tile renderer packs one pixel's consecutive samples).
+  static constexpr int kPacket = 8;
+  void intersect_packet(const Ray* rays, const PrimRef* from, int n, Hit* hits, bool* found) const;
+  void transmittance_packet(const Ray* rays, const PrimRef* from, int n, Rgb* T) const;
   // Fraction of light arriving along the ray over (0, ray.tmax]: 0 if an opaque surface blocks
   // it, else the product of the transmittances of the glass surfaces crossed (unrefracted).
   Rgb transmittance(const Ray& ray, const PrimRef& from) const;
@@ -93,9 +100,41 @@ class RenderScene {
   struct SphereGeomData { const RenderScene* scene; const SphereBucket* bucket; };
   const std::vector<Sphere>& spheres() const { return spheres_; }
 
+  // A glass surface met by a shadow ray (collected during one occlusion query).
+  struct GlassHit { float t; uint32_t material; };
+  static constexpr int kMaxGlassHits = 32;
+  struct GlassHits {
+    int count = 0;
+    bool overflow = false;
+    GlassHit hits[kMaxGlassHits];
+  };
+  // Embree's intersect context extended (as in Embree's tutorials) with what our callbacks need.
+  // `from` is the primitive the ray leaves; for packets, `from_by_id` (if set) gives it per lane,
+  // indexed by the ray's id, so a lane's result never depends on its packet. `glass` (if set)
+  // (indexed by ray id too) makes occlusion queries collect glass crossings instead of stopping
+  // at them.
+  struct TraceContext {
+    RTCIntersectContext rtc;
+    const RenderScene* scene = nullptr;
+    PrimRef from;
+    const PrimRef* from_by_id = nullptr;
+    GlassHits* glass = nullptr;
+  };
+  // The Embree scene (benchmarks replay the renderer's rays on it; see render/ray_log.h).
+  RTCScene embree_scene() const { return rtc_scene_.get(); }
+  // Embree geometry masks of the two material classes.
+  static constexpr uint32_t kOpaqueMask = 1, kGlassMask = 2;
+
  private:
   void build(const Scene& scene, int frame);
   double nearest_plane(const Vec3d& o, const Vec3d& d, const PrimRef& from, double tmax, int* which) const;
+  Rgb glass_transmittance_walk(const Ray& ray, TraceContext* ctx, Rgb T) const;
+  // The halves of intersect() and transmittance() around the Embree query, shared with the
+  // packet versions (render_scene_packet.cpp).
+  bool finish_hit(const Vec3d& o, const Vec3d& d, int plane, double tp, uint32_t geom_id, uint32_t prim_id,
+                  float u, float v, float tfar, Hit* hit) const;
+  bool opaque_plane_blocks(const Ray& ray, const PrimRef& from) const;
+  Rgb glass_product(const Ray& ray, TraceContext* ctx, GlassHits* glass) const;
 
   ImageSettings image_;
   int frame_ = 0;

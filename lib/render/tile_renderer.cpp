@@ -32,29 +32,44 @@ TileResult render_tile(const RenderScene& scene, const TileRect& rect) {
   const ImageSettings& img = scene.image();
   const auto& cam = scene.camera();
   const uint32_t spp = uint32_t(img.spp);
+  std::vector<PixelSampler> samplers;
+  samplers.reserve(RenderScene::kPacket);
   for (int y = rect.y0; y < rect.y0 + rect.height; ++y) {
     for (int x = rect.x0; x < rect.x0 + rect.width; ++x) {
       // Welford's running mean and variance, in double, in sample order: exact same sequence of
       // operations for this pixel wherever and however often it is rendered.
       double mean[3] = {0, 0, 0}, m2[3] = {0, 0, 0};
-      for (uint32_t s = 0; s < spp; ++s) {
-        const PixelSampler sampler(img.sampler, img.seed, scene.frame(), x, y, s, spp);
-        float su, sv;
-        sampler.pixel_offset(&su, &sv);
-        const float u = (float(x) + su) / float(img.width);
-        const float v = (float(y) + sv) / float(img.height);
-        const Vec3f dir = normalize(cam.p0 + cam.du * u + cam.dv * v);
-        ++out.rays.camera;
-        Rgb L = trace_radiance(scene, {Vec3f(0.0f), dir}, sampler, &out.rays);
-        if (!is_finite(L)) {
-          ++out.rays.nonfinite_samples;  // never let NaN/Inf reach a pixel; counted, not hidden
-          L = Rgb(0.0f);
+      // Samples s0 .. s0+7 of this pixel form one packet: which rays share a packet depends on
+      // the pixel and spp only, never on the tile or thread (see RenderScene::intersect_packet).
+      for (uint32_t s0 = 0; s0 < spp; s0 += RenderScene::kPacket) {
+        const int n = int(std::min<uint32_t>(RenderScene::kPacket, spp - s0));
+        samplers.clear();
+        Ray rays[RenderScene::kPacket];
+        Rgb Ls[RenderScene::kPacket];
+        for (int i = 0; i < n; ++i) {
+          const PixelSampler& sampler =
+              samplers.emplace_back(img.sampler, img.seed, scene.frame(), x, y, s0 + uint32_t(i), spp);
+          float su, sv;
+          sampler.pixel_offset(&su, &sv);
+          const float u = (float(x) + su) / float(img.width);
+          const float v = (float(y) + sv) / float(img.height);
+          rays[i] = {Vec3f(0.0f), normalize(cam.p0 + cam.du * u + cam.dv * v)};
         }
-        for (int c = 0; c < 3; ++c) {
-          const double xv = double(L[c]);
-          const double delta = xv - mean[c];
-          mean[c] += delta / double(s + 1);
-          m2[c] += delta * (xv - mean[c]);
+        out.rays.camera += uint64_t(n);
+        trace_radiance_packet(scene, rays, samplers.data(), n, &out.rays, Ls);
+        for (int i = 0; i < n; ++i) {
+          const uint32_t s = s0 + uint32_t(i);
+          Rgb L = Ls[i];
+          if (!is_finite(L)) {
+            ++out.rays.nonfinite_samples;  // never let NaN/Inf reach a pixel; counted, not hidden
+            L = Rgb(0.0f);
+          }
+          for (int c = 0; c < 3; ++c) {
+            const double xv = double(L[c]);
+            const double delta = xv - mean[c];
+            mean[c] += delta / double(s + 1);
+            m2[c] += delta * (xv - mean[c]);
+          }
         }
       }
       const size_t i = size_t(y - rect.y0) * size_t(rect.width) + size_t(x - rect.x0);

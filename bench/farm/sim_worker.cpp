@@ -1,0 +1,244 @@
+#include "sim_worker.h"
+
+#include <cstring>
+
+namespace tessera::bench {
+
+namespace v1 = tessera::v1;
+
+// ------------------------------------------------------------------------------------------
+// SimTimer
+
+SimTimer::SimTimer() : thread_([this] { loop(); }) {}
+
+SimTimer::~SimTimer() { stop(); }
+
+void SimTimer::at(SteadyClock::time_point when, std::function<void()> f) {
+  {
+    std::lock_guard lock(mu_);
+    if (stop_) return;
+    q_.push(Entry{when, seq_++, std::move(f)});
+  }
+  cv_.notify_one();
+}
+
+void SimTimer::stop() {
+  {
+    std::lock_guard lock(mu_);
+    stop_ = true;
+    while (!q_.empty()) q_.pop();
+  }
+  cv_.notify_one();
+  if (thread_.joinable()) thread_.join();
+}
+
+void SimTimer::loop() {
+  std::unique_lock lock(mu_);
+  while (!stop_) {
+    if (q_.empty()) {
+      cv_.wait(lock);
+      continue;
+    }
+    const auto when = q_.top().when;
+    if (SteadyClock::now() < when) {
+      cv_.wait_until(lock, when);
+      continue;
+    }
+    auto f = std::move(const_cast<Entry&>(q_.top()).f);
+    q_.pop();
+    lock.unlock();
+    f();
+    lock.lock();
+  }
+}
+
+// ------------------------------------------------------------------------------------------
+// SimWorker
+
+namespace {
+// The tile a worker would return: 3 x w x h float32 RGB, then w x h float32 variance. The values
+// do not matter to the coordinator (it checks only sizes and position), so they are constant.
+std::string constant_floats(size_t count, float value) {
+  std::string s(count * sizeof(float), '\0');
+  for (size_t i = 0; i < count; ++i) std::memcpy(s.data() + i * sizeof(float), &value, sizeof(float));
+  return s;
+}
+}  // namespace
+
+SimWorker::SimWorker(v1::WorkerService::Stub* stub, std::string name, SimOptions options, SimTimer& timer,
+                     SimCounters& counters)
+    : stub_(stub), name_(std::move(name)), options_(options), timer_(timer), counters_(counters) {}
+
+void SimWorker::start() {
+  stub_->async()->Connect(&ctx_, this);
+  v1::WorkerMessage reg;
+  reg.mutable_register_()->set_name(name_);
+  reg.mutable_register_()->set_threads(options_.threads);
+  reg.mutable_register_()->set_embree_isa("simulated");
+  reg.mutable_register_()->set_version("coordinator_load (simulated worker)");
+  // The hold keeps OnDone away while the timer thread may still start writes (see stop()).
+  AddHold();
+  send(std::move(reg));
+  StartRead(&in_);
+  StartCall();
+}
+
+void SimWorker::go() { request(2 * options_.threads); }
+
+void SimWorker::request(int count) {
+  v1::WorkerMessage m;
+  m.mutable_request()->set_count(count);
+  send(std::move(m));
+}
+
+void SimWorker::heartbeat() {
+  v1::WorkerMessage m;
+  m.mutable_heartbeat();
+  {
+    std::lock_guard lock(mu_);
+    if (stopped_) return;
+  }
+  send(std::move(m));
+  counters_.heartbeats++;
+  timer_.at(SteadyClock::now() + heartbeat_interval_, [this] { heartbeat(); });
+}
+
+void SimWorker::send(v1::WorkerMessage m) {
+  std::unique_lock lock(mu_);
+  if (stopped_) return;
+  counters_.bytes_out += int64_t(m.ByteSizeLong());
+  queue_.push_back(std::move(m));
+  if (writing_) return;
+  writing_ = true;
+  current_ = std::move(queue_.front());
+  queue_.pop_front();
+  lock.unlock();
+  StartWrite(&current_);
+}
+
+// Called with mu_ held, once no more writes will start: the hold may go.
+void SimWorker::release_hold_locked(bool* release) {
+  *release = !writing_ && !hold_released_;
+  if (*release) hold_released_ = true;
+}
+
+void SimWorker::OnWriteDone(bool ok) {
+  std::unique_lock lock(mu_);
+  if (!ok) stopped_ = true;  // the stream is broken
+  if (stopped_ || queue_.empty()) {
+    writing_ = false;
+    bool release = false;
+    if (stopped_) release_hold_locked(&release);
+    lock.unlock();
+    if (release) RemoveHold();
+    return;
+  }
+  current_ = std::move(queue_.front());
+  queue_.pop_front();
+  lock.unlock();
+  StartWrite(&current_);
+}
+
+void SimWorker::OnReadDone(bool ok) {
+  if (!ok) {  // the coordinator ended the stream, or we cancelled it
+    bool release = false;
+    {
+      std::lock_guard lock(mu_);
+      if (!stopped_) ended_early_ = true;
+      stopped_ = true;
+      release_hold_locked(&release);
+    }
+    if (release) RemoveHold();
+    return;
+  }
+  counters_.bytes_in += int64_t(in_.ByteSizeLong());
+  switch (in_.msg_case()) {
+    case v1::CoordinatorMessage::kWelcome:
+      heartbeat_interval_ = std::chrono::milliseconds(std::max(50, in_.welcome().heartbeat_interval_ms()));
+      timer_.at(SteadyClock::now() + heartbeat_interval_, [this] { heartbeat(); });
+      welcomed_ = true;
+      break;
+    case v1::CoordinatorMessage::kAssignment: {
+      counters_.assignments++;
+      if (options_.delay.count() == 0) {
+        finish_tile(in_.assignment());
+      } else {
+        {
+          std::lock_guard lock(mu_);
+          pending_.insert(in_.assignment().lease_id());
+        }
+        timer_.at(SteadyClock::now() + options_.delay, [this, a = in_.assignment()] { finish_tile(a); });
+      }
+      break;
+    }
+    case v1::CoordinatorMessage::kRevoke: {
+      std::lock_guard lock(mu_);
+      for (uint64_t id : in_.revoke().lease_ids()) {
+        if (pending_.count(id)) {
+          revoked_.insert(id);
+          counters_.revoked++;
+        }
+      }
+      break;
+    }
+    default:
+      break;
+  }
+  StartRead(&in_);
+}
+
+void SimWorker::finish_tile(const v1::Assignment& a) {
+  bool revoked;
+  {
+    std::lock_guard lock(mu_);
+    pending_.erase(a.lease_id());
+    revoked = revoked_.erase(a.lease_id()) > 0;
+  }
+  if (!revoked) {  // like tessera-worker: a revoked tile's result is discarded, the slot refilled
+    const size_t pixels = size_t(std::max(0, a.rect().width())) * size_t(std::max(0, a.rect().height()));
+    v1::WorkerMessage out;
+    auto* r = out.mutable_result();
+    r->set_lease_id(a.lease_id());
+    auto* t = r->mutable_tile();
+    t->set_job_id(a.job_id());
+    t->set_frame(a.frame());
+    t->set_tile_index(a.tile_index());
+    *t->mutable_rect() = a.rect();
+    t->set_rgb(constant_floats(3 * pixels, 0.5f));
+    t->set_variance(constant_floats(pixels, 0.0f));
+    t->mutable_rays()->set_camera(pixels);
+    t->set_seconds(std::chrono::duration<double>(options_.delay).count());
+    t->set_worker(name_);
+    send(std::move(out));
+    counters_.results++;
+  }
+  request(1);
+}
+
+void SimWorker::stop() {
+  bool release = false;
+  {
+    std::lock_guard lock(mu_);
+    if (!stopped_) {
+      stopped_ = true;
+      queue_.clear();
+    }
+    release_hold_locked(&release);
+  }
+  ctx_.TryCancel();
+  if (release) RemoveHold();
+}
+
+void SimWorker::OnDone(const grpc::Status& s) {
+  std::lock_guard lock(done_mu_);
+  status_ = s;
+  done_ = true;
+  done_cv_.notify_all();
+}
+
+bool SimWorker::wait_done(SteadyClock::time_point deadline) {
+  std::unique_lock lock(done_mu_);
+  return done_cv_.wait_until(lock, deadline, [this] { return done_; });
+}
+
+}  // namespace tessera::bench

@@ -1,0 +1,124 @@
+// A simulated tessera-worker for the coordinator load generator: it speaks worker_service.proto
+// as worker/connection.cpp does (register; pull 2 x threads tiles, then one more per finished
+// tile; a heartbeat every interval the welcome names; revoked leases are not returned) but,
+// instead of rendering, returns a constant tile of the leased size after a fixed delay. It runs
+// on the gRPC callback API, so a thousand of them share gRPC's few threads and one timer thread
+// instead of a thousand OS threads.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <queue>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "tessera/v1/worker_service.grpc.pb.h"
+
+namespace tessera::bench {
+
+using SteadyClock = std::chrono::steady_clock;
+
+// Runs delayed tile results and heartbeats for every simulated worker on one thread.
+class SimTimer {
+ public:
+  SimTimer();
+  ~SimTimer();
+  SimTimer(const SimTimer&) = delete;
+  SimTimer& operator=(const SimTimer&) = delete;
+  void at(SteadyClock::time_point when, std::function<void()> f);
+  // Drops every pending callback and joins the thread: call before destroying the workers.
+  void stop();
+
+ private:
+  struct Entry {
+    SteadyClock::time_point when;
+    uint64_t seq;
+    std::function<void()> f;
+    bool operator>(const Entry& o) const { return std::tie(when, seq) > std::tie(o.when, o.seq); }
+  };
+  void loop();
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<>> q_;
+  uint64_t seq_ = 0;
+  bool stop_ = false;
+  std::thread thread_;
+};
+
+struct SimOptions {
+  int threads = 1;                       // reported at registration; the pull depth is 2 x threads
+  std::chrono::microseconds delay{0};    // "render time" of every tile
+};
+
+struct SimCounters {
+  std::atomic<int64_t> assignments{0};
+  std::atomic<int64_t> results{0};
+  std::atomic<int64_t> revoked{0};       // revocations of a lease still "rendering" here
+  std::atomic<int64_t> heartbeats{0};
+  std::atomic<int64_t> bytes_out{0};     // serialized WorkerMessage bytes sent
+  std::atomic<int64_t> bytes_in{0};      // serialized CoordinatorMessage bytes received
+};
+
+class SimWorker : public grpc::ClientBidiReactor<tessera::v1::WorkerMessage, tessera::v1::CoordinatorMessage> {
+ public:
+  SimWorker(tessera::v1::WorkerService::Stub* stub, std::string name, SimOptions options, SimTimer& timer,
+            SimCounters& counters);
+  // Opens the session and registers. welcomed() turns true when the coordinator answers.
+  void start();
+  bool welcomed() const { return welcomed_.load(); }
+  // The first pull. Kept apart from start() so that the benchmark can connect every worker, then
+  // queue a job, then let them all loose.
+  void go();
+  // Cancels the session; wait_done() returns once gRPC has finished with this reactor.
+  void stop();
+  bool wait_done(SteadyClock::time_point deadline);
+  bool ended_early() const { return ended_early_.load(); }  // the stream ended before stop()
+  const grpc::Status& status() const { return status_; }
+
+ private:
+  void OnReadDone(bool ok) override;
+  void OnWriteDone(bool ok) override;
+  void OnDone(const grpc::Status& s) override;
+
+  void send(tessera::v1::WorkerMessage m);
+  void request(int count);
+  void finish_tile(const tessera::v1::Assignment& a);
+  void heartbeat();
+  void release_hold_locked(bool* release);
+
+  tessera::v1::WorkerService::Stub* stub_;
+  std::string name_;
+  SimOptions options_;
+  SimTimer& timer_;
+  SimCounters& counters_;
+  grpc::ClientContext ctx_;
+  tessera::v1::CoordinatorMessage in_;
+  std::chrono::milliseconds heartbeat_interval_{1000};
+
+  std::mutex mu_;  // guards everything below
+  std::deque<tessera::v1::WorkerMessage> queue_;
+  tessera::v1::WorkerMessage current_;  // the one write in flight
+  bool writing_ = false;
+  bool stopped_ = false;        // no more writes
+  bool hold_released_ = false;
+  std::set<uint64_t> pending_;  // leases "rendering" (waiting on the timer)
+  std::set<uint64_t> revoked_;
+
+  std::atomic<bool> welcomed_{false};
+  std::atomic<bool> ended_early_{false};
+  std::mutex done_mu_;
+  std::condition_variable done_cv_;
+  bool done_ = false;
+  grpc::Status status_;
+};
+
+}  // namespace tessera::bench

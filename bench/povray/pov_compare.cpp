@@ -1,0 +1,154 @@
+// POV-Ray as a peer (issue 6, part 3): compares POV-Ray's render of bench/povray/whitted.pov
+// (rendered by bench/run_all.sh, linear EXR) with Tessera's render of scenes/whitted.json at
+// the same size, in this process: RMSE in linear light of each against a high-spp Tessera
+// reference, of the two against each other, and samples per second (wall and CPU) of each.
+// Then the lowest spp at which Tessera's error is at most POV-Ray's, and the speed-up at that
+// equal error. Prints JSON on stdout; appends markdown to --markdown. Asserts nothing about time.
+#include <spdlog/spdlog.h>
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <string>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "image/exr_io.h"
+#include "render/embree_device.h"
+#include "render/tile_renderer.h"
+#include "scene/scene_parser.h"
+
+namespace fs = std::filesystem;
+using namespace tessera;
+
+namespace {
+
+double cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+double rmse(const ImageRGB& a, const ImageRGB& b) {
+  double s = 0;
+  for (size_t i = 0; i < a.rgb.size(); ++i) {
+    const double d = double(a.rgb[i]) - double(b.rgb[i]);
+    s += d * d;
+  }
+  return std::sqrt(s / double(a.rgb.size()));
+}
+
+struct Run {
+  int spp = 0;
+  double wall = 0, cpu = 0, rmse = 0;
+  ImageRGB image;
+};
+
+Run render(const Scene& base, int spp, int threads, const ImageRGB& ref) {
+  Scene s = base;
+  s.image.spp = spp;
+  RenderScene rs(s, 0);
+  const double c0 = cpu_seconds();
+  FrameResult r = render_frame(rs, 32, threads);
+  Run run;
+  run.spp = spp;
+  run.cpu = cpu_seconds() - c0;
+  run.wall = r.seconds;
+  run.rmse = rmse(r.image, ref);
+  run.image = std::move(r.image);
+  return run;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Tessera against POV-Ray 3.7 on the Whitted showcase"};
+  std::string scene_path, pov_exr, ref_path, markdown;
+  int width = 320, height = 180, threads = 0, pov_spp = 16, max_spp = 1024;
+  double pov_wall = 0, pov_cpu = 0;
+  long long pov_samples = 0;
+  app.add_option("--scene", scene_path)->required()->check(CLI::ExistingFile);
+  app.add_option("--pov-exr", pov_exr, "POV-Ray's linear EXR output")->required()->check(CLI::ExistingFile);
+  app.add_option("--pov-wall", pov_wall, "POV-Ray trace time, wall seconds (its log)")->required();
+  app.add_option("--pov-cpu", pov_cpu, "POV-Ray trace CPU-seconds (its log)")->required();
+  app.add_option("--pov-samples", pov_samples, "Samples POV-Ray reported")->required();
+  app.add_option("--pov-spp", pov_spp, "POV-Ray's samples per pixel (+R n: n*n)");
+  app.add_option("--reference", ref_path, "High-spp Tessera reference EXR (bench/speed_error's cache)")
+      ->required()->check(CLI::ExistingFile);
+  app.add_option("--width", width);
+  app.add_option("--height", height);
+  app.add_option("--threads", threads, "Tessera threads (give POV-Ray the same +WT)");
+  app.add_option("--max-spp", max_spp, "Give up the equal-error search here");
+  app.add_option("--markdown", markdown);
+  CLI11_PARSE(app, argc, argv);
+  spdlog::set_level(spdlog::level::warn);
+
+  Scene scene = load_scene(scene_path);
+  scene.image.width = width;
+  scene.image.height = height;
+  const ImageRGB ref = read_exr(ref_path);
+  const ImageRGB pov = read_exr(pov_exr);
+  if (ref.width != width || ref.height != height || pov.width != width || pov.height != height) {
+    std::cerr << "pov_compare: image sizes differ: reference " << ref.width << "x" << ref.height << ", POV-Ray "
+              << pov.width << "x" << pov.height << ", expected " << width << "x" << height << "\n";
+    return 2;
+  }
+  const double pov_rmse = rmse(pov, ref);
+
+  // Same samples per pixel as POV-Ray, then the equal-error search.
+  const Run same = render(scene, pov_spp, threads, ref);
+  Run equal;
+  for (int spp = 1; spp <= max_spp; spp *= 2) {
+    Run r = spp == pov_spp ? same : render(scene, spp, threads, ref);
+    equal = std::move(r);
+    if (equal.rmse <= pov_rmse) break;
+  }
+  const double px = double(width) * double(height);
+  const double t_sps_wall = px * same.spp / same.wall, t_sps_cpu = px * same.spp / same.cpu;
+  const double p_sps_wall = double(pov_samples) / pov_wall, p_sps_cpu = double(pov_samples) / pov_cpu;
+  const bool reached = equal.rmse <= pov_rmse;
+  nlohmann::json out = {
+      {"scene", fs::path(scene_path).stem().string()},
+      {"width", width},
+      {"height", height},
+      {"threads", threads},
+      {"renderer", embree_isa()},
+      {"povray", {{"samples", pov_samples}, {"spp", pov_spp}, {"wall_s", pov_wall}, {"cpu_s", pov_cpu},
+                  {"samples_per_s_wall", p_sps_wall}, {"samples_per_s_cpu", p_sps_cpu}, {"rmse_vs_reference", pov_rmse}}},
+      {"tessera_same_spp", {{"spp", same.spp}, {"wall_s", same.wall}, {"cpu_s", same.cpu},
+                            {"samples_per_s_wall", t_sps_wall}, {"samples_per_s_cpu", t_sps_cpu},
+                            {"rmse_vs_reference", same.rmse}}},
+      {"rmse_povray_vs_tessera_same_spp", rmse(pov, same.image)},
+      {"throughput_ratio_wall", t_sps_wall / p_sps_wall},
+      {"throughput_ratio_cpu", t_sps_cpu / p_sps_cpu},
+      {"equal_error", {{"reached", reached}, {"spp", equal.spp}, {"wall_s", equal.wall}, {"cpu_s", equal.cpu},
+                       {"rmse", equal.rmse}, {"speedup_wall", pov_wall / equal.wall}, {"speedup_cpu", pov_cpu / equal.cpu}}}};
+  std::cout << out.dump(2) << "\n";
+  if (!markdown.empty()) {
+    std::ofstream md(markdown, std::ios::app);
+    char buf[1024];
+    md << "| | spp | wall s | CPU s | samples/s (wall) | samples/s (CPU) | RMSE vs reference |\n|---|---:|---:|---:|---:|---:|---:|\n";
+    std::snprintf(buf, sizeof buf, "| POV-Ray 3.7 | %d | %.3f | %.3f | %.3g | %.3g | %.4g |\n", pov_spp, pov_wall, pov_cpu,
+                  p_sps_wall, p_sps_cpu, pov_rmse);
+    md << buf;
+    std::snprintf(buf, sizeof buf, "| Tessera, same spp | %d | %.3f | %.3f | %.3g | %.3g | %.4g |\n", same.spp, same.wall,
+                  same.cpu, t_sps_wall, t_sps_cpu, same.rmse);
+    md << buf;
+    std::snprintf(buf, sizeof buf, "| Tessera, equal error | %d | %.3f | %.3f | | | %.4g |\n", equal.spp, equal.wall,
+                  equal.cpu, equal.rmse);
+    md << buf;
+    std::snprintf(buf, sizeof buf,
+                  "\nRMSE between the two images at %d spp: %.4g. Throughput (samples/s) Tessera / POV-Ray: %.2fx wall, "
+                  "%.2fx CPU. At equal or lower error (%s at %d spp): %.2fx faster (wall), %.2fx (CPU). Goal 10x: %s.\n",
+                  pov_spp, rmse(pov, same.image), t_sps_wall / p_sps_wall, t_sps_cpu / p_sps_cpu,
+                  reached ? "reached" : "NOT reached", equal.spp, pov_wall / equal.wall, pov_cpu / equal.cpu,
+                  reached && pov_wall / equal.wall >= 10 ? "met" : "not met");
+    md << buf;
+  }
+  return 0;
+}

@@ -1,0 +1,155 @@
+#!/usr/bin/env bash
+# Every benchmark of docs/performance.md, one command:
+#
+#   bench/run_all.sh [--build DIR] [--out DIR] [--smoke] [--only LIST] [--no-farm] [--threads N]
+#
+#   speed_error   time, Mrays/s, RMSE, relMSE and the renderer's estimated RMSE against spp, per
+#                 sampler, for the three showcase scenes, plus a log-log PNG (gnuplot)
+#   ray_ceiling   the renderer's Mrays/s against bare Embree on its own rays (single, 8-, 16-wide)
+#   povray        POV-Ray 3.7 on the same Whitted scene: error and samples/s of both
+#   farm          bench/farm/run.sh (farm overhead, coordinator at scale), when it exists
+#
+# Results go to OUT (default bench-results/): JSON per run, summary.md (markdown tables) and the
+# PNG plots. --smoke runs a seconds-long version of each (tiny images, few spp) for CI: it asserts
+# nothing about time and fails only if a benchmark breaks. References (high-spp renders) are
+# cached in BUILD/bench-cache. The full run takes about 20 minutes on 2 (shared) cores.
+set -euo pipefail
+HERE=$(cd "$(dirname "$0")" && pwd)
+ROOT=$(cd "$HERE/.." && pwd)
+BUILD=$ROOT/build
+OUT=""
+SMOKE=0
+ONLY=speed_error,ray_ceiling,povray,farm
+FARM=1
+THREADS=$(nproc)
+while [ $# -gt 0 ]; do
+  case $1 in
+    --build) BUILD=$(cd "$2" && pwd); shift 2 ;;
+    --out) OUT=$2; shift 2 ;;
+    --smoke) SMOKE=1; shift ;;
+    --only) ONLY=$2; shift 2 ;;
+    --no-farm) FARM=0; shift ;;
+    --threads) THREADS=$2; shift 2 ;;
+    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    *) echo "run_all.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
+  esac
+done
+OUT=${OUT:-$ROOT/bench-results}
+mkdir -p "$OUT"
+OUT=$(cd "$OUT" && pwd)
+cd "$ROOT"
+want() { [[ ",$ONLY," == *",$1,"* ]]; }
+for exe in speed_error/speed_error ray_ceiling/ray_ceiling povray/pov_compare; do
+  if [ ! -x "$BUILD/bench/$exe" ]; then
+    echo "run_all.sh: $BUILD/bench/$exe is missing: cmake --build $BUILD --target $(basename $exe)" >&2
+    exit 1
+  fi
+done
+CACHE=$BUILD/bench-cache
+mkdir -p "$CACHE"
+SUMMARY=$OUT/summary.md
+if [ $SMOKE = 1 ]; then
+  W=32 H=18 MAXSPP=4 REFSPP=16 CENTER=2          # speed_error
+  CW=32 CH=18 CSPP=1 REPS=1                      # ray_ceiling
+  PW=32 PH=18 PR=2                               # povray: +R2 = 4 samples per pixel
+else
+  W=192 H=108 MAXSPP=1024 REFSPP=4096 CENTER=16
+  CW=480 CH=270 CSPP=4 REPS=3
+  PW=192 PH=108 PR=4
+fi
+{
+  echo "<!-- bench/run_all.sh$([ $SMOKE = 1 ] && echo ' --smoke') on $(date -u '+%Y-%m-%d %H:%M UTC'), $(nproc) cores: $(lscpu | sed -n 's/^Model name: *//p') -->"
+} >"$SUMMARY"
+
+# plot_speed_error SCENE: OUT/speed_error_SCENE.png from the .dat file speed_error wrote.
+plot_speed_error() {
+  local scene=$1
+  if ! command -v gnuplot >/dev/null; then
+    echo "run_all.sh: gnuplot not installed (apt-get install gnuplot-nox): no plot" >&2
+    return 0
+  fi
+  gnuplot <<EOF
+set terminal pngcairo size 800,560 noenhanced
+set output "$OUT/speed_error_$scene.png"
+set title "$scene, ${W}x${H}, max_depth 8: RMSE against render time"
+set logscale xy
+set xlabel "render time (s, wall), $THREADS threads"
+set ylabel "RMSE against a $REFSPP-spp reference (linear)"
+set key bottom left
+set grid
+plot "$OUT/speed_error_$scene.dat" index 0 using 1:2 with linespoints lw 2 lc 1 title "stratified (CMJ)", \
+     "" index 0 using 1:3 with lines dt 2 lc 1 title "stratified: renderer's estimated RMSE", \
+     "" index 1 using 1:2 with linespoints lw 2 lc 2 title "independent", \
+     "" index 1 using 1:3 with lines dt 2 lc 2 title "independent: renderer's estimated RMSE", \
+     "" index 2 using 1:2 with linespoints lw 2 lc 3 title "center"
+EOF
+}
+
+if want speed_error; then
+  echo "== speed against error (${W}x${H}, spp 1..$MAXSPP, reference $REFSPP spp)" >&2
+  echo -e "\n### Speed against error\n" >>"$SUMMARY"
+  for scene in whitted cornell bunny; do
+    "$BUILD/bench/speed_error/speed_error" --scene "scenes/$scene.json" --width $W --height $H \
+      --max-spp $MAXSPP --ref-spp $REFSPP --center-max-spp $CENTER --threads "$THREADS" --cache "$CACHE" \
+      --markdown "$SUMMARY" --data "$OUT/speed_error_$scene.dat" >"$OUT/speed_error_$scene.json"
+    plot_speed_error "$scene"
+  done
+fi
+
+if want ray_ceiling; then
+  echo "== ray throughput against the ceiling (${CW}x${CH}, $CSPP spp, 1 thread)" >&2
+  {
+    echo -e "\n### Ray throughput against bare Embree (1 thread, best of $REPS)\n"
+    echo "| scene | frame | rays | renderer Mrays/s | bare rtcIntersect1/Occluded1 | bare 8-wide packets | bare 16-wide | ratio to single / 8 / 16 | 0.8 of packet ceiling |"
+    echo "|---|---|---:|---:|---:|---:|---:|---|---|"
+  } >>"$SUMMARY"
+  for scene in whitted cornell bunny; do
+    for depth in 0 scene; do
+      args=()
+      [ $depth = 0 ] && args=(--max-depth 0)
+      "$BUILD/bench/ray_ceiling/ray_ceiling" --scene "scenes/$scene.json" --width $CW --height $CH --spp $CSPP \
+        --reps $REPS "${args[@]}" --markdown "$SUMMARY" >"$OUT/ray_ceiling_${scene}_depth$depth.json"
+    done
+  done
+fi
+
+if want povray; then
+  echo "== POV-Ray 3.7 against Tessera (${PW}x${PH}, $((PR * PR)) spp, $THREADS threads)" >&2
+  echo -e "\n### POV-Ray 3.7 on the Whitted showcase (${PW}x${PH}, $THREADS threads)\n" >>"$SUMMARY"
+  if ! command -v povray >/dev/null; then
+    echo "run_all.sh: povray not installed (apt-get install povray): skipped" >&2
+    echo "POV-Ray not installed: skipped." >>"$SUMMARY"
+  else
+    # The reference is the speed_error one when its size matches; otherwise render one.
+    REF=$CACHE/whitted_${PW}x${PH}_ref${REFSPP}.exr
+    if [ ! -f "$REF" ]; then
+      "$BUILD/bench/speed_error/speed_error" --scene scenes/whitted.json --width $PW --height $PH --max-spp 1 \
+        --ref-spp $REFSPP --samplers stratified --threads "$THREADS" --cache "$CACHE" >/dev/null
+    fi
+    # +A0.0 +AM1 +R n: every pixel supersampled on an n x n grid (non-adaptive in effect), no
+    # jitter; linear EXR output (assumed_gamma 1.0 in the scene); same thread count as ours.
+    s=$(date +%s.%N)
+    /usr/bin/time -f "%U %S" -o "$OUT/povray.cpu" povray +I"$HERE/povray/whitted.pov" +O"$OUT/povray_whitted.exr" \
+      +FE +W$PW +H$PH +A0.0 +AM1 +R$PR -J -D +WT"$THREADS" +V >"$OUT/povray.log" 2>&1
+    e=$(date +%s.%N)
+    process_wall=$(echo "$e - $s" | bc -l)
+    process_cpu=$(awk '{printf "%.3f", $1 + $2}' "$OUT/povray.cpu")
+    # POV-Ray's own trace time (wall) and CPU-seconds: like Tessera's render time, they leave out
+    # start-up and parsing (POV-Ray's front end alone takes most of a second).
+    wall=$(sed -n 's/.*Trace Time:.*(\([0-9.]*\) seconds).*/\1/p' "$OUT/povray.log" | tail -1)
+    cpu=$(sed -n 's/.*thread(s) with \([0-9.]*\) CPU-seconds total.*/\1/p' "$OUT/povray.log" | tail -1)
+    samples=$(sed -n 's/.*Samples: *\([0-9]*\).*/\1/p' "$OUT/povray.log" | tail -1)
+    echo "POV-Ray process: ${process_wall} s wall, ${process_cpu} s CPU (start-up included)" >&2
+    "$BUILD/bench/povray/pov_compare" --scene scenes/whitted.json --pov-exr "$OUT/povray_whitted.exr" \
+      --pov-wall "$wall" --pov-cpu "$cpu" --pov-samples "$samples" --pov-spp $((PR * PR)) --reference "$REF" \
+      --width $PW --height $PH --threads "$THREADS" --markdown "$SUMMARY" >"$OUT/povray.json"
+  fi
+fi
+
+if want farm && [ $FARM = 1 ] && [ -x "$HERE/farm/run.sh" ]; then
+  echo "== farm (bench/farm/run.sh)" >&2
+  farm_args=(--build "$BUILD" --out "$OUT/farm")
+  [ $SMOKE = 1 ] && farm_args+=(--smoke)
+  "$HERE/farm/run.sh" "${farm_args[@]}"
+fi
+echo "run_all.sh: results in $OUT (summary.md)" >&2

@@ -1,0 +1,123 @@
+// Packet versions of RenderScene::intersect and ::transmittance: up to 8 rays in one Embree
+// rtcIntersect8/rtcOccluded8 call (8 lanes = AVX2's width; Embree splits them for narrower
+// ISAs). The camera rays of one pixel's consecutive samples, and the shadow rays from their hit
+// points to one light, are coherent: one traversal serves them all. Everything around the
+// Embree call (planes, hit reconstruction, glass products) is the scalar code, per lane.
+#include <embree3/rtcore.h>
+
+#include "render/plane.h"
+#include "render/ray_log.h"
+#include "render/render_scene.h"
+
+namespace tessera {
+
+namespace {
+
+template <typename R>
+void set_lane(R* r, int lane, const Ray& ray, float tfar, uint32_t mask) {
+  r->org_x[lane] = ray.o.x;
+  r->org_y[lane] = ray.o.y;
+  r->org_z[lane] = ray.o.z;
+  r->dir_x[lane] = ray.d.x;
+  r->dir_y[lane] = ray.d.y;
+  r->dir_z[lane] = ray.d.z;
+  r->tnear[lane] = 0.0f;
+  r->tfar[lane] = tfar;
+  r->time[lane] = 0.0f;
+  r->mask[lane] = mask;
+  r->id[lane] = uint32_t(lane);  // indexes TraceContext::from_by_id and ::glass
+  r->flags[lane] = 0;
+}
+
+RTCRay lane_ray(const RTCRay8& r, int lane) {
+  RTCRay x;
+  x.org_x = r.org_x[lane];
+  x.org_y = r.org_y[lane];
+  x.org_z = r.org_z[lane];
+  x.dir_x = r.dir_x[lane];
+  x.dir_y = r.dir_y[lane];
+  x.dir_z = r.dir_z[lane];
+  x.tnear = r.tnear[lane];
+  x.tfar = r.tfar[lane];
+  x.time = 0.0f;
+  x.mask = r.mask[lane];
+  x.id = r.id[lane];
+  x.flags = 0;
+  return x;
+}
+
+}  // namespace
+
+void RenderScene::intersect_packet(const Ray* rays, const PrimRef* from, int n, Hit* hits, bool* found) const {
+  alignas(32) int valid[kPacket];
+  alignas(32) RTCRayHit8 rh;
+  int plane[kPacket];
+  double tp[kPacket];
+  for (int i = 0; i < kPacket; ++i) {
+    valid[i] = 0;
+    rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+    if (i >= n) continue;
+    valid[i] = -1;
+    tp[i] = nearest_plane(Vec3d(rays[i].o), Vec3d(rays[i].d), from[i], double(rays[i].tmax), &plane[i]);
+    set_lane(&rh.ray, i, rays[i], plane[i] >= 0 ? float(tp[i]) : rays[i].tmax, 0xFFFFFFFFu);
+  }
+  if (RayLog* log = thread_ray_log()) {
+    for (int i = 0; i < n; ++i) {
+      log->rays.push_back({lane_ray(rh.ray, i), from[i],
+                           from[i].kind == PrimRef::Kind::kNone ? LoggedRay::Kind::kCamera : LoggedRay::Kind::kSecondary});
+    }
+  }
+  TraceContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.scene = this;
+  ctx.from_by_id = from;
+  rtcIntersect8(valid, rtc_scene_.get(), &ctx.rtc, &rh);
+  for (int i = 0; i < n; ++i) {
+    found[i] = finish_hit(Vec3d(rays[i].o), Vec3d(rays[i].d), plane[i], tp[i], rh.hit.geomID[i], rh.hit.primID[i],
+                          rh.hit.u[i], rh.hit.v[i], rh.ray.tfar[i], &hits[i]);
+  }
+}
+
+void RenderScene::transmittance_packet(const Ray* rays, const PrimRef* from, int n, Rgb* T) const {
+  alignas(32) int valid[kPacket];
+  alignas(32) RTCRay8 r;
+  GlassHits glass[kPacket];
+  const uint32_t mask = has_glass_ ? kOpaqueMask | kGlassMask : kOpaqueMask;
+  int live = 0;
+  for (int i = 0; i < kPacket; ++i) {
+    valid[i] = 0;
+    if (i >= n) continue;
+    if (opaque_plane_blocks(rays[i], from[i])) {
+      T[i] = Rgb(0.0f);
+      continue;
+    }
+    valid[i] = -1;
+    ++live;
+    set_lane(&r, i, rays[i], rays[i].tmax, mask);
+    if (RayLog* log = thread_ray_log()) log->rays.push_back({lane_ray(r, i), from[i], LoggedRay::Kind::kShadow});
+  }
+  if (live == 0) return;
+  TraceContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.scene = this;
+  ctx.from_by_id = from;
+  if (has_glass_) ctx.glass = glass;
+  rtcOccluded8(valid, rtc_scene_.get(), &ctx.rtc, &r);
+  for (int i = 0; i < n; ++i) {
+    if (!valid[i]) continue;
+    if (r.tfar[i] < 0.0f) {
+      T[i] = Rgb(0.0f);
+    } else if (!has_glass_) {
+      T[i] = Rgb(1.0f);
+    } else {
+      TraceContext one;
+      rtcInitIntersectContext(&one.rtc);
+      one.scene = this;
+      one.from = from[i];
+      T[i] = glass_product(rays[i], &one, &glass[i]);
+    }
+  }
+}
+
+}  // namespace tessera
