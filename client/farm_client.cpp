@@ -13,9 +13,21 @@ std::string resolve_coordinator(const std::string& flag) {
   return kDefaultCoordinator;
 }
 
-FarmClient::FarmClient(std::string address, std::chrono::seconds timeout)
+farm::ChannelSecurity resolve_security(const SecurityFlags& flags) {
+  farm::ChannelSecurity s;
+  s.token = farm::read_token(flags.token_file, "TESSERA_CLIENT_TOKEN");
+  s.tls_ca = flags.tls_ca;
+  if (s.tls_ca.empty()) {
+    if (const char* env = std::getenv("TESSERA_TLS_CA")) s.tls_ca = env;
+  }
+  s.tls_cert = flags.tls_cert;
+  s.tls_key = flags.tls_key;
+  return s;
+}
+
+FarmClient::FarmClient(std::string address, const farm::ChannelSecurity& security, std::chrono::seconds timeout)
     : address_(std::move(address)), timeout_(timeout) {
-  channel_ = farm::make_coordinator_channel(address_);
+  channel_ = farm::make_coordinator_channel(address_, security);
   stub_ = tessera::v1::ClientService::NewStub(channel_);
 }
 
@@ -33,6 +45,9 @@ std::string FarmClient::describe(const grpc::Status& s, const std::string& what)
       return "cannot reach the coordinator at " + address_ + " (" + s.error_message() +
              "). Is it running? Start one with: tessera-server --listen " + address_ +
              " --data-dir DIR  (or point --coordinator / TESSERA_COORDINATOR at yours)";
+    case grpc::StatusCode::UNAUTHENTICATED:
+      return "the coordinator at " + address_ + " refused " + what + ": " + s.error_message() +
+             " (give the client token with --token-file FILE or TESSERA_CLIENT_TOKEN)";
     case grpc::StatusCode::DEADLINE_EXCEEDED:
       return "the coordinator at " + address_ + " did not answer " + what + " in time";
     default:

@@ -8,6 +8,7 @@
 #include <memory>
 #include <string>
 
+#include "farm/channel.h"
 #include "tessera/v1/client_service.grpc.pb.h"
 
 namespace tessera::cli {
@@ -17,9 +18,18 @@ inline constexpr const char* kDefaultCoordinator = "127.0.0.1:7878";
 // --coordinator if given, else $TESSERA_COORDINATOR, else 127.0.0.1:7878.
 std::string resolve_coordinator(const std::string& flag);
 
+// --token-file, --tls-ca, --tls-cert, --tls-key of the farm commands.
+struct SecurityFlags {
+  std::string token_file, tls_ca, tls_cert, tls_key;
+};
+// The flags, else $TESSERA_CLIENT_TOKEN and $TESSERA_TLS_CA. Throws std::runtime_error for an
+// unreadable token file.
+farm::ChannelSecurity resolve_security(const SecurityFlags& flags);
+
 class FarmClient {
  public:
-  explicit FarmClient(std::string address, std::chrono::seconds timeout = std::chrono::seconds(15));
+  explicit FarmClient(std::string address, const farm::ChannelSecurity& security = {},
+                      std::chrono::seconds timeout = std::chrono::seconds(15));
 
   tessera::v1::ClientService::Stub& stub() { return *stub_; }
   const std::string& address() const { return address_; }

@@ -45,12 +45,23 @@ FarmError job_error(const FarmClient& client, const grpc::Status& s, const std::
                    client.describe(s, what)};
 }
 
+// The client for a command's --coordinator and security flags; bad certificate or token files
+// are input errors (exit 2).
+FarmClient connect(const std::string& coordinator, const SecurityFlags& flags) {
+  try {
+    return FarmClient(resolve_coordinator(coordinator), resolve_security(flags));
+  } catch (const std::runtime_error& e) {
+    throw FarmError{kExitBadInput, e.what()};
+  }
+}
+
 const char* state_name(v1::JobState s) {
   switch (s) {
     case v1::JOB_STATE_QUEUED: return "queued";
     case v1::JOB_STATE_RUNNING: return "running";
     case v1::JOB_STATE_DONE: return "done";
     case v1::JOB_STATE_CANCELLED: return "cancelled";
+    case v1::JOB_STATE_FAILED: return "failed";
     default: return "unknown";
   }
 }
@@ -155,6 +166,7 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
     while (stream->Read(&ev)) {
       if (ev.has_status()) {
         const auto& st = ev.status();
+        reconnects = 0;  // attached again: a coordinator restart costs one attempt, not a budget
         if (!frames) {
           frames.emplace(st);
           if (!o.quiet) {
@@ -170,7 +182,8 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
           // already delivered to an earlier client.
           progress.emplace(st.tiles_total(), int64_t(st.frames_acknowledged_size()) * st.tiles_per_frame());
         }
-        if (st.state() == v1::JOB_STATE_DONE || st.state() == v1::JOB_STATE_CANCELLED) {
+        if (st.state() == v1::JOB_STATE_DONE || st.state() == v1::JOB_STATE_CANCELLED ||
+            st.state() == v1::JOB_STATE_FAILED) {
           ended = true;
           final_status = st;
         }
@@ -181,7 +194,18 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
         if (!o.quiet) progress->update(frames->tiles_received(), frames->rays_received());
       } else if (ev.event_case() == v1::WatchJobEvent::kFrameDone) {
         const int f = ev.frame_done();
-        if (o.output.empty() || frames->written(f) || !frames->complete(f)) continue;
+        if (!o.output.empty() && frames->written(f)) {
+          // Re-sent after a coordinator restart lost our acknowledgement: acknowledge it again so
+          // the coordinator can release the frame.
+          v1::AckFrameRequest ack;
+          ack.set_job_id(job_id);
+          ack.set_frame(f);
+          v1::AckFrameResponse ack_resp;
+          auto actx = client.context();
+          client.stub().AckFrame(actx.get(), ack, &ack_resp);
+          continue;
+        }
+        if (o.output.empty() || !frames->complete(f)) continue;
         FrameReport rep;
         try {
           rep = frames->write(f, o.output, o.scene_name, o.color);
@@ -221,6 +245,9 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
     progress->clear_line();
   }
   const double total = now_s() - total_start;
+  if (final_status.state() == v1::JOB_STATE_FAILED) {
+    throw FarmError{kExitFailure, "job " + job_id + " failed: " + final_status.error()};
+  }
   if (final_status.state() == v1::JOB_STATE_CANCELLED) {
     std::printf("job %s was cancelled\n", job_id.c_str());
     return kExitCancelled;
@@ -235,6 +262,7 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
 
 struct SubmitArgs {
   std::string scene, output, coordinator, frames, name;
+  SecurityFlags security;
   ImageOptions image;
   int tile = 32;
   int priority = 0;
@@ -296,7 +324,7 @@ int run_submit(const SubmitArgs& a) {
   }
   if (!a.detach) check_output_writable(a.output, first);
 
-  FarmClient client(resolve_coordinator(a.coordinator));
+  FarmClient client = connect(a.coordinator, a.security);
   farm::BuiltBundle bundle;
   try {
     bundle = farm::make_bundle(a.scene, scene.dependencies);
@@ -334,12 +362,13 @@ int run_submit(const SubmitArgs& a) {
 
 struct JobArgs {
   std::string coordinator, job, output;
+  SecurityFlags security;
   bool json = false, quiet = false;
   color::OutputOptions color;
 };
 
 int run_watch(const JobArgs& a) {
-  FarmClient client(resolve_coordinator(a.coordinator));
+  FarmClient client = connect(a.coordinator, a.security);
   v1::GetJobRequest req;
   req.set_job_id(a.job);
   v1::JobStatus st;
@@ -371,7 +400,10 @@ nlohmann::json job_json(const v1::JobStatus& j) {
           {"elapsed_seconds", j.elapsed_seconds()},
           {"frames_done", std::vector<int>(j.frames_done().begin(), j.frames_done().end())},
           {"frames_acknowledged",
-           std::vector<int>(j.frames_acknowledged().begin(), j.frames_acknowledged().end())}};
+           std::vector<int>(j.frames_acknowledged().begin(), j.frames_acknowledged().end())},
+          {"error", j.error()},
+          {"blocklisted_workers",
+           std::vector<std::string>(j.blocklisted_workers().begin(), j.blocklisted_workers().end())}};
 }
 
 void print_job(const v1::JobStatus& j) {
@@ -384,7 +416,7 @@ void print_job(const v1::JobStatus& j) {
 }
 
 int run_status(const JobArgs& a) {
-  FarmClient client(resolve_coordinator(a.coordinator));
+  FarmClient client = connect(a.coordinator, a.security);
   std::vector<v1::JobStatus> jobs;
   if (!a.job.empty()) {
     v1::GetJobRequest req;
@@ -420,7 +452,7 @@ int run_status(const JobArgs& a) {
 }
 
 int run_cancel(const JobArgs& a) {
-  FarmClient client(resolve_coordinator(a.coordinator));
+  FarmClient client = connect(a.coordinator, a.security);
   v1::CancelJobRequest req;
   req.set_job_id(a.job);
   v1::JobStatus st;
@@ -435,7 +467,7 @@ int run_cancel(const JobArgs& a) {
 }
 
 int run_workers(const JobArgs& a) {
-  FarmClient client(resolve_coordinator(a.coordinator));
+  FarmClient client = connect(a.coordinator, a.security);
   v1::ListWorkersResponse resp;
   auto ctx = client.context();
   grpc::Status s = client.stub().ListWorkers(ctx.get(), {}, &resp);
@@ -480,9 +512,16 @@ void guarded(const char* name, F f) {
   if (rc != 0) throw CLI::RuntimeError(rc);
 }
 
-void add_coordinator_option(CLI::App* cmd, std::string* target) {
+void add_coordinator_option(CLI::App* cmd, std::string* target, SecurityFlags* security) {
   cmd->add_option("--coordinator", *target,
                   "Coordinator HOST:PORT (default: $TESSERA_COORDINATOR, else 127.0.0.1:7878)");
+  cmd->add_option("--token-file", security->token_file, "File holding the client token (else $TESSERA_CLIENT_TOKEN)")
+      ->group("Security");
+  cmd->add_option("--tls-ca", security->tls_ca, "PEM CA certificate of the coordinator: connect with TLS "
+                                                "(else $TESSERA_TLS_CA)")->group("Security");
+  cmd->add_option("--tls-cert", security->tls_cert, "PEM client certificate, for a coordinator that asks for one")
+      ->group("Security");
+  cmd->add_option("--tls-key", security->tls_key, "PEM private key of --tls-cert")->group("Security");
 }
 
 }  // namespace
@@ -493,7 +532,7 @@ void register_farm_commands(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand("submit", "Render a scene on the farm and write its frames");
     cmd->add_option("scene", a->scene, "Scene file (JSON, see docs/scene-format.md)")->required();
     cmd->add_option("-o,--output", a->output, "Output EXR path; '#' runs become the frame number");
-    add_coordinator_option(cmd, &a->coordinator);
+    add_coordinator_option(cmd, &a->coordinator, &a->security);
     cmd->add_option("--frames", a->frames, "Frames A-B (inclusive) or A (default: all)");
     add_image_options(*cmd, a->image);
     cmd->add_option("--tile", a->tile, "Tile size in pixels (does not change the image)")->check(CLI::Range(4, 256));
@@ -514,7 +553,7 @@ void register_farm_commands(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand("watch", "Re-attach to a job: progress, and its frames with -o");
     cmd->add_option("job", a->job, "Job id")->required();
     cmd->add_option("-o,--output", a->output, "Write frames here ('#' runs become the frame number)");
-    add_coordinator_option(cmd, &a->coordinator);
+    add_coordinator_option(cmd, &a->coordinator, &a->security);
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
     color::add_output_options(*cmd, a->color);
     cmd->callback([a] { guarded("watch", [&] { return run_watch(*a); }); });
@@ -523,7 +562,7 @@ void register_farm_commands(CLI::App& app) {
     auto a = std::make_shared<JobArgs>();
     CLI::App* cmd = app.add_subcommand("status", "Show one job, or all jobs");
     cmd->add_option("job", a->job, "Job id (default: all jobs)");
-    add_coordinator_option(cmd, &a->coordinator);
+    add_coordinator_option(cmd, &a->coordinator, &a->security);
     cmd->add_flag("--json", a->json, "Machine-readable output");
     cmd->callback([a] { guarded("status", [&] { return run_status(*a); }); });
   }
@@ -531,13 +570,13 @@ void register_farm_commands(CLI::App& app) {
     auto a = std::make_shared<JobArgs>();
     CLI::App* cmd = app.add_subcommand("cancel", "Cancel a job: no more of its tiles are handed out");
     cmd->add_option("job", a->job, "Job id")->required();
-    add_coordinator_option(cmd, &a->coordinator);
+    add_coordinator_option(cmd, &a->coordinator, &a->security);
     cmd->callback([a] { guarded("cancel", [&] { return run_cancel(*a); }); });
   }
   {
     auto a = std::make_shared<JobArgs>();
     CLI::App* cmd = app.add_subcommand("workers", "List the workers connected to the coordinator");
-    add_coordinator_option(cmd, &a->coordinator);
+    add_coordinator_option(cmd, &a->coordinator, &a->security);
     cmd->add_flag("--json", a->json, "Machine-readable output");
     cmd->callback([a] { guarded("workers", [&] { return run_workers(*a); }); });
   }

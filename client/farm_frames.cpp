@@ -30,13 +30,8 @@ bool FrameAssembler::add(const tessera::v1::TileData& tile, std::string* error) 
   Frame& f = frames_[tile.frame()];
   if (f.tiles.count(tile.tile_index())) return false;  // a second copy: the first one won
   TileResult r;
-  *error = farm::decode_tile(tile, &r);
+  *error = farm::decode_tile_in_image(tile, job_.width(), job_.height(), &r);
   if (!error->empty()) return false;
-  if (r.rect.x0 < 0 || r.rect.y0 < 0 || r.rect.x0 + r.rect.width > job_.width() ||
-      r.rect.y0 + r.rect.height > job_.height()) {
-    *error = "tile rectangle outside the image";
-    return false;
-  }
   if (f.image.width == 0) {
     f.image = ImageRGB(job_.width(), job_.height());
     f.variance.assign(f.image.pixel_count(), 0.0f);

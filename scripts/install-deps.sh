@@ -11,9 +11,10 @@ BUILD_PKGS=(
   libgtest-dev libgmock-dev libbenchmark-dev
 )
 # Independent checkers used by the tests (oiiotool/idiff, exrheader, Python gRPC client).
-CHECK_PKGS=(openimageio-tools openexr python3-grpcio python3-grpc-tools python3-numpy)
+CHECK_PKGS=(openimageio-tools openexr python3-grpcio python3-grpc-tools python3-numpy python3-yaml)
+CHECK_PKGS+=(openssl clang libclang-rt-14-dev)  # TLS tests make a throwaway CA; fuzz/run.sh (libFuzzer)
 # Used by the benchmarks in bench/ only (pngquant is a GPL comparator, run, never linked).
-BENCH_PKGS=(bc time pngquant)
+BENCH_PKGS=(bc time pngquant gnuplot-nox povray)
 
 want=("${BUILD_PKGS[@]}" "${CHECK_PKGS[@]}" "${BENCH_PKGS[@]}" "$@")
 missing=()

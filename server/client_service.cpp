@@ -2,7 +2,11 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+
 #include "farm/bundle.h"
+#include "farm/codec.h"
+#include "scene/scene_parser.h"
 
 namespace tessera::server {
 
@@ -18,20 +22,20 @@ grpc::ServerUnaryReactor* reply(grpc::CallbackServerContext* ctx, Status s) {
   return r;
 }
 
-// Largest bundle accepted (issue 8 makes this configurable); protects the coordinator's memory.
-constexpr size_t kMaxBundleBytes = size_t(2) << 30;
-
 class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk> {
  public:
-  UploadReactor(BundleStore& store, v1::UploadBundleResponse* resp) : store_(store), resp_(resp) {
+  UploadReactor(BundleStore& store, v1::UploadBundleResponse* resp, int64_t max_bytes)
+      : store_(store), resp_(resp), max_bytes_(max_bytes) {
     StartRead(&chunk_);
   }
   void OnReadDone(bool ok) override {
     if (ok) {
       if (sha_.empty()) sha_ = chunk_.sha256();
       bytes_ += chunk_.data();
-      if (bytes_.size() > kMaxBundleBytes) {
-        Finish(Status(StatusCode::RESOURCE_EXHAUSTED, "bundle larger than the 2 GiB limit"));
+      // Checked per chunk: the coordinator never holds more than the limit plus one message.
+      if (int64_t(bytes_.size()) > max_bytes_) {
+        Finish(over_limit(StatusCode::RESOURCE_EXHAUSTED, "the scene bundle's size in bytes (so far)",
+                          int64_t(bytes_.size()), "--max-bundle-bytes", max_bytes_));
         return;
       }
       StartRead(&chunk_);
@@ -59,6 +63,7 @@ class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk> {
  private:
   BundleStore& store_;
   v1::UploadBundleResponse* resp_;
+  int64_t max_bytes_;
   v1::BundleChunk chunk_;
   std::string sha_;
   std::string bytes_;
@@ -104,6 +109,7 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::WatchJobEvent> {
 
 grpc::ServerUnaryReactor* ClientServiceImpl::HasBundle(grpc::CallbackServerContext* ctx,
                                                        const v1::HasBundleRequest* req, v1::HasBundleResponse* resp) {
+  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
   if (!farm::is_sha256_hex(req->sha256())) {
     return reply(ctx, Status(StatusCode::INVALID_ARGUMENT, "'" + req->sha256() + "' is not a lower-case hex SHA-256"));
   }
@@ -111,47 +117,96 @@ grpc::ServerUnaryReactor* ClientServiceImpl::HasBundle(grpc::CallbackServerConte
   return reply(ctx, Status::OK);
 }
 
-grpc::ServerReadReactor<v1::BundleChunk>* ClientServiceImpl::UploadBundle(grpc::CallbackServerContext*,
+grpc::ServerReadReactor<v1::BundleChunk>* ClientServiceImpl::UploadBundle(grpc::CallbackServerContext* ctx,
                                                                          v1::UploadBundleResponse* resp) {
-  return new UploadReactor(coord_.bundles(), resp);
+  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) {
+    return new Refused<grpc::ServerReadReactor<v1::BundleChunk>>(std::move(s));
+  }
+  return new UploadReactor(coord_.bundles(), resp, limits_.max_bundle_bytes);
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::SubmitJob(grpc::CallbackServerContext* ctx,
                                                        const v1::SubmitJobRequest* req, v1::JobStatus* resp) {
-  return reply(ctx, coord_.submit(*req, resp));
+  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
+  const std::string client = client_identity(*ctx);
+  Status s = quota_.reserve(client, [&](const std::string& job) {
+    v1::JobStatus st;
+    return coord_.get_job(job, &st).ok() &&
+           (st.state() == v1::JOB_STATE_QUEUED || st.state() == v1::JOB_STATE_RUNNING);
+  });
+  if (!s.ok()) return reply(ctx, std::move(s));
+  s = admit_job(ctx, *req);
+  if (s.ok()) s = coord_.submit(*req, resp);
+  quota_.settle(client, s.ok() ? resp->job_id() : std::string());
+  if (!s.ok()) spdlog::info("submission from {} refused: {}", client, s.error_message());
+  return reply(ctx, std::move(s));
 }
 
-grpc::ServerWriteReactor<v1::WatchJobEvent>* ClientServiceImpl::WatchJob(grpc::CallbackServerContext*,
+grpc::ServerWriteReactor<v1::WatchJobEvent>* ClientServiceImpl::WatchJob(grpc::CallbackServerContext* ctx,
                                                                         const v1::WatchJobRequest* req) {
+  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) {
+    return new Refused<grpc::ServerWriteReactor<v1::WatchJobEvent>>(std::move(s));
+  }
   return new WatchReactor(coord_, req->job_id());
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::AckFrame(grpc::CallbackServerContext* ctx, const v1::AckFrameRequest* req,
                                                       v1::AckFrameResponse*) {
+  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
   return reply(ctx, coord_.ack_frame(req->job_id(), req->frame()));
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::GetJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req,
                                                     v1::JobStatus* resp) {
+  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
   return reply(ctx, coord_.get_job(req->job_id(), resp));
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::ListJobs(grpc::CallbackServerContext* ctx, const v1::ListJobsRequest*,
                                                       v1::ListJobsResponse* resp) {
+  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
   coord_.list_jobs(resp);
   return reply(ctx, Status::OK);
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::CancelJob(grpc::CallbackServerContext* ctx,
                                                        const v1::CancelJobRequest* req, v1::JobStatus* resp) {
+  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
   return reply(ctx, coord_.cancel(req->job_id(), resp));
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::ListWorkers(grpc::CallbackServerContext* ctx,
                                                          const v1::ListWorkersRequest*,
                                                          v1::ListWorkersResponse* resp) {
+  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
   coord_.list_workers(resp);
   return reply(ctx, Status::OK);
+}
+
+// The limits that need the scene: loaded here with the primitive limit (checked while loading,
+// before instanced meshes are copied) and with every mesh confined to the bundle, so a scene
+// cannot make the coordinator read files outside it. Errors other than limits are left to
+// Coordinator::submit, which reports them as before.
+Status ClientServiceImpl::admit_job(grpc::CallbackServerContext*, const v1::SubmitJobRequest& req) {
+  if (!farm::is_sha256_hex(req.bundle_sha256()) || !coord_.bundles().has(req.bundle_sha256())) return Status::OK;
+  try {
+    SceneLoadOptions options;
+    options.confine_to = (coord_.bundles().dir() / req.bundle_sha256()).string();
+    options.max_primitives = limits_.max_primitives;
+    Scene scene = load_scene(coord_.bundles().scene_path(req.bundle_sha256()).string(), options);
+    apply_overrides(scene, farm::from_proto(req.overrides()));
+    const int first = req.has_first_frame() ? req.first_frame() : 0;
+    const int last = req.has_last_frame() ? req.last_frame() : scene.frame_count() - 1;
+    return limits_.check_job(scene, first, std::max(first, last));
+  } catch (const SceneError& e) {
+    const std::string what = e.what();
+    // The primitive limit is a resource limit; other scene errors are the scene's fault.
+    const bool limit = what.find("limit max_primitives") != std::string::npos;
+    return Status(limit ? StatusCode::RESOURCE_EXHAUSTED : StatusCode::INVALID_ARGUMENT,
+                  std::string("invalid scene: ") + what + (limit ? " (tessera-server --max-primitives)" : ""));
+  } catch (const std::exception& e) {
+    return Status(StatusCode::INTERNAL, std::string("cannot load the bundle's scene: ") + e.what());
+  }
 }
 
 }  // namespace tessera::server

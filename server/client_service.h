@@ -1,14 +1,18 @@
 // tessera.v1.ClientService on the callback API: thin adapters onto the Coordinator.
 #pragma once
 
+#include "auth.h"
 #include "coordinator.h"
+#include "request_limits.h"
 #include "tessera/v1/client_service.grpc.pb.h"
 
 namespace tessera::server {
 
 class ClientServiceImpl final : public tessera::v1::ClientService::CallbackService {
  public:
-  explicit ClientServiceImpl(Coordinator& c) : coord_(c) {}
+  // Every method first checks the client token (auth.h); uploads and submissions the limits.
+  explicit ClientServiceImpl(Coordinator& c, Authenticator auth = {}, Limits limits = {})
+      : coord_(c), auth_(std::move(auth)), limits_(limits), quota_(limits.max_jobs_per_client) {}
 
   grpc::ServerUnaryReactor* HasBundle(grpc::CallbackServerContext*, const tessera::v1::HasBundleRequest*,
                                       tessera::v1::HasBundleResponse*) override;
@@ -30,7 +34,12 @@ class ClientServiceImpl final : public tessera::v1::ClientService::CallbackServi
                                         tessera::v1::ListWorkersResponse*) override;
 
  private:
+  grpc::Status admit_job(grpc::CallbackServerContext* ctx, const tessera::v1::SubmitJobRequest& req);
+
   Coordinator& coord_;
+  Authenticator auth_;
+  Limits limits_;
+  JobQuota quota_;
 };
 
 }  // namespace tessera::server

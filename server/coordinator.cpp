@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cstring>
+
 #include "farm/bundle.h"
 #include "farm/codec.h"
 #include "scene/scene_parser.h"
@@ -25,15 +27,67 @@ v1::JobState to_proto(JobState s) {
     case JobState::kRunning: return v1::JOB_STATE_RUNNING;
     case JobState::kDone: return v1::JOB_STATE_DONE;
     case JobState::kCancelled: return v1::JOB_STATE_CANCELLED;
+    case JobState::kFailed: return v1::JOB_STATE_FAILED;
   }
   return v1::JOB_STATE_UNSPECIFIED;
 }
+// Index of the first NaN or infinite float in little-endian float32 bytes, or -1.
+int64_t first_nonfinite(const std::string& bytes) {
+  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
+  for (size_t i = 0; i + 4 <= bytes.size(); i += 4) {
+    const uint32_t bits = uint32_t(p[i]) | uint32_t(p[i + 1]) << 8 | uint32_t(p[i + 2]) << 16 | uint32_t(p[i + 3]) << 24;
+    if ((bits & 0x7f800000u) == 0x7f800000u) return int64_t(i / 4);
+  }
+  return -1;
+}
 }  // namespace
 
-Coordinator::Coordinator(CoordinatorOptions options, BundleStore& store)
-    : options_(options), store_(store), scheduler_(options.scheduler) {
+Coordinator::Coordinator(CoordinatorOptions options, BundleStore& store, JobStore* jobs)
+    : options_(options), store_(store), jobs_store_(jobs), scheduler_(options.scheduler) {
   scheduler_.set_listener(this);
+  if (jobs_store_) restore_locked();  // no stream or thread exists yet
   expiry_ = std::thread([this] { expiry_loop(); });
+}
+
+void Coordinator::restore_locked() {
+  JobStore::Loaded l = jobs_store_->load();
+  scheduler_.set_next_lease(l.next_lease);
+  int live = 0;
+  int64_t tiles = 0;
+  for (JobRecord& r : l.jobs) {
+    const JobId id = r.id;
+    scheduler_.restore(std::move(r));
+    auto s = scheduler_.job(id);
+    tiles += s->tiles_done;
+    if (job_ended(s->state)) {
+      ended_[id] = s->ended.value_or(Clock::now());
+    } else {
+      ++live;
+    }
+    // restore() settles a job whose last tile was committed but not its state change.
+    jobs_store_->job_updated(*s);
+  }
+  spdlog::info("restored {} jobs from {} ({} still to render, {} finished tiles); {} leases in flight at the last "
+               "stop requeued; {} orphan tile files removed{}",
+               l.jobs.size(), jobs_store_->db_path().string(), live, tiles, l.leases_requeued, l.orphans_removed,
+               l.tiles_missing ? fmt::format("; {} tiles whose file was missing will be rendered again", l.tiles_missing)
+                               : std::string());
+}
+
+void Coordinator::evict_locked(const JobId& id, const char* why) {
+  if (!scheduler_.forget(id)) return;
+  ended_.erase(id);
+  if (jobs_store_) jobs_store_->job_evicted(id);
+  spdlog::info("job {} left memory ({}); `tessera status {}` still answers from the database", id, why, id);
+}
+
+void Coordinator::evict_expired_locked() {
+  const TimePoint cutoff = Clock::now() - options_.retention;
+  std::vector<JobId> old;
+  for (const auto& [id, t] : ended_) {
+    if (t < cutoff) old.push_back(id);
+  }
+  for (const JobId& id : old) evict_locked(id, "retention time passed");
 }
 
 Coordinator::~Coordinator() { stop(); }
@@ -78,6 +132,7 @@ void Coordinator::expiry_loop() {
     locked([this] {
       scheduler_.expire();  // worker_left() finishes the dropped workers' streams
       dispatch_locked();
+      evict_expired_locked();
     });
   }
 }
@@ -108,9 +163,16 @@ void Coordinator::status_proto(const JobSnapshot& s, v1::JobStatus* out) const {
   out->set_elapsed_seconds(std::chrono::duration<double>((s.ended ? *s.ended : Clock::now()) - s.submitted).count());
   for (int f : s.frames_done) out->add_frames_done(f);
   for (int f : s.frames_acknowledged) out->add_frames_acknowledged(f);
+  out->set_error(s.error);
+  for (const auto& w : s.blocklisted) out->add_blocklisted_workers(w);
 }
 
 Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out) {
+  if (jobs_store_ && !jobs_store_->healthy()) {
+    return Status(StatusCode::RESOURCE_EXHAUSTED,
+                  "the coordinator cannot write its data directory, so it takes no new jobs: " +
+                      jobs_store_->last_error());
+  }
   if (!farm::is_sha256_hex(req.bundle_sha256())) {
     return Status(StatusCode::INVALID_ARGUMENT,
                   "bundle_sha256 '" + req.bundle_sha256() + "' is not a lower-case hex SHA-256");
@@ -149,21 +211,44 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out) 
   spec.overrides = req.overrides().SerializeAsString();
   spec.tile_size = tile;
   spec.priority = req.priority();
-  return locked([&] {
+  const JobId id = locked([&] {
     const JobId id = scheduler_.submit(spec);
     status_proto(*scheduler_.job(id), out);
     dispatch_locked();
-    return Status::OK;
+    return id;
   });
+  // SubmitJob answers OK only once the job is durable: a client never holds the id of a job a
+  // coordinator crash could forget.
+  if (jobs_store_) {
+    const std::string err = jobs_store_->barrier().get();
+    if (!err.empty()) {
+      locked([&] { scheduler_.cancel(id); });
+      return Status(StatusCode::RESOURCE_EXHAUSTED, "the job could not be stored, so it was not accepted: " + err);
+    }
+  }
+  return Status::OK;
+}
+
+std::optional<JobSnapshot> Coordinator::evicted_job(const std::string& id) {
+  if (!jobs_store_) return std::nullopt;
+  // The job may have left memory a moment ago, its last rows still queued: read after they are
+  // committed. Called without mu_ held.
+  jobs_store_->barrier().get();
+  return jobs_store_->read_job(id);
 }
 
 Status Coordinator::get_job(const std::string& id, v1::JobStatus* out) {
-  return locked([&] {
+  const bool resident = locked([&] {
     auto s = scheduler_.job(id);
-    if (!s) return Status(StatusCode::NOT_FOUND, "no job '" + id + "' on this coordinator");
+    if (s) status_proto(*s, out);
+    return s.has_value();
+  });
+  if (resident) return Status::OK;
+  if (auto s = evicted_job(id)) {
     status_proto(*s, out);
     return Status::OK;
-  });
+  }
+  return Status(StatusCode::NOT_FOUND, "no job '" + id + "' on this coordinator");
 }
 
 void Coordinator::list_jobs(v1::ListJobsResponse* out) {
@@ -189,8 +274,15 @@ Status Coordinator::cancel(const std::string& id, v1::JobStatus* out) {
 Status Coordinator::ack_frame(const std::string& id, int frame) {
   return locked([&] {
     switch (scheduler_.acknowledge_frame(id, frame)) {
-      case Scheduler::AckResult::kAcknowledged: return Status::OK;
+      case Scheduler::AckResult::kAcknowledged:
+        if (auto s = scheduler_.job(id); s && job_ended(s->state) && scheduler_.all_acknowledged(id)) {
+          evict_locked(id, "every frame delivered");
+        }
+        return Status::OK;
       case Scheduler::AckResult::kUnknownJob:
+        // Evicted: every frame was acknowledged already (or its retention time passed). Its row
+        // was committed at submit, so no barrier is needed to find it.
+        if (jobs_store_ && jobs_store_->read_job(id)) return Status::OK;
         return Status(StatusCode::NOT_FOUND, "no job '" + id + "' on this coordinator");
       case Scheduler::AckResult::kUnknownFrame:
         return Status(StatusCode::INVALID_ARGUMENT, "job " + id + " has no frame " + std::to_string(frame));
@@ -222,6 +314,21 @@ void Coordinator::list_workers(v1::ListWorkersResponse* out) {
 }
 
 Status Coordinator::attach_watcher(const std::string& id, std::shared_ptr<WatchSink> sink) {
+  Status st = attach_resident(id, sink);
+  if (st.error_code() != StatusCode::NOT_FOUND) return st;
+  // Evicted: ended, and its frames delivered. The final status is all there is to send.
+  if (auto old = evicted_job(id)) {
+    v1::WatchJobEvent ev;
+    status_proto(*old, ev.mutable_status());
+    sink->push(ev);
+    sink->finish(Status::OK);
+    sink->pump();
+    return Status::OK;
+  }
+  return st;
+}
+
+Status Coordinator::attach_resident(const std::string& id, const std::shared_ptr<WatchSink>& sink) {
   return locked([&] {
     auto s = scheduler_.job(id);
     if (!s) return Status(StatusCode::NOT_FOUND, "no job '" + id + "' on this coordinator");
@@ -247,7 +354,7 @@ Status Coordinator::attach_watcher(const std::string& id, std::shared_ptr<WatchS
       sink->push(std::move(te));
     }
     close_frame(current);
-    if (s->state == JobState::kDone || s->state == JobState::kCancelled) {
+    if (job_ended(s->state)) {
       sink->finish(Status::OK);  // the first status event already carries the final state
     } else {
       watchers_.emplace(id, sink);
@@ -302,6 +409,14 @@ void Coordinator::worker_message(WorkerId id, const v1::WorkerMessage& msg) {
       case v1::WorkerMessage::kReturned:
         scheduler_.return_leases(id, {msg.returned().lease_ids().begin(), msg.returned().lease_ids().end()});
         break;
+      case v1::WorkerMessage::kFailed: {
+        auto lease = scheduler_.lease(msg.failed().lease_id());
+        if (!lease || lease->worker != id) break;  // revoked meanwhile: nothing to count
+        scheduler_.fault(id, lease->tile.job, lease->id,
+                         fmt::format("frame {} tile {}: worker cannot render: {}", lease->tile.frame, lease->tile.tile,
+                                     msg.failed().reason()));
+        break;
+      }
       default:
         break;
     }
@@ -312,15 +427,46 @@ void Coordinator::worker_message(WorkerId id, const v1::WorkerMessage& msg) {
 void Coordinator::tile_result_locked(WorkerId id, const v1::TileResult& r) {
   auto lease = scheduler_.lease(r.lease_id());
   if (!lease || lease->worker != id) {
-    spdlog::debug("worker {}: result for lease {} ignored (revoked, expired or not its own)", id, r.lease_id());
+    // A lease this worker held and lost (revoked, expired, from before a restart) is normal
+    // traffic. A lease id never issued, or another worker's live lease, is a lie: a fault.
+    const bool never_issued = r.lease_id() == 0 || r.lease_id() >= scheduler_.next_lease();
+    if (!never_issued && !lease) {
+      spdlog::debug("worker {}: result for lease {} ignored (revoked, expired or from before a restart)", id,
+                    r.lease_id());
+      return;
+    }
+    const std::string why = never_issued
+                                ? fmt::format("stale lease {}: never issued by this coordinator", r.lease_id())
+                                : fmt::format("lease {} belongs to worker {}", r.lease_id(), lease->worker);
+    if (scheduler_.fault(id, r.tile().job_id(), std::nullopt,
+                         fmt::format("frame {} tile {}: {}", r.tile().frame(), r.tile().tile_index(), why)) == 0) {
+      spdlog::warn("worker {}: refused a result for unknown job '{}': {}", id, r.tile().job_id(), why);
+    }
     return;
   }
   const auto rect = scheduler_.tile_rect(lease->tile.job, lease->tile.frame, lease->tile.tile);
-  const std::string err = farm::check_tile(r.tile(), rect->width, rect->height);
-  if (!err.empty() || r.tile().rect().x0() != rect->x0 || r.tile().rect().y0() != rect->y0) {
-    spdlog::warn("worker {}: refused tile {} of job {} frame {}: {}; requeued", id, lease->tile.tile, lease->tile.job,
-                 lease->tile.frame, err.empty() ? "wrong position" : err);
-    scheduler_.return_leases(id, {r.lease_id()});
+  std::string err = farm::check_tile(r.tile(), rect->width, rect->height);
+  if (err.empty() && (r.tile().rect().x0() != rect->x0 || r.tile().rect().y0() != rect->y0)) {
+    err = fmt::format("tile at ({}, {}), expected ({}, {})", r.tile().rect().x0(), r.tile().rect().y0(), rect->x0,
+                      rect->y0);
+  }
+  if (err.empty()) {
+    if (const int64_t i = first_nonfinite(r.tile().rgb()); i >= 0) {
+      const float v = [&] {
+        float f;
+        std::memcpy(&f, r.tile().rgb().data() + i * 4, 4);
+        return f;
+      }();
+      err = fmt::format("pixel ({}, {}) channel {} is {}", rect->x0 + (i / 3) % rect->width,
+                        rect->y0 + (i / 3) / rect->width, i % 3, std::isnan(v) ? "NaN" : "infinite");
+    } else if (const int64_t j = first_nonfinite(r.tile().variance()); j >= 0) {
+      err = fmt::format("variance of pixel ({}, {}) is not finite", rect->x0 + j % rect->width,
+                        rect->y0 + j / rect->width);
+    }
+  }
+  if (!err.empty()) {
+    scheduler_.fault(id, lease->tile.job, lease->id,
+                     fmt::format("frame {} tile {}: {}", lease->tile.frame, lease->tile.tile, err));
     return;
   }
   // The coordinator is the authority on what the tile is: overwrite the identifying fields.
@@ -333,7 +479,11 @@ void Coordinator::tile_result_locked(WorkerId id, const v1::TileResult& r) {
   out.rays = tile.rays().camera() + tile.rays().shadow() + tile.rays().secondary();
   out.seconds = tile.seconds();
   out.payload = std::make_shared<const std::string>(tile.SerializeAsString());
-  scheduler_.complete(id, r.lease_id(), std::move(out));
+  const auto outcome = scheduler_.complete(id, r.lease_id(), std::move(out));
+  // One line per result received: tests count re-rendered tiles from these.
+  spdlog::debug("result: lease {} job {} frame {} tile {} from worker {}: {}", r.lease_id(), lease->tile.job,
+                lease->tile.frame, lease->tile.tile, id,
+                outcome == Scheduler::ResultOutcome::kAccepted ? "accepted" : "duplicate");
 }
 
 void Coordinator::dispatch_locked() {
@@ -362,6 +512,8 @@ void Coordinator::dispatch_locked() {
 // Scheduler events (under mu_)
 
 void Coordinator::job_submitted(const JobSnapshot& s) {
+  if (jobs_store_) jobs_store_->job_submitted(s);
+  awaiting_first_tile_[s.id] = s.submitted;
   spdlog::info("job {} submitted: '{}', frames {}-{}, {}x{} {} spp, {} tiles of {} px, priority {}", s.id,
                s.spec.name, s.spec.first_frame, s.spec.last_frame, s.spec.width, s.spec.height, s.spec.spp,
                s.tiles_total, s.spec.tile_size, s.spec.priority);
@@ -369,14 +521,21 @@ void Coordinator::job_submitted(const JobSnapshot& s) {
 
 void Coordinator::job_state_changed(const JobId& id, JobState state) {
   auto s = scheduler_.job(id);
-  if (state == JobState::kDone) {
+  if (jobs_store_) jobs_store_->job_updated(*s);
+  if (job_ended(state)) {
+    ended_[id] = s->ended.value_or(Clock::now());
+    awaiting_first_tile_.erase(id);
+  }
+  if (state == JobState::kFailed) {
+    spdlog::error("job {} failed: {}", id, s->error);
+  } else if (state == JobState::kDone) {
     spdlog::info("job {} done in {:.2f} s: {} tiles, {:.1f} Mrays, {} duplicate results discarded", id,
                  std::chrono::duration<double>(*s->ended - s->submitted).count(), s->tiles_done, s->rays / 1e6,
                  s->duplicates_discarded);
   } else {
     spdlog::info("job {} {}", id, job_state_name(state));
   }
-  if (state != JobState::kDone && state != JobState::kCancelled) return;
+  if (!job_ended(state)) return;
   auto [b, e] = watchers_.equal_range(id);
   for (auto it = b; it != e; ++it) {
     v1::WatchJobEvent ev;
@@ -388,12 +547,19 @@ void Coordinator::job_state_changed(const JobId& id, JobState state) {
   watchers_.erase(id);
 }
 
+void Coordinator::tile_leased(const Assignment& a) {
+  if (jobs_store_) jobs_store_->lease_issued(a.lease, std::to_string(a.lease.worker));
+  spdlog::debug("lease {} job {} frame {} tile {} to worker {}{}", a.lease.id, a.lease.tile.job, a.lease.tile.frame,
+                a.lease.tile.tile, a.lease.worker, a.lease.speculative ? " (speculative copy)" : "");
+}
+
 void Coordinator::lease_ended(const Lease& lease, LeaseEnd why) {
+  if (jobs_store_) jobs_store_->lease_ended(lease.id);
   if (why == LeaseEnd::kExpired) {
     spdlog::warn("lease {} of worker {} expired: job {} frame {} tile {} requeued", lease.id, lease.worker,
                  lease.tile.job, lease.tile.frame, lease.tile.tile);
   }
-  if (why != LeaseEnd::kLostRace && why != LeaseEnd::kCancelled) return;
+  if (why != LeaseEnd::kLostRace && why != LeaseEnd::kCancelled && why != LeaseEnd::kBlocklisted) return;
   auto it = workers_.find(lease.worker);
   if (it == workers_.end()) return;
   v1::CoordinatorMessage m;
@@ -403,6 +569,12 @@ void Coordinator::lease_ended(const Lease& lease, LeaseEnd why) {
 }
 
 void Coordinator::tile_finished(const TileKey& key, const TileOutput& out, WorkerId) {
+  if (jobs_store_) jobs_store_->tile_done(key, out);
+  if (auto it = awaiting_first_tile_.find(key.job); it != awaiting_first_tile_.end()) {
+    spdlog::info("job {} first tile {:.3f} s after submit", key.job,
+                 std::chrono::duration<double>(Clock::now() - it->second).count());
+    awaiting_first_tile_.erase(it);
+  }
   auto [b, e] = watchers_.equal_range(key.job);
   if (b == e) return;
   v1::WatchJobEvent ev;
@@ -425,6 +597,9 @@ void Coordinator::frame_finished(const JobId& id, int frame) {
 }
 
 void Coordinator::frame_acknowledged(const JobId& id, int frame) {
+  if (jobs_store_) {
+    if (const auto s = scheduler_.job(id)) jobs_store_->frame_acknowledged(id, frame, s->tiles_per_frame);
+  }
   spdlog::info("job {} frame {} delivered to the client; its tiles are released", id, frame);
 }
 
@@ -446,6 +621,20 @@ void Coordinator::worker_left(const WorkerStats& w, std::string_view reason) {
   it->second->finish(Status(StatusCode::UNAVAILABLE, "coordinator dropped this worker: " + std::string(reason)));
   touched_workers_.push_back(it->second);
   workers_.erase(it);
+}
+
+}  // namespace tessera::server
+
+namespace tessera::server {
+
+void Coordinator::worker_faulted(const JobId& job, const WorkerStats& w, std::string_view reason, int faults,
+                                 bool blocklisted) {
+  spdlog::warn("worker {} '{}': refused result for job {}: {} (fault {} of {} for this job)", w.id, w.info.name, job,
+               reason, faults, scheduler_.options().max_faults);
+  if (blocklisted) {
+    spdlog::error("worker {} '{}' is blocklisted for job {} after {} faults: it gets no more of its tiles", w.id,
+                  w.info.name, job, faults);
+  }
 }
 
 }  // namespace tessera::server

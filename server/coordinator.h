@@ -13,12 +13,14 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "bundle_store.h"
+#include "job_store.h"
 #include "scheduler.h"
 #include "stream_outbox.h"
 #include "tessera/v1/client_service.pb.h"
@@ -42,11 +44,15 @@ struct CoordinatorOptions {
   SchedulerOptions scheduler;
   std::chrono::milliseconds heartbeat_interval{1000};
   std::chrono::milliseconds expiry_check{200};
+  // Ended jobs leave memory once a client acknowledged every frame, or this long after they
+  // ended (they stay in SQLite: `tessera status JOB` still answers).
+  std::chrono::seconds retention{std::chrono::hours(24)};
 };
 
 class Coordinator : private SchedulerListener {
  public:
-  Coordinator(CoordinatorOptions options, BundleStore& store);
+  // `jobs` (may be null: memory only, for tests) is loaded and restored here, before any stream.
+  Coordinator(CoordinatorOptions options, BundleStore& store, JobStore* jobs = nullptr);
   ~Coordinator() override;
   Coordinator(const Coordinator&) = delete;
   Coordinator& operator=(const Coordinator&) = delete;
@@ -77,12 +83,14 @@ class Coordinator : private SchedulerListener {
   // SchedulerListener: runs under mu_.
   void job_submitted(const JobSnapshot&) override;
   void job_state_changed(const JobId&, JobState) override;
+  void tile_leased(const Assignment&) override;
   void lease_ended(const Lease&, LeaseEnd) override;
   void tile_finished(const TileKey&, const TileOutput&, WorkerId) override;
   void frame_finished(const JobId&, int frame) override;
   void frame_acknowledged(const JobId&, int frame) override;
   void worker_joined(const WorkerStats&) override;
   void worker_left(const WorkerStats&, std::string_view reason) override;
+  void worker_faulted(const JobId&, const WorkerStats&, std::string_view reason, int faults, bool blocklisted) override;
 
   // Runs `f` under mu_, then pumps every outbox it touched.
   template <class F>
@@ -91,13 +99,21 @@ class Coordinator : private SchedulerListener {
   void tile_result_locked(WorkerId id, const tessera::v1::TileResult& r);
   void status_proto(const JobSnapshot& s, tessera::v1::JobStatus* out) const;
   void expiry_loop();
+  void restore_locked();
+  void evict_locked(const JobId& id, const char* why);
+  void evict_expired_locked();
+  std::optional<JobSnapshot> evicted_job(const std::string& id);  // without mu_
+  grpc::Status attach_resident(const std::string& id, const std::shared_ptr<WatchSink>& sink);
 
   CoordinatorOptions options_;
   BundleStore& store_;
+  JobStore* jobs_store_;
   std::mutex mu_;
   Scheduler scheduler_;
   std::map<WorkerId, std::shared_ptr<WorkerSink>> workers_;
   std::multimap<JobId, std::shared_ptr<WatchSink>> watchers_;
+  std::map<JobId, TimePoint> ended_;  // ended jobs still in memory (retention)
+  std::map<JobId, TimePoint> awaiting_first_tile_;  // submit time, until the first tile (logged)
   std::set<std::string> isas_;  // Embree ISAs seen: bit-identity needs the same kernels
   std::vector<std::shared_ptr<WorkerSink>> touched_workers_;
   std::vector<std::shared_ptr<WatchSink>> touched_watchers_;

@@ -10,9 +10,12 @@
 #include <cstdio>
 #include <iostream>
 
+#include "auth.h"
 #include "bundle_store.h"
 #include "client_service.h"
 #include "coordinator.h"
+#include "job_store.h"
+#include "request_limits.h"
 #include "worker_service.h"
 
 int main(int argc, char** argv) {
@@ -23,19 +26,40 @@ int main(int argc, char** argv) {
   int heartbeat_ms = 1000;
   int lease_timeout_ms = 10000;
   bool no_speculation = false;
+  int max_faults = 3;
+  double retention_hours = 24;
 
   CLI::App app{"tessera-server: the Tessera render farm coordinator"};
   app.add_option("--listen", listen, "HOST:PORT to listen on (port 0 picks a free one; 0.0.0.0 for all interfaces)")
       ->capture_default_str();
-  app.add_option("--data-dir", data_dir, "Directory for scene bundles")->capture_default_str();
+  app.add_option("--data-dir", data_dir, "Directory for scene bundles, the job database (tessera.db) and finished tiles")
+      ->capture_default_str();
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
   app.add_option("--heartbeat-ms", heartbeat_ms, "Heartbeat interval asked of workers")
       ->check(CLI::Range(50, 60000))->capture_default_str();
   app.add_option("--lease-timeout-ms", lease_timeout_ms, "Silence after which a worker loses its tiles")
       ->check(CLI::Range(200, 3600000))->capture_default_str();
   app.add_flag("--no-speculation", no_speculation, "Never hand out second copies of in-flight tiles");
+  app.add_option("--max-faults", max_faults, "Bad results after which a worker gets no more tiles of that job")
+      ->check(CLI::Range(1, 1000))->capture_default_str();
+  app.add_option("--retention-hours", retention_hours,
+                 "Ended jobs whose frames no client took leave memory after this long (they stay in the database)")
+      ->check(CLI::Range(0.0, 24.0 * 3650))->capture_default_str();
+  ServerSecurity security;
+  security.add_flags(app);
+  Limits limits;
+  limits.add_flags(app);
   app.set_version_flag("--version", "tessera-server 0.1.0");
   CLI11_PARSE(app, argc, argv);
+  Authenticator auth;
+  std::shared_ptr<grpc::ServerCredentials> credentials;
+  try {
+    auth = security.authenticator();
+    credentials = security.credentials();
+  } catch (const std::exception& e) {
+    std::cerr << "tessera-server: " << e.what() << "\n";
+    return 2;
+  }
 
   spdlog::set_level(spdlog::level::from_str(log_level));
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
@@ -54,22 +78,32 @@ int main(int argc, char** argv) {
     std::cerr << "tessera-server: " << e.what() << "\n";
     return 1;
   }
+  // The database is the source of truth: a corrupt or unwritable store stops us here, loudly.
+  std::unique_ptr<JobStore> jobs;
+  try {
+    jobs = std::make_unique<JobStore>(data_dir);
+  } catch (const std::exception& e) {
+    std::cerr << "tessera-server: " << e.what() << "\n";
+    return 1;
+  }
   CoordinatorOptions opts;
   opts.heartbeat_interval = std::chrono::milliseconds(heartbeat_ms);
   opts.scheduler.lease_timeout = std::chrono::milliseconds(lease_timeout_ms);
   opts.scheduler.speculate = !no_speculation;
-  Coordinator coordinator(opts, *store);
-  ClientServiceImpl client_service(coordinator);
-  WorkerServiceImpl worker_service(coordinator);
+  opts.scheduler.max_faults = max_faults;
+  opts.retention = std::chrono::seconds(int64_t(retention_hours * 3600));
+  Coordinator coordinator(opts, *store, jobs.get());
+  ClientServiceImpl client_service(coordinator, auth, limits);
+  WorkerServiceImpl worker_service(coordinator, auth);
 
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
   int port = 0;
-  builder.AddListeningPort(listen, grpc::InsecureServerCredentials(), &port);
+  builder.AddListeningPort(listen, credentials, &port);
   builder.RegisterService(&client_service);
   builder.RegisterService(&worker_service);
-  builder.SetMaxReceiveMessageSize(64 << 20);  // a 256x256 tile is 1 MiB; bundles come in 1 MiB chunks
+  builder.SetMaxReceiveMessageSize(int(limits.max_message_bytes));  // a 256x256 tile is 1 MiB; bundles: 1 MiB chunks
   // Clients and workers ping to keep long-lived streams honest; accept their pings.
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5000);
@@ -82,6 +116,7 @@ int main(int argc, char** argv) {
   const std::string host = listen.substr(0, listen.rfind(':'));
   spdlog::info("tessera-server 0.1.0: data in {}, heartbeat {} ms, lease timeout {} ms", data_dir, heartbeat_ms,
                lease_timeout_ms);
+  security.log_posture(listen, auth);
   // The machine-readable line tests and scripts wait for.
   std::printf("listening on %s:%d\n", host.c_str(), port);
   std::fflush(stdout);

@@ -12,6 +12,7 @@ const char* job_state_name(JobState s) {
     case JobState::kRunning: return "running";
     case JobState::kDone: return "done";
     case JobState::kCancelled: return "cancelled";
+    case JobState::kFailed: return "failed";
   }
   return "?";
 }
@@ -24,6 +25,8 @@ const char* lease_end_name(LeaseEnd e) {
     case LeaseEnd::kExpired: return "expired";
     case LeaseEnd::kReturned: return "returned";
     case LeaseEnd::kWorkerLeft: return "worker left";
+    case LeaseEnd::kFaulted: return "faulty result";
+    case LeaseEnd::kBlocklisted: return "worker blocklisted for the job";
   }
   return "?";
 }
@@ -89,7 +92,7 @@ JobId Scheduler::submit(const JobSpec& spec) {
 void Scheduler::set_state(Job& job, JobState s) {
   if (job.state == s) return;
   job.state = s;
-  if (s == JobState::kDone || s == JobState::kCancelled) job.ended = now_();
+  if (job_ended(s)) job.ended = now_();
   events().job_state_changed(job.id, s);
 }
 
@@ -105,7 +108,7 @@ void Scheduler::update_runnable(Job& job) {
 Scheduler::CancelResult Scheduler::cancel(const JobId& id) {
   Job* job = find_job(id);
   if (!job) return CancelResult::kUnknownJob;
-  if (job->state == JobState::kDone || job->state == JobState::kCancelled) return CancelResult::kAlreadyEnded;
+  if (job_ended(job->state)) return CancelResult::kAlreadyEnded;
   job->queue.clear();
   update_runnable(*job);
   // Revoke every active lease of the job: results that still arrive are stale and ignored.
@@ -190,12 +193,17 @@ std::vector<Assignment> Scheduler::dispatch() {
 }
 
 std::optional<Assignment> Scheduler::next_for(Worker& w) {
-  if (runnable_.empty()) return std::nullopt;
-  Job& job = *find_job(std::get<2>(*runnable_.begin()));
-  const auto [fi, t] = job.queue.front();
-  job.queue.pop_front();
-  update_runnable(job);
-  return issue(w, job, fi, t, false);
+  // The first runnable job this worker is not blocklisted for (blocklists are short: almost
+  // always the first job).
+  for (const QueueKey& key : runnable_) {
+    Job& job = *find_job(std::get<2>(key));
+    if (blocked(job, w)) continue;
+    const auto [fi, t] = job.queue.front();
+    job.queue.pop_front();
+    update_runnable(job);
+    return issue(w, job, fi, t, false);
+  }
+  return std::nullopt;
 }
 
 std::optional<Assignment> Scheduler::speculate_for(Worker& w) {
@@ -204,7 +212,7 @@ std::optional<Assignment> Scheduler::speculate_for(Worker& w) {
   for (const auto& [lid, lease] : leases_) {
     if (lease.worker == w.stats.id) continue;
     Job& job = *find_job(lease.tile.job);
-    if (job.state != JobState::kRunning) continue;
+    if (job.state != JobState::kRunning || blocked(job, w)) continue;
     const int fi = lease.tile.frame - job.spec.first_frame;
     Tile& tile = job.frames[size_t(fi)].tiles[size_t(lease.tile.tile)];
     if (tile.state != TileState::kLeased || tile.leases.size() != 1) continue;
@@ -303,6 +311,126 @@ void Scheduler::return_leases(WorkerId worker, const std::vector<LeaseId>& lease
   }
 }
 
+int Scheduler::fault(WorkerId worker, const JobId& job_id, std::optional<LeaseId> lease, const std::string& reason) {
+  Job* job = find_job(job_id);
+  auto wit = workers_.find(worker);
+  if (!job || wit == workers_.end()) return 0;
+  if (lease) {
+    auto lit = leases_.find(*lease);
+    if (lit != leases_.end() && lit->second.worker == worker) end_lease(*lease, LeaseEnd::kFaulted, true);
+  }
+  const std::string& name = wit->second.stats.info.name;
+  const int faults = ++job->faults[name];
+  const bool now_blocked = faults >= options_.max_faults && job->blocklisted.insert(name).second;
+  events().worker_faulted(job_id, wit->second.stats, reason, faults, now_blocked);
+  if (!now_blocked) return faults;
+  // Its other tiles of this job are probably bad too: give them to someone else.
+  std::vector<LeaseId> mine;
+  for (LeaseId lid : wit->second.leases) {
+    if (leases_.at(lid).tile.job == job_id) mine.push_back(lid);
+  }
+  for (LeaseId lid : mine) end_lease(lid, LeaseEnd::kBlocklisted, true);
+  if (job_ended(job->state)) return faults;
+  // Nobody left who may render it: fail loudly rather than wait forever. A worker that joins
+  // later under a new name could have rendered it, but a job that broke every worker we have
+  // is far more likely broken itself.
+  bool anyone = false;
+  for (const auto& [id, w] : workers_) anyone |= !blocked(*job, w);
+  if (!anyone) {
+    fail_job(*job, "every connected worker (" + std::to_string(workers_.size()) + ") is blocklisted for this job after " +
+                       std::to_string(options_.max_faults) + " faults each; last fault: " + reason);
+  }
+  return faults;
+}
+
+void Scheduler::fail_job(Job& job, const std::string& error) {
+  job.queue.clear();
+  update_runnable(job);
+  std::vector<LeaseId> active;
+  for (const auto& [lid, lease] : leases_) {
+    if (lease.tile.job == job.id) active.push_back(lid);
+  }
+  for (LeaseId lid : active) end_lease(lid, LeaseEnd::kCancelled, false);
+  job.error = error;
+  set_state(job, JobState::kFailed);
+}
+
+void Scheduler::restore(JobRecord rec) {
+  if (jobs_.count(rec.id)) return;
+  Job& job = jobs_[rec.id];
+  job.id = rec.id;
+  job.spec = rec.spec;
+  job.spec.tile_size = std::max(1, rec.spec.tile_size);
+  job.seq = rec.seq;
+  next_seq_ = std::max(next_seq_, rec.seq + 1);
+  job.state = rec.state;
+  job.error = rec.error;
+  job.submitted = rec.submitted;
+  job.ended = rec.ended;
+  job.duplicates = rec.duplicates;
+  job.tiles_x = (job.spec.width + job.spec.tile_size - 1) / job.spec.tile_size;
+  job.tiles_y = (job.spec.height + job.spec.tile_size - 1) / job.spec.tile_size;
+  const int frames = job.spec.last_frame - job.spec.first_frame + 1;
+  const int per_frame = job.tiles_x * job.tiles_y;
+  job.frames.resize(size_t(std::max(0, frames)));
+  for (auto& fr : job.frames) fr.tiles.resize(size_t(per_frame));
+  for (RestoredTile& d : rec.done) {
+    const int fi = d.frame - job.spec.first_frame;
+    if (fi < 0 || fi >= frames || d.tile < 0 || d.tile >= per_frame) continue;
+    Frame& fr = job.frames[size_t(fi)];
+    Tile& t = fr.tiles[size_t(d.tile)];
+    if (t.state == TileState::kDone) continue;
+    t.state = TileState::kDone;
+    t.output = std::move(d.output);
+    ++fr.done;
+    ++job.tiles_done;
+    job.rays += t.output.rays;
+  }
+  for (int f : rec.acknowledged) {
+    const int fi = f - job.spec.first_frame;
+    if (fi >= 0 && fi < frames && job.frames[size_t(fi)].done == per_frame) job.frames[size_t(fi)].acknowledged = true;
+  }
+  if (!job_ended(job.state)) {
+    // Leases in flight at the crash come back as queued tiles, oldest work first.
+    for (int f = 0; f < frames; ++f) {
+      for (int t = 0; t < per_frame; ++t) {
+        if (job.frames[size_t(f)].tiles[size_t(t)].state != TileState::kDone) job.queue.emplace_back(f, t);
+      }
+    }
+    if (job.queue.empty()) {
+      job.state = JobState::kDone;  // the crash came between the last tile and the state change
+      job.ended = now_();
+    } else if (job.tiles_done == 0) {
+      job.state = JobState::kQueued;
+    }
+  }
+  // Job order is submit order, whatever order storage returned them in.
+  auto pos = std::find_if(job_order_.begin(), job_order_.end(), [&](const JobId& o) { return jobs_.at(o).seq > job.seq; });
+  job_order_.insert(pos, job.id);
+  update_runnable(job);
+}
+
+bool Scheduler::forget(const JobId& id) {
+  Job* job = find_job(id);
+  if (!job || !job_ended(job->state)) return false;
+  for (const auto& [lid, lease] : leases_) {
+    if (lease.tile.job == id) return false;
+  }
+  runnable_.erase(queue_key(*job));
+  std::erase(job_order_, id);
+  jobs_.erase(id);
+  return true;
+}
+
+bool Scheduler::all_acknowledged(const JobId& id) const {
+  const Job* job = find_job(id);
+  if (!job) return false;
+  for (const Frame& fr : job->frames) {
+    if (!fr.acknowledged) return false;
+  }
+  return true;
+}
+
 std::vector<WorkerId> Scheduler::expire() {
   const TimePoint now = now_();
   std::vector<WorkerId> silent;
@@ -322,6 +450,7 @@ JobSnapshot Scheduler::snapshot(const Job& job) const {
   JobSnapshot s;
   s.id = job.id;
   s.spec = job.spec;
+  s.seq = job.seq;
   s.state = job.state;
   s.tiles_per_frame = job.tiles_x * job.tiles_y;
   s.tiles_total = int64_t(job.frames.size()) * s.tiles_per_frame;
@@ -330,6 +459,8 @@ JobSnapshot Scheduler::snapshot(const Job& job) const {
   s.rays = job.rays;
   s.submitted = job.submitted;
   s.ended = job.ended;
+  s.error = job.error;
+  s.blocklisted.assign(job.blocklisted.begin(), job.blocklisted.end());
   for (size_t f = 0; f < job.frames.size(); ++f) {
     const Frame& fr = job.frames[f];
     for (const Tile& t : fr.tiles) s.tiles_leased += t.state == TileState::kLeased;

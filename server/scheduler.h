@@ -47,7 +47,9 @@ struct JobSpec {
   int priority = 0;        // higher first; ties in submit order
 };
 
-enum class JobState { kQueued, kRunning, kDone, kCancelled };
+// kFailed: every connected worker was blocklisted for the job (see SchedulerOptions::max_faults).
+enum class JobState { kQueued, kRunning, kDone, kCancelled, kFailed };
+inline bool job_ended(JobState s) { return s == JobState::kDone || s == JobState::kCancelled || s == JobState::kFailed; }
 const char* job_state_name(JobState s);
 
 // A finished tile as the scheduler keeps it: the encoded result (opaque bytes, shared so that
@@ -88,6 +90,8 @@ enum class LeaseEnd {
   kExpired,        // deadline passed without renewal
   kReturned,       // the worker gave it back unrendered
   kWorkerLeft,     // the worker disconnected or was dropped
+  kFaulted,        // the worker sent a bad result or could not render: requeued
+  kBlocklisted,    // the worker was blocklisted for the job: the worker should drop it
 };
 const char* lease_end_name(LeaseEnd e);
 
@@ -113,6 +117,7 @@ struct WorkerStats {
 struct JobSnapshot {
   JobId id;
   JobSpec spec;
+  uint64_t seq = 0;                // submit order
   JobState state = JobState::kQueued;
   int tiles_per_frame = 0;
   int64_t tiles_total = 0;
@@ -121,7 +126,9 @@ struct JobSnapshot {
   int64_t duplicates_discarded = 0;
   uint64_t rays = 0;
   TimePoint submitted;
-  std::optional<TimePoint> ended;  // done or cancelled
+  std::optional<TimePoint> ended;  // done, cancelled or failed
+  std::string error;               // why the job failed
+  std::vector<std::string> blocklisted;  // worker names refused for this job
   std::vector<int> frames_done;
   std::vector<int> frames_acknowledged;
 };
@@ -138,6 +145,28 @@ class SchedulerListener {
   virtual void frame_acknowledged(const JobId&, int frame) {}
   virtual void worker_joined(const WorkerStats&) {}
   virtual void worker_left(const WorkerStats&, std::string_view reason) {}
+  // A worker sent a bad result or could not render; `blocklisted` once it reached max_faults.
+  virtual void worker_faulted(const JobId&, const WorkerStats&, std::string_view reason, int faults,
+                              bool blocklisted) {}
+};
+
+// A job as read back from persistent storage (JobStore), for Scheduler::restore().
+struct RestoredTile {
+  int frame = 0;  // absolute
+  int tile = 0;
+  TileOutput output;  // payload empty when its frame was acknowledged
+};
+struct JobRecord {
+  JobId id;
+  JobSpec spec;
+  JobState state = JobState::kQueued;
+  std::string error;
+  uint64_t seq = 0;
+  TimePoint submitted;
+  std::optional<TimePoint> ended;
+  int64_t duplicates = 0;
+  std::vector<RestoredTile> done;
+  std::vector<int> acknowledged;  // absolute frame numbers
 };
 
 struct SchedulerOptions {
@@ -146,6 +175,8 @@ struct SchedulerOptions {
   // When nothing is queued, idle workers take a second copy of the oldest in-flight tiles.
   bool speculate = true;
   int max_wanted_per_worker = 1024;  // caps a worker's standing request
+  // Faults (bad results, render failures) after which a worker gets no more tiles of a job.
+  int max_faults = 3;
 };
 
 class Scheduler {
@@ -186,9 +217,28 @@ class Scheduler {
   ResultOutcome complete(WorkerId worker, LeaseId lease, TileOutput output);
   // The worker gives leases back unrendered (shutdown): requeued at the front.
   void return_leases(WorkerId worker, const std::vector<LeaseId>& leases);
+  // A bad result or a render failure from `worker` for a tile of job `job`. Ends `lease` (requeued)
+  // when it is the worker's live lease; counts a fault against (job, worker name); at
+  // max_faults the worker is blocklisted for the job (its other leases of the job are revoked),
+  // and when every connected worker is blocklisted the job fails. Returns the fault count (0 for
+  // an unknown job).
+  int fault(WorkerId worker, const JobId& job, std::optional<LeaseId> lease, const std::string& reason);
   // Drops workers silent for longer than the lease timeout and requeues expired leases.
   // Returns the workers dropped (the coordinator ends their streams).
   std::vector<WorkerId> expire();
+
+  // --- persistence ------------------------------------------------------------------------
+  // Rebuilds a job read back from storage: its done tiles stay done (with their payload when the
+  // frame is not yet acknowledged), every other tile is queued. Emits no events.
+  void restore(JobRecord record);
+  // Lease ids keep growing across restarts, so a result for a pre-restart lease is never
+  // mistaken for a live one.
+  void set_next_lease(LeaseId next) { next_lease_ = std::max(next_lease_, next); }
+  LeaseId next_lease() const { return next_lease_; }
+  // Drops an ended job (no leases) from memory; false if unknown or still live.
+  bool forget(const JobId& id);
+  // Is every frame of the job acknowledged by a client?
+  bool all_acknowledged(const JobId& id) const;
 
   // --- queries ----------------------------------------------------------------------------
   std::optional<JobSnapshot> job(const JobId& id) const;
@@ -226,6 +276,9 @@ class Scheduler {
     uint64_t rays = 0;
     TimePoint submitted;
     std::optional<TimePoint> ended;
+    std::string error;
+    std::map<std::string, int> faults;   // worker name -> faults for this job
+    std::set<std::string> blocklisted;   // worker names that get no more tiles of this job
   };
   struct Worker {
     WorkerStats stats;
@@ -239,6 +292,8 @@ class Scheduler {
   static QueueKey queue_key(const Job& j) { return {-j.spec.priority, j.seq, j.id}; }
   void update_runnable(Job& job);
   std::optional<Assignment> next_for(Worker& w);
+  bool blocked(const Job& job, const Worker& w) const { return job.blocklisted.count(w.stats.info.name) > 0; }
+  void fail_job(Job& job, const std::string& error);
   std::optional<Assignment> speculate_for(Worker& w);
   Assignment issue(Worker& w, Job& job, int frame_index, int tile, bool speculative);
   // Ends a lease; requeues its tile (at the front) when `requeue` and no other copy is active.

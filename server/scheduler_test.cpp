@@ -256,5 +256,110 @@ TEST_F(SchedulerTest, FrameRangeUsesAbsoluteFrameNumbers) {
   EXPECT_EQ(s.job(id)->frames_done, (std::vector<int>{5, 6}));
 }
 
+TEST_F(SchedulerTest, FaultsRequeueTheTileAndBlocklistAfterMaxFaults) {
+  const JobId id = s.submit(spec(64, 16, 16));  // 4 tiles
+  const WorkerId bad = worker("bad"), good = worker("good");
+  for (int k = 1; k <= 3; ++k) {
+    auto got = pull(bad, 1);
+    ASSERT_EQ(got.size(), 1u) << "fault " << k;
+    EXPECT_EQ(s.fault(bad, id, got[0].lease.id, "NaN"), k);
+    EXPECT_FALSE(s.lease(got[0].lease.id));  // ended, tile back in the queue
+    EXPECT_EQ(s.queued_tiles(), 4u);
+  }
+  EXPECT_EQ(s.job(id)->blocklisted, std::vector<std::string>{"bad"});
+  EXPECT_TRUE(pull(bad, 1).empty());  // nothing for it, not even a speculative copy
+  EXPECT_EQ(pull(good, 4).size(), 4u);
+  EXPECT_EQ(s.job(id)->state, JobState::kRunning);
+}
+
+TEST_F(SchedulerTest, BlocklistedWorkerStillGetsOtherJobs) {
+  const JobId first = s.submit(spec(16, 16, 16, 1, 10));
+  const JobId second = s.submit(spec(16, 16, 16, 1, 0));
+  const WorkerId bad = worker("bad");
+  worker("idle");  // keeps the first job from failing
+  for (int k = 0; k < 3; ++k) s.fault(bad, first, pull(bad, 1).at(0).lease.id, "wrong size");
+  auto got = pull(bad, 1);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].lease.tile.job, second);
+}
+
+TEST_F(SchedulerTest, JobFailsWhenEveryWorkerIsBlocklisted) {
+  const JobId id = s.submit(spec(32, 16, 16));
+  const WorkerId a = worker("a"), b = worker("b");
+  for (WorkerId w : {a, b}) {
+    for (int k = 0; k < 3; ++k) s.fault(w, id, pull(w, 1).at(0).lease.id, "cannot load scene");
+  }
+  auto snap = s.job(id);
+  EXPECT_EQ(snap->state, JobState::kFailed);
+  EXPECT_NE(snap->error.find("every connected worker (2) is blocklisted"), std::string::npos) << snap->error;
+  EXPECT_NE(snap->error.find("cannot load scene"), std::string::npos) << snap->error;
+  EXPECT_EQ(s.queued_tiles(), 0u);
+  EXPECT_EQ(rec.log.back(), id + ":failed");
+}
+
+TEST_F(SchedulerTest, BlocklistIsByNameSoReconnectingDoesNotReset) {
+  const JobId id = s.submit(spec(32, 16, 16));
+  worker("other");
+  WorkerId bad = worker("bad");
+  for (int k = 0; k < 3; ++k) {
+    s.fault(bad, id, pull(bad, 1).at(0).lease.id, "NaN");
+    s.remove_worker(bad, "reconnect");
+    bad = worker("bad");
+  }
+  EXPECT_TRUE(pull(bad, 1).empty());
+}
+
+TEST_F(SchedulerTest, RestoreKeepsDoneTilesAndQueuesTheRest) {
+  JobRecord r;
+  r.id = "old";
+  r.spec = spec(32, 16, 16, 2);  // 2 tiles a frame, frames 0-1
+  r.state = JobState::kRunning;
+  r.seq = 7;
+  r.done.push_back({0, 0, out(5)});
+  r.done.push_back({0, 1, out(5)});
+  r.done.push_back({1, 1, out(5)});
+  r.acknowledged = {0};
+  s.restore(r);
+  s.set_next_lease(100);
+  auto snap = s.job("old");
+  ASSERT_TRUE(snap);
+  EXPECT_EQ(snap->tiles_done, 3);
+  EXPECT_EQ(snap->frames_acknowledged, std::vector<int>{0});
+  EXPECT_EQ(s.finished_tiles("old").size(), 1u);  // frame 1 tile 1; frame 0 was delivered
+  auto got = pull(worker("a"), 5);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].lease.tile.frame, 1);
+  EXPECT_EQ(got[0].lease.tile.tile, 0);
+  EXPECT_EQ(got[0].lease.id, 100u);  // lease ids continue after the stored high-water mark
+  // New jobs come after restored ones.
+  const JobId fresh = s.submit(spec(16, 16, 16));
+  EXPECT_GT(s.job(fresh)->seq, 7u);
+}
+
+TEST_F(SchedulerTest, RestoredJobWithEveryTileDoneIsDone) {
+  JobRecord r;
+  r.id = "old";
+  r.spec = spec(16, 16, 16);
+  r.state = JobState::kRunning;  // the crash came before the state change was written
+  r.done.push_back({0, 0, out()});
+  s.restore(r);
+  EXPECT_EQ(s.job("old")->state, JobState::kDone);
+  EXPECT_EQ(s.queued_tiles(), 0u);
+}
+
+TEST_F(SchedulerTest, ForgetDropsOnlyEndedJobs) {
+  const JobId id = s.submit(spec(16, 16, 16));
+  EXPECT_FALSE(s.forget(id));  // still queued
+  const WorkerId a = worker("a");
+  auto got = pull(a, 1);
+  s.complete(a, got[0].lease.id, out());
+  EXPECT_FALSE(s.all_acknowledged(id));
+  EXPECT_EQ(s.acknowledge_frame(id, 0), Scheduler::AckResult::kAcknowledged);
+  EXPECT_TRUE(s.all_acknowledged(id));
+  EXPECT_TRUE(s.forget(id));
+  EXPECT_FALSE(s.job(id));
+  EXPECT_TRUE(s.jobs().empty());
+}
+
 }  // namespace
 }  // namespace tessera::server

@@ -126,11 +126,17 @@ class FetchReactor : public grpc::ServerWriteReactor<v1::BundleChunk> {
 
 grpc::ServerBidiReactor<v1::WorkerMessage, v1::CoordinatorMessage>* WorkerServiceImpl::Connect(
     grpc::CallbackServerContext* ctx) {
+  if (Status s = auth_.check(*ctx, PeerRole::kWorker); !s.ok()) {
+    return new Refused<grpc::ServerBidiReactor<v1::WorkerMessage, v1::CoordinatorMessage>>(std::move(s));
+  }
   return new WorkerSession(coord_, ctx->peer());
 }
 
-grpc::ServerWriteReactor<v1::BundleChunk>* WorkerServiceImpl::FetchBundle(grpc::CallbackServerContext*,
+grpc::ServerWriteReactor<v1::BundleChunk>* WorkerServiceImpl::FetchBundle(grpc::CallbackServerContext* ctx,
                                                                          const v1::FetchBundleRequest* req) {
+  if (Status s = auth_.check(*ctx, PeerRole::kWorker); !s.ok()) {
+    return new Refused<grpc::ServerWriteReactor<v1::BundleChunk>>(std::move(s));
+  }
   return new FetchReactor(coord_.bundles(), req->sha256());
 }
 

@@ -2,6 +2,7 @@
 // fetches.
 #pragma once
 
+#include "auth.h"
 #include "coordinator.h"
 #include "tessera/v1/worker_service.grpc.pb.h"
 
@@ -9,7 +10,8 @@ namespace tessera::server {
 
 class WorkerServiceImpl final : public tessera::v1::WorkerService::CallbackService {
  public:
-  explicit WorkerServiceImpl(Coordinator& c) : coord_(c) {}
+  // Both methods first check the worker token (auth.h).
+  explicit WorkerServiceImpl(Coordinator& c, Authenticator auth = {}) : coord_(c), auth_(std::move(auth)) {}
 
   grpc::ServerBidiReactor<tessera::v1::WorkerMessage, tessera::v1::CoordinatorMessage>* Connect(
       grpc::CallbackServerContext* ctx) override;
@@ -18,6 +20,7 @@ class WorkerServiceImpl final : public tessera::v1::WorkerService::CallbackServi
 
  private:
   Coordinator& coord_;
+  Authenticator auth_;
 };
 
 }  // namespace tessera::server

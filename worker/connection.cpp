@@ -39,7 +39,7 @@ WorkerConnection::WorkerConnection(WorkerOptions options)
     : options_(std::move(options)),
       cache_(options_.cache_dir, [this](const std::string& sha) { return fetch_bundle(sha); }),
       pool_(options_.threads) {
-  channel_ = farm::make_coordinator_channel(options_.coordinator);
+  channel_ = farm::make_coordinator_channel(options_.coordinator, options_.security);
   stub_ = v1::WorkerService::NewStub(channel_);
 }
 
@@ -227,6 +227,25 @@ void WorkerConnection::handle_assignment(const std::shared_ptr<Session>& s, cons
   pool_.post(a.lease_id(), [this, s, a] { render(s, a); });
 }
 
+void WorkerConnection::inject_test_fault(v1::TileResult* r) const {
+  const std::string& f = options_.test_fault;
+  if (f.empty()) return;
+  if (f == "nan") {
+    std::string rgb = r->tile().rgb();
+    const uint32_t nan_bits = 0x7fc00000u;  // little-endian float32 quiet NaN
+    for (int i = 0; i < 4 && size_t(i) < rgb.size(); ++i) rgb[size_t(i)] = char((nan_bits >> (8 * i)) & 0xff);
+    r->mutable_tile()->set_rgb(rgb);
+  } else if (f == "wrong-size") {
+    std::string rgb = r->tile().rgb();
+    rgb.resize(rgb.size() >= 12 ? rgb.size() - 12 : 0);
+    r->mutable_tile()->set_rgb(rgb);
+  } else if (f == "stale") {
+    r->set_lease_id(r->lease_id() + (uint64_t(1) << 40));
+  } else if (f == "no-scene") {
+    throw std::runtime_error("cannot load the scene (--test-fault=no-scene)");
+  }
+}
+
 void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assignment& a) {
   v1::WorkerMessage out;
   try {
@@ -241,11 +260,15 @@ void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assig
     r->mutable_tile()->set_worker(options_.name);
     farm::encode_tile(tile, r->mutable_tile());
     if (options_.extra_delay_ms > 0) std::this_thread::sleep_for(std::chrono::milliseconds(options_.extra_delay_ms));
+    inject_test_fault(r);
   } catch (const std::exception& e) {
     // The coordinator validated the scene; failing here means this machine cannot render it
-    // (bundle download failed, mesh unreadable...). Give the tile back for someone else.
+    // (bundle download failed, mesh unreadable...). Say so: the coordinator requeues the tile for
+    // someone else and, after a few such faults, stops sending us this job.
     spdlog::error("job {} frame {}: cannot render: {}", a.job_id(), a.frame(), e.what());
-    out.mutable_returned()->add_lease_ids(a.lease_id());
+    out.Clear();
+    out.mutable_failed()->set_lease_id(a.lease_id());
+    out.mutable_failed()->set_reason(e.what());
   }
   v1::WorkerMessage req;
   {

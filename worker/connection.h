@@ -15,6 +15,7 @@
 #include <string>
 
 #include "bundle_cache.h"
+#include "farm/channel.h"
 #include "render_pool.h"
 #include "tessera/v1/worker_service.grpc.pb.h"
 
@@ -26,6 +27,11 @@ struct WorkerOptions {
   int threads = 1;
   std::filesystem::path cache_dir;
   int extra_delay_ms = 0;  // testing only: sleep after each tile so jobs last long enough
+  farm::ChannelSecurity security;  // TLS and the worker token (farm/channel.h)
+  // Testing only: corrupt every result this way, so the coordinator's refusal and blocklist can
+  // be tested with real processes: "nan" (a NaN pixel), "wrong-size" (rgb one pixel short),
+  // "stale" (a lease id never issued), "no-scene" (report the scene as unloadable).
+  std::string test_fault;
   std::chrono::milliseconds backoff_initial{200};
   std::chrono::milliseconds backoff_max{10000};
 };
@@ -45,6 +51,7 @@ class WorkerConnection {
   bool run_session();
   void handle_assignment(const std::shared_ptr<Session>& s, const tessera::v1::Assignment& a);
   void render(const std::shared_ptr<Session>& s, const tessera::v1::Assignment& a);
+  void inject_test_fault(tessera::v1::TileResult* r) const;  // --test-fault
   std::string fetch_bundle(const std::string& sha256);
   void sleep_backoff(std::chrono::milliseconds d);
 

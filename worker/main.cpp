@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <thread>
@@ -31,9 +32,27 @@ int main(int argc, char** argv) {
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
   app.add_option("--test-delay-ms", o.extra_delay_ms, "Testing only: sleep this long after each tile")
       ->check(CLI::Range(0, 60000));
+  app.add_option("--test-fault", o.test_fault,
+                 "Testing only: send bad results (nan, wrong-size, stale lease, no-scene) to exercise the "
+                 "coordinator's refusal and per-job blocklist")
+      ->check(CLI::IsMember({"nan", "wrong-size", "stale", "no-scene"}));
+  std::string token_file;
+  app.add_option("--token-file", token_file, "File holding the worker token (else env TESSERA_WORKER_TOKEN)")
+      ->group("Security");
+  app.add_option("--tls-ca", o.security.tls_ca, "PEM CA certificate of the coordinator: connect with TLS")
+      ->group("Security");
+  app.add_option("--tls-cert", o.security.tls_cert, "PEM client certificate (coordinator with client certificates)")
+      ->group("Security");
+  app.add_option("--tls-key", o.security.tls_key, "PEM private key of --tls-cert")->group("Security");
   app.set_version_flag("--version", "tessera-worker 0.1.0");
   CLI11_PARSE(app, argc, argv);
   o.cache_dir = cache;
+  try {
+    o.security.token = tessera::farm::read_token(token_file, "TESSERA_WORKER_TOKEN");
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "tessera-worker: %s\n", e.what());
+    return 2;
+  }
   spdlog::set_level(spdlog::level::from_str(log_level));
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ [" + o.name + "] %v");
 

@@ -194,7 +194,15 @@ const char* sampler_name(SamplerKind kind) {
   return "?";
 }
 
-Scene parse_scene(const std::string& text, const std::string& path) {
+uint64_t primitive_count(const Scene& scene) {
+  uint64_t n = 0;
+  for (const auto& o : scene.objects) {
+    n += o.type == SceneObject::Type::kMesh && o.mesh >= 0 ? scene.meshes[size_t(o.mesh)].triangle_count() : 1;
+  }
+  return n;
+}
+
+Scene parse_scene(const std::string& text, const std::string& path, const SceneLoadOptions& options) {
   nlohmann::json root;
   try {
     root = nlohmann::json::parse(text);
@@ -263,6 +271,7 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   const fs::path dir = fs::path(path).parent_path();
   std::map<std::string, int> object_index;
   std::map<std::string, int> mesh_cache;  // (file + exclusions) -> mesh index
+  uint64_t primitives = 0;
   for (const auto& o : r.at("objects").array()) {
     std::vector<std::string> exclude;
     SceneObject obj = read_object(o, material_index, &exclude);
@@ -278,6 +287,12 @@ Scene parse_scene(const std::string& text, const std::string& path) {
         obj.mesh = it->second;
       } else {
         const fs::path mesh_path = dir / obj.file;
+        if (!options.confine_to.empty()) {
+          const fs::path rel = mesh_path.lexically_normal().lexically_relative(fs::path(options.confine_to).lexically_normal());
+          if (rel.empty() || *rel.begin() == ".." || fs::path(obj.file).is_absolute()) {
+            o.at("file").fail("'" + obj.file + "' is outside the scene bundle (absolute, or climbs out with '..')");
+          }
+        }
         MeshLoadResult loaded;
         try {
           loaded = load_mesh(mesh_path.string(), exclude);
@@ -299,6 +314,11 @@ Scene parse_scene(const std::string& text, const std::string& path) {
         const fs::path mesh_dir = fs::path(obj.file).parent_path();
         for (const auto& lib : loaded.material_files) scene.dependencies.push_back((mesh_dir / lib).string());
       }
+      if (options.max_primitives > 0 &&
+          primitives + scene.meshes[size_t(obj.mesh)].triangle_count() > options.max_primitives) {
+        o.fail("the scene has more than " + std::to_string(options.max_primitives) +
+               " primitives (triangles of every mesh instance + spheres + planes): limit max_primitives");
+      }
       if (obj.material >= 0) {
         // An explicit material overrides the file's for every triangle.
         Mesh copy = scene.meshes[size_t(obj.mesh)];
@@ -306,6 +326,11 @@ Scene parse_scene(const std::string& text, const std::string& path) {
         obj.mesh = int(scene.meshes.size());
         scene.meshes.push_back(std::move(copy));
       }
+    }
+    primitives += obj.type == SceneObject::Type::kMesh ? scene.meshes[size_t(obj.mesh)].triangle_count() : 1;
+    if (options.max_primitives > 0 && primitives > options.max_primitives) {
+      o.fail("the scene has more than " + std::to_string(options.max_primitives) +
+             " primitives (triangles of every mesh instance + spheres + planes): limit max_primitives");
     }
     if (!obj.name.empty()) {
       if (object_index.count(obj.name)) o.at("name").fail("duplicate object name '" + obj.name + "'");
@@ -361,7 +386,7 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   return scene;
 }
 
-Scene load_scene(const std::string& path) {
+Scene load_scene(const std::string& path, const SceneLoadOptions& options) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw SceneError(path + ": scene file not found");
   if (!fs::is_regular_file(path, ec)) throw SceneError(path + ": not a regular file");
@@ -369,7 +394,7 @@ Scene load_scene(const std::string& path) {
   if (!in) throw SceneError(path + ": cannot open scene file for reading");
   std::ostringstream ss;
   ss << in.rdbuf();
-  return parse_scene(ss.str(), path);
+  return parse_scene(ss.str(), path, options);
 }
 
 void apply_overrides(Scene& scene, const ImageOverrides& o) {

@@ -16,10 +16,23 @@ struct ImageOverrides {
   std::optional<SamplerKind> sampler;
 };
 
+// Limits for scenes from untrusted peers (the coordinator and workers load scenes from bundles).
+struct SceneLoadOptions {
+  // When set, every file the scene reads (meshes) must lie inside this directory: a bundle's
+  // scene may not read "/etc/passwd", "/dev/zero" or "../../x" on the machine that loads it.
+  std::string confine_to;
+  // Most primitives (triangles of every mesh instance, plus each sphere and plane); 0: no limit.
+  // Checked while loading, before an object's mesh is copied, so a scene that instances one big
+  // mesh many times is refused before it takes the memory.
+  uint64_t max_primitives = 0;
+};
+
 // Throws SceneError with a message naming the file, the JSON path and what is allowed.
-Scene load_scene(const std::string& path);
+Scene load_scene(const std::string& path, const SceneLoadOptions& options = {});
 // Parses scene JSON text; `path` names the file in messages and anchors relative mesh paths.
-Scene parse_scene(const std::string& json_text, const std::string& path);
+Scene parse_scene(const std::string& json_text, const std::string& path, const SceneLoadOptions& options = {});
+// Primitives the renderer builds for the scene: triangles of every object's mesh + analytic objects.
+uint64_t primitive_count(const Scene& scene);
 void apply_overrides(Scene& scene, const ImageOverrides& overrides);
 
 // Allowed ranges, shared by the parser, the CLI and the coordinator's limits.

@@ -3,6 +3,8 @@
 #include <openssl/evp.h>
 
 #include <fstream>
+#include <limits>
+#include <set>
 #include <random>
 #include <sstream>
 
@@ -61,12 +63,18 @@ constexpr const char* kSceneMarker = ".tessera-scene";
 
 bool is_safe_bundle_path(std::string_view path) {
   if (path.empty() || path.front() == '/' || path.find('\\') != std::string_view::npos) return false;
+  // Longer names than any file system takes would fail half-way through extraction.
+  if (path.size() > 1024) return false;
+  // Control characters (NUL truncates the path for the OS, '\n' breaks the scene marker).
+  for (char c : path) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) return false;
+  }
   size_t start = 0;
   while (start <= path.size()) {
     size_t end = path.find('/', start);
     if (end == std::string_view::npos) end = path.size();
     const std::string_view part = path.substr(start, end - start);
-    if (part.empty() || part == "." || part == ".." || part == kSceneMarker) return false;
+    if (part.empty() || part == "." || part == ".." || part == kSceneMarker || part.size() > 255) return false;
     start = end + 1;
   }
   return true;
@@ -107,22 +115,39 @@ BuiltBundle make_bundle(const fs::path& scene_file, const std::vector<std::strin
   return out;
 }
 
-fs::path extract_bundle(std::string_view bytes, const fs::path& dir) {
-  tessera::v1::Bundle bundle;
-  if (!bundle.ParseFromArray(bytes.data(), int(bytes.size()))) {
+void parse_bundle(std::string_view bytes, tessera::v1::Bundle* out) {
+  tessera::v1::Bundle& bundle = *out;
+  if (bytes.size() > size_t(std::numeric_limits<int>::max()) || !bundle.ParseFromArray(bytes.data(), int(bytes.size()))) {
     throw BundleError("not a tessera.v1.Bundle message");
   }
   if (!is_safe_bundle_path(bundle.scene_file())) {
     throw BundleError("bundle scene_file '" + bundle.scene_file() + "' is not a safe relative path");
   }
-  bool has_scene = false;
+  std::set<std::string_view> paths;
   for (const auto& f : bundle.files()) {
     if (!is_safe_bundle_path(f.path())) {
       throw BundleError("bundle entry '" + f.path() + "' is not a safe relative path (absolute or '..')");
     }
-    has_scene |= f.path() == bundle.scene_file();
+    if (!paths.insert(f.path()).second) throw BundleError("bundle entry '" + f.path() + "' appears twice");
   }
-  if (!has_scene) throw BundleError("bundle does not contain its scene file '" + bundle.scene_file() + "'");
+  // A file that is also a directory of another entry cannot be extracted: refuse it here, as a
+  // bad bundle, rather than as a std::filesystem error halfway through writing it.
+  for (std::string_view p : paths) {
+    for (size_t slash = p.find('/'); slash != std::string_view::npos; slash = p.find('/', slash + 1)) {
+      if (paths.count(p.substr(0, slash))) {
+        throw BundleError("bundle entry '" + std::string(p.substr(0, slash)) + "' is both a file and the directory of '" +
+                          std::string(p) + "'");
+      }
+    }
+  }
+  if (!paths.count(bundle.scene_file())) {
+    throw BundleError("bundle does not contain its scene file '" + bundle.scene_file() + "'");
+  }
+}
+
+fs::path extract_bundle(std::string_view bytes, const fs::path& dir) {
+  tessera::v1::Bundle bundle;
+  parse_bundle(bytes, &bundle);
   if (fs::exists(extracted_scene_path(dir))) return extracted_scene_path(dir);
 
   static thread_local std::mt19937_64 rng{std::random_device{}()};
@@ -141,6 +166,10 @@ fs::path extract_bundle(std::string_view bytes, const fs::path& dir) {
       fs::remove_all(tmp);  // someone else extracted it first: theirs is identical
       if (!fs::exists(dir / kSceneMarker)) throw BundleError("cannot create " + dir.string() + ": " + ec.message());
     }
+  } catch (const fs::filesystem_error& e) {
+    std::error_code ec;
+    fs::remove_all(tmp, ec);
+    throw BundleError(std::string("cannot extract the bundle: ") + e.what());
   } catch (...) {
     std::error_code ec;
     fs::remove_all(tmp, ec);

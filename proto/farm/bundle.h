@@ -9,6 +9,10 @@
 #include <string_view>
 #include <vector>
 
+namespace tessera::v1 {
+class Bundle;
+}
+
 namespace tessera::farm {
 
 class BundleError : public std::runtime_error {
@@ -34,7 +38,12 @@ BuiltBundle make_bundle(const std::filesystem::path& scene_file, const std::vect
 // Checks a bundle path: relative, no "..", no empty or "." components.
 bool is_safe_bundle_path(std::string_view path);
 
-// Parses and writes the bundle's files under `dir` (created; written to a temporary sibling and
+// Parses and validates bundle bytes without touching the disk: every path safe, no entry twice,
+// no entry that is also another entry's directory ("a" and "a/b"), the scene file present.
+// Throws BundleError naming the entry.
+void parse_bundle(std::string_view bytes, tessera::v1::Bundle* out);
+
+// Parses (parse_bundle) and writes the bundle's files under `dir` (created; written to a temporary sibling and
 // renamed, so a crash never leaves a half-written directory). Returns the scene file's path.
 // Throws BundleError on malformed bytes or unsafe paths.
 std::filesystem::path extract_bundle(std::string_view bytes, const std::filesystem::path& dir);

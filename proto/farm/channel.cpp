@@ -1,15 +1,113 @@
 #include "farm/channel.h"
 
+#include <grpcpp/support/client_interceptor.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
 namespace tessera::farm {
 
-std::shared_ptr<grpc::Channel> make_coordinator_channel(const std::string& address) {
+namespace {
+
+// Adds the bearer token to the initial metadata of every call on the channel.
+class BearerInterceptor : public grpc::experimental::Interceptor {
+ public:
+  explicit BearerInterceptor(const std::string& value) : value_(value) {}
+  void Intercept(grpc::experimental::InterceptorBatchMethods* methods) override {
+    if (methods->QueryInterceptionHookPoint(grpc::experimental::InterceptionHookPoints::PRE_SEND_INITIAL_METADATA)) {
+      methods->GetSendInitialMetadata()->insert({"authorization", value_});
+    }
+    methods->Proceed();
+  }
+
+ private:
+  const std::string& value_;
+};
+
+class BearerFactory : public grpc::experimental::ClientInterceptorFactoryInterface {
+ public:
+  explicit BearerFactory(std::string token) : value_("Bearer " + std::move(token)) {}
+  grpc::experimental::Interceptor* CreateClientInterceptor(grpc::experimental::ClientRpcInfo*) override {
+    return new BearerInterceptor(value_);
+  }
+
+ private:
+  std::string value_;  // outlives the channel's calls: the channel owns the factory
+};
+
+std::string trim(std::string s) {
+  const auto b = s.find_first_not_of(" \t\r\n");
+  if (b == std::string::npos) return {};
+  const auto e = s.find_last_not_of(" \t\r\n");
+  return s.substr(b, e - b + 1);
+}
+
+std::string slurp(const std::string& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read " + file);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
+std::string read_token(const std::string& file, const char* env) {
+  if (!file.empty()) {
+    std::string t;
+    try {
+      t = trim(slurp(file));
+    } catch (const std::exception&) {
+      throw std::runtime_error("cannot read token file " + file);
+    }
+    if (t.empty()) throw std::runtime_error("token file " + file + " is empty");
+    return t;
+  }
+  const char* v = env ? std::getenv(env) : nullptr;
+  return v ? trim(v) : std::string();
+}
+
+std::string read_pem(const std::string& file, const std::string& what) {
+  try {
+    std::string pem = slurp(file);
+    if (pem.find("-----BEGIN") == std::string::npos) throw std::runtime_error("");
+    return pem;
+  } catch (const std::exception&) {
+    throw std::runtime_error("cannot read " + what + " " + file + " (a PEM file)");
+  }
+}
+
+std::shared_ptr<grpc::Channel> make_coordinator_channel(const std::string& address, const ChannelSecurity& security) {
   grpc::ChannelArguments args;
   args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 10000);
   args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
   args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
   args.SetInt(GRPC_ARG_MAX_RECEIVE_MESSAGE_LENGTH, 64 << 20);
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
-  return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
+  std::shared_ptr<grpc::ChannelCredentials> creds;
+  if (!security.tls_ca.empty()) {
+    grpc::SslCredentialsOptions ssl;
+    ssl.pem_root_certs = read_pem(security.tls_ca, "CA certificate (--tls-ca)");
+    if (security.tls_cert.empty() != security.tls_key.empty()) {
+      throw std::runtime_error("--tls-cert and --tls-key go together");
+    }
+    if (!security.tls_cert.empty()) {
+      ssl.pem_cert_chain = read_pem(security.tls_cert, "certificate (--tls-cert)");
+      ssl.pem_private_key = read_pem(security.tls_key, "private key (--tls-key)");
+    }
+    creds = grpc::SslCredentials(ssl);
+  } else {
+    if (!security.tls_cert.empty() || !security.tls_key.empty()) {
+      throw std::runtime_error("--tls-cert/--tls-key need --tls-ca (the CA that signed the coordinator's certificate)");
+    }
+    creds = grpc::InsecureChannelCredentials();
+  }
+  if (security.token.empty()) return grpc::CreateCustomChannel(address, creds, args);
+  std::vector<std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface>> interceptors;
+  interceptors.push_back(std::make_unique<BearerFactory>(security.token));
+  return grpc::experimental::CreateCustomChannelWithInterceptors(address, creds, args, std::move(interceptors));
 }
 
 }  // namespace tessera::farm

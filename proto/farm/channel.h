@@ -8,10 +8,31 @@
 
 namespace tessera::farm {
 
+// How a peer proves who it is and checks the coordinator. All empty: plaintext, no token (a
+// coordinator without tokens, on a trusted network or loopback).
+struct ChannelSecurity {
+  std::string tls_ca;    // PEM file of the CA that signed the coordinator's certificate: TLS on
+  std::string tls_cert;  // PEM certificate and key of this peer, for a coordinator that asks for
+  std::string tls_key;   //   client certificates (--tls-ca on the server); optional
+  std::string token;     // shared secret, sent as "authorization: Bearer <token>" on every call
+};
+
 // Keepalive pings (10 s, 10 s timeout, also without calls) notice a coordinator that vanished
 // without closing the connection on long-lived streams; 64 MiB messages carry tiles and
 // bundles; gRPC's own reconnect backoff is capped at 2 s so a restarted coordinator is found
-// quickly (callers add their own backoff on top).
-std::shared_ptr<grpc::Channel> make_coordinator_channel(const std::string& address);
+// quickly (callers add their own backoff on top). The token is added by a client interceptor,
+// the one place every call of the channel passes, on plaintext and TLS channels alike (gRPC's
+// call credentials refuse to travel without TLS). Throws std::runtime_error for unreadable
+// certificate files.
+std::shared_ptr<grpc::Channel> make_coordinator_channel(const std::string& address,
+                                                        const ChannelSecurity& security = {});
+
+// A token: the contents of `file` if given (surrounding whitespace dropped), else the environment
+// variable `env` (kept out of the command line, so it does not show in `ps`), else empty.
+// Throws std::runtime_error naming an unreadable or empty file.
+std::string read_token(const std::string& file, const char* env);
+
+// The whole contents of a PEM file; throws std::runtime_error naming `what` and the file.
+std::string read_pem(const std::string& file, const std::string& what);
 
 }  // namespace tessera::farm

@@ -54,6 +54,7 @@ void encode_tile(const TileResult& tile, tessera::v1::TileData* out) {
 
 std::string check_tile(const tessera::v1::TileData& in, int w, int h) {
   const auto& r = in.rect();
+  if (w <= 0 || h <= 0) return "tile has an empty rectangle";
   if (r.width() != w || r.height() != h) {
     return "tile is " + std::to_string(r.width()) + "x" + std::to_string(r.height()) + ", expected " +
            std::to_string(w) + "x" + std::to_string(h);
@@ -81,6 +82,17 @@ std::string decode_tile(const tessera::v1::TileData& in, TileResult* out) {
   out->rays.nonfinite_samples = in.rays().nonfinite_samples();
   out->seconds = in.seconds();
   return {};
+}
+
+std::string decode_tile_in_image(const tessera::v1::TileData& in, int width, int height, TileResult* out) {
+  const auto& r = in.rect();
+  // 64-bit sums: x0 + width cannot overflow, whatever the peer sent.
+  if (r.x0() < 0 || r.y0() < 0 || int64_t(r.x0()) + r.width() > width || int64_t(r.y0()) + r.height() > height) {
+    return "tile rectangle (" + std::to_string(r.x0()) + ", " + std::to_string(r.y0()) + ") " +
+           std::to_string(r.width()) + "x" + std::to_string(r.height()) + " is outside the " + std::to_string(width) +
+           "x" + std::to_string(height) + " image";
+  }
+  return decode_tile(in, out);
 }
 
 void to_proto(const ImageOverrides& o, tessera::v1::ImageOverrides* out) {

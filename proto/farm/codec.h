@@ -19,6 +19,10 @@ std::string decode_tile(const tessera::v1::TileData& in, TileResult* out);
 // bytes untouched).
 std::string check_tile(const tessera::v1::TileData& in, int expected_width, int expected_height);
 
+// decode_tile, plus: the rectangle lies inside a width x height image (checked without integer
+// overflow: the client must not trust a rectangle it received over the network).
+std::string decode_tile_in_image(const tessera::v1::TileData& in, int width, int height, TileResult* out);
+
 void to_proto(const ImageOverrides& o, tessera::v1::ImageOverrides* out);
 // Throws SceneError naming the field for an unknown sampler name.
 ImageOverrides from_proto(const tessera::v1::ImageOverrides& o);

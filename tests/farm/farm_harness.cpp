@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 #include <map>
@@ -111,10 +112,16 @@ Farm::~Farm() {
 }
 
 void Farm::start_server(const std::vector<std::string>& extra) {
-  std::vector<std::string> argv{bin("tessera-server"), "--listen", "127.0.0.1:0", "--data-dir",
-                                (dir_ / "server-data").string(), "--log-level", "debug"};
+  server_extra_ = extra;
+  std::vector<std::string> argv{bin("tessera-server"), "--listen", address_.empty() ? "127.0.0.1:0" : address_};
+  // Defaults that `extra` may replace (CLI11 refuses an option given twice).
+  for (const auto& [opt, value] : {std::pair<std::string, std::string>{"--data-dir", data_dir().string()},
+                                   {"--log-level", "debug"}}) {
+    if (std::find(extra.begin(), extra.end(), opt) == extra.end()) argv.insert(argv.end(), {opt, value});
+  }
   argv.insert(argv.end(), extra.begin(), extra.end());
-  server_ = std::make_unique<Process>(argv, dir_ / "server.log");
+  const int n = ++server_starts_;
+  server_ = std::make_unique<Process>(argv, dir_ / (n == 1 ? "server.log" : "server-" + std::to_string(n) + ".log"));
   const std::regex re("listening on (127\\.0\\.0\\.1:[0-9]+)");
   const auto end = std::chrono::steady_clock::now() + 20s;
   while (std::chrono::steady_clock::now() < end) {
@@ -130,11 +137,30 @@ void Farm::start_server(const std::vector<std::string>& extra) {
   throw std::runtime_error("tessera-server did not report its port:\n" + server_->log());
 }
 
-Process& Farm::start_worker(const std::string& name, int threads, int delay_ms) {
+void Farm::restart_server(std::chrono::milliseconds down) {
+  server_->signal(SIGKILL);
+  server_->wait(10s);
+  std::this_thread::sleep_for(down);
+  start_server(server_extra_);
+}
+
+std::string Farm::server_logs() const {
+  std::string all;
+  for (int n = 1; n <= server_starts_; ++n) {
+    all += read_text(dir_ / (n == 1 ? "server.log" : "server-" + std::to_string(n) + ".log"));
+  }
+  return all;
+}
+
+Process& Farm::start_worker(const std::string& name, int threads, int delay_ms, const std::vector<std::string>& extra) {
   std::vector<std::string> argv{bin("tessera-worker"), "--coordinator", address_, "--name", name, "--threads",
                                 std::to_string(threads), "--cache-dir", (dir_ / ("cache-" + name)).string(),
                                 "--test-delay-ms", std::to_string(delay_ms)};
-  workers_.push_back(std::make_unique<Process>(argv, dir_ / ("worker-" + name + ".log")));
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  // A restarted worker (same name) appends to its log, so a test sees every incarnation.
+  const fs::path log = dir_ / ("worker-" + name + ".log");
+  if (fs::exists(log)) fs::rename(log, dir_ / ("worker-" + name + "-" + std::to_string(++cli_runs_) + ".log"));
+  workers_.push_back(std::make_unique<Process>(argv, log));
   return *workers_.back();
 }
 

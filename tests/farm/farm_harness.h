@@ -49,9 +49,16 @@ class Farm {
   Farm();  // a fresh temporary directory
   ~Farm();
 
-  // Starts tessera-server on 127.0.0.1:0 and waits for its "listening on" line.
+  // Starts tessera-server on 127.0.0.1:0 (the first time; later on the same port) with its data
+  // in dir()/server-data, and waits for its "listening on" line.
   void start_server(const std::vector<std::string>& extra = {});
-  Process& start_worker(const std::string& name, int threads = 1, int delay_ms = 0);
+  // kill -9 the coordinator, then start it again on the same port and data dir (same extra args).
+  void restart_server(std::chrono::milliseconds down = std::chrono::milliseconds(0));
+  // Every coordinator log of this farm, oldest first (one per start).
+  std::string server_logs() const;
+  fs::path data_dir() const { return dir_ / "server-data"; }
+  Process& start_worker(const std::string& name, int threads = 1, int delay_ms = 0,
+                        const std::vector<std::string>& extra = {});
   // Runs `tessera ARGS --coordinator ADDRESS`-style commands (address appended by the caller).
   CliResult cli(const std::vector<std::string>& args, std::chrono::seconds timeout = std::chrono::seconds(120));
   std::unique_ptr<Process> cli_async(const std::vector<std::string>& args, const std::string& log_name);
@@ -68,6 +75,8 @@ class Farm {
   fs::path dir_;
   std::string address_;
   std::unique_ptr<Process> server_;
+  std::vector<std::string> server_extra_;
+  int server_starts_ = 0;
   std::vector<std::unique_ptr<Process>> workers_;
   int cli_runs_ = 0;
 };

@@ -1,0 +1,599 @@
+#include "job_store.h"
+
+#include <fcntl.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <map>
+#include <set>
+#include <unordered_set>
+
+namespace tessera::server {
+
+namespace fs = std::filesystem;
+
+double to_unix_seconds(TimePoint t) {
+  const auto sys = std::chrono::system_clock::now() - std::chrono::duration_cast<std::chrono::system_clock::duration>(
+                                                          Clock::now() - t);
+  return std::chrono::duration<double>(sys.time_since_epoch()).count();
+}
+
+TimePoint from_unix_seconds(double unix_s) {
+  const double now_unix = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  return Clock::now() - std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(now_unix - unix_s));
+}
+
+namespace {
+
+const char* kSchema = R"sql(
+CREATE TABLE schema_version(version INTEGER NOT NULL);
+CREATE TABLE meta(key TEXT PRIMARY KEY, value INTEGER NOT NULL);
+CREATE TABLE jobs(
+  id TEXT PRIMARY KEY, seq INTEGER NOT NULL, name TEXT NOT NULL, bundle TEXT NOT NULL, overrides BLOB NOT NULL,
+  first_frame INTEGER NOT NULL, last_frame INTEGER NOT NULL, width INTEGER NOT NULL, height INTEGER NOT NULL,
+  spp INTEGER NOT NULL, tile_size INTEGER NOT NULL, priority INTEGER NOT NULL,
+  state TEXT NOT NULL, error TEXT NOT NULL DEFAULT '', submitted REAL NOT NULL, ended REAL,
+  duplicates INTEGER NOT NULL DEFAULT 0, rays INTEGER NOT NULL DEFAULT 0,
+  resident INTEGER NOT NULL DEFAULT 1);
+-- A row per finished tile; its pixels are in tiles/<job>/<frame>-<tile>.tile until the frame is
+-- acknowledged. Tiles without a row are queued (or were leased when the coordinator stopped).
+CREATE TABLE tiles(job TEXT NOT NULL, frame INTEGER NOT NULL, tile INTEGER NOT NULL, rays INTEGER NOT NULL,
+  seconds REAL NOT NULL, PRIMARY KEY(job, frame, tile)) WITHOUT ROWID;
+CREATE TABLE acked_frames(job TEXT NOT NULL, frame INTEGER NOT NULL, PRIMARY KEY(job, frame)) WITHOUT ROWID;
+CREATE TABLE leases(id INTEGER PRIMARY KEY, worker TEXT NOT NULL, job TEXT NOT NULL, frame INTEGER NOT NULL,
+  tile INTEGER NOT NULL, issued REAL NOT NULL);
+)sql";
+
+std::optional<JobState> parse_state(const std::string& s) {
+  for (JobState st : {JobState::kQueued, JobState::kRunning, JobState::kDone, JobState::kCancelled, JobState::kFailed}) {
+    if (s == job_state_name(st)) return st;
+  }
+  return std::nullopt;
+}
+
+std::string text(sqlite3_stmt* st, int col) {
+  const auto* p = sqlite3_column_text(st, col);
+  return p ? std::string(reinterpret_cast<const char*>(p), size_t(sqlite3_column_bytes(st, col))) : std::string();
+}
+
+std::string blob(sqlite3_stmt* st, int col) {
+  const void* p = sqlite3_column_blob(st, col);
+  return p ? std::string(static_cast<const char*>(p), size_t(sqlite3_column_bytes(st, col))) : std::string();
+}
+
+// The columns read by read_row(), in this order.
+constexpr const char* kJobColumns =
+    "id, seq, name, bundle, overrides, first_frame, last_frame, width, height, spp, tile_size, priority, state, "
+    "error, submitted, ended, duplicates, rays";
+
+JobSnapshot read_row(sqlite3_stmt* st) {
+  JobSnapshot s;
+  s.id = text(st, 0);
+  s.seq = uint64_t(sqlite3_column_int64(st, 1));
+  s.spec.name = text(st, 2);
+  s.spec.bundle_sha256 = text(st, 3);
+  s.spec.overrides = blob(st, 4);
+  s.spec.first_frame = sqlite3_column_int(st, 5);
+  s.spec.last_frame = sqlite3_column_int(st, 6);
+  s.spec.width = sqlite3_column_int(st, 7);
+  s.spec.height = sqlite3_column_int(st, 8);
+  s.spec.spp = sqlite3_column_int(st, 9);
+  s.spec.tile_size = std::max(1, sqlite3_column_int(st, 10));
+  s.spec.priority = sqlite3_column_int(st, 11);
+  const std::string state = text(st, 12);
+  s.state = parse_state(state).value_or(JobState::kFailed);
+  s.error = text(st, 13);
+  if (!parse_state(state)) s.error = "unknown state '" + state + "' in the database";
+  s.submitted = from_unix_seconds(sqlite3_column_double(st, 14));
+  if (sqlite3_column_type(st, 15) != SQLITE_NULL) s.ended = from_unix_seconds(sqlite3_column_double(st, 15));
+  s.duplicates_discarded = sqlite3_column_int64(st, 16);
+  s.rays = uint64_t(sqlite3_column_int64(st, 17));
+  const int ts = s.spec.tile_size;
+  s.tiles_per_frame = ((s.spec.width + ts - 1) / ts) * ((s.spec.height + ts - 1) / ts);
+  s.tiles_total = int64_t(s.spec.last_frame - s.spec.first_frame + 1) * s.tiles_per_frame;
+  return s;
+}
+
+}  // namespace
+
+JobStore::JobStore(const fs::path& data_dir) : dir_(data_dir), db_path_(data_dir / "tessera.db") {
+  std::error_code ec;
+  fs::create_directories(dir_, ec);
+  if (ec || !fs::is_directory(dir_)) {
+    throw StoreError("cannot create the data directory " + dir_.string() + ": " +
+                     (ec ? ec.message() : std::string("not a directory")));
+  }
+  // Fail now, with the reason, rather than at the first finished tile.
+  const fs::path probe = dir_ / ".write-test";
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0 || ::write(fd, "x", 1) != 1 || ::fsync(fd) != 0) {
+    const int err = errno;
+    if (fd >= 0) ::close(fd);
+    ::unlink(probe.c_str());
+    throw StoreError("the data directory " + dir_.string() + " is not writable: " + std::strerror(err));
+  }
+  ::close(fd);
+  ::unlink(probe.c_str());
+  open_database();
+  try {
+    tiles_ = std::make_unique<TileStore>(dir_ / "tiles");
+  } catch (const std::exception& e) {
+    throw StoreError(e.what());
+  }
+  writer_ = std::thread([this] { writer_loop(); });
+}
+
+JobStore::~JobStore() {
+  {
+    std::lock_guard lock(mu_);
+    stopping_ = true;
+  }
+  cv_.notify_all();
+  if (writer_.joinable()) writer_.join();
+  for (sqlite3_stmt* st : stmts_) sqlite3_finalize(st);
+  if (db_) sqlite3_close(db_);
+  if (read_db_) sqlite3_close(read_db_);
+}
+
+void JobStore::exec(const char* sql) {
+  char* err = nullptr;
+  if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
+    std::string msg = err ? err : sqlite3_errmsg(db_);
+    sqlite3_free(err);
+    throw std::runtime_error(db_path_.string() + ": " + msg);
+  }
+}
+
+sqlite3_stmt* JobStore::prepare(const char* sql) {
+  sqlite3_stmt* st = nullptr;
+  if (sqlite3_prepare_v2(db_, sql, -1, &st, nullptr) != SQLITE_OK) {
+    throw StoreError(db_path_.string() + ": cannot prepare '" + sql + "': " + sqlite3_errmsg(db_));
+  }
+  stmts_.push_back(st);
+  return st;
+}
+
+void JobStore::open_database() {
+  const std::string db = db_path_.string();
+  if (sqlite3_open_v2(db.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr) !=
+      SQLITE_OK) {
+    throw StoreError("cannot open the database " + db + ": " + (db_ ? sqlite3_errmsg(db_) : "out of memory"));
+  }
+  sqlite3_busy_timeout(db_, 5000);
+  // Integrity first: a file that is not a database, or a damaged one, stops the coordinator here
+  // with the file's name, instead of losing jobs later.
+  {
+    sqlite3_stmt* st = nullptr;
+    int rc = sqlite3_prepare_v2(db_, "PRAGMA quick_check", -1, &st, nullptr);
+    std::vector<std::string> problems;
+    if (rc == SQLITE_OK) {
+      while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
+        const std::string row = text(st, 0);
+        if (row != "ok" && problems.size() < 5) problems.push_back(row);
+      }
+    }
+    const std::string msg = sqlite3_errmsg(db_);
+    sqlite3_finalize(st);
+    if (rc != SQLITE_DONE) {
+      throw StoreError("the database " + db + " is unreadable (" + msg +
+                       "): it is corrupt or not a Tessera database. Move it away (the coordinator then starts "
+                       "with no jobs) or restore a backup");
+    }
+    if (!problems.empty()) {
+      std::string all;
+      for (const auto& p : problems) all += (all.empty() ? "" : "; ") + p;
+      throw StoreError("the database " + db + " failed its integrity check: " + all +
+                       ". Move it away (the coordinator then starts with no jobs) or restore a backup");
+    }
+  }
+  try {
+    exec("PRAGMA journal_mode=WAL");
+    // FULL: a commit is on disk when it returns (one fsync of the WAL per batch).
+    exec("PRAGMA synchronous=FULL");
+    bool has_schema = false;
+    {
+      sqlite3_stmt* st = nullptr;
+      sqlite3_prepare_v2(db_, "SELECT count(*) FROM sqlite_master WHERE type='table' AND name='schema_version'", -1,
+                         &st, nullptr);
+      if (sqlite3_step(st) == SQLITE_ROW) has_schema = sqlite3_column_int(st, 0) > 0;
+      sqlite3_finalize(st);
+    }
+    if (!has_schema) {
+      int tables = 0;
+      sqlite3_stmt* st = nullptr;
+      sqlite3_prepare_v2(db_, "SELECT count(*) FROM sqlite_master", -1, &st, nullptr);
+      if (sqlite3_step(st) == SQLITE_ROW) tables = sqlite3_column_int(st, 0);
+      sqlite3_finalize(st);
+      if (tables > 0) {
+        throw StoreError("the database " + db + " is an SQLite database but not a Tessera one (no schema_version "
+                         "table): use another --data-dir");
+      }
+      exec("BEGIN");
+      exec(kSchema);
+      exec(("INSERT INTO schema_version VALUES (" + std::to_string(kSchemaVersion) + ")").c_str());
+      exec("COMMIT");
+    } else {
+      sqlite3_stmt* st = nullptr;
+      sqlite3_prepare_v2(db_, "SELECT version FROM schema_version", -1, &st, nullptr);
+      int version = -1;
+      if (sqlite3_step(st) == SQLITE_ROW) version = sqlite3_column_int(st, 0);
+      sqlite3_finalize(st);
+      if (version != kSchemaVersion) {
+        throw StoreError("the database " + db + " has schema version " + std::to_string(version) +
+                         "; this tessera-server reads version " + std::to_string(kSchemaVersion) +
+                         ". Use the tessera-server that wrote it, or another --data-dir");
+      }
+    }
+  } catch (const StoreError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw StoreError(e.what());
+  }
+  ins_job_ = prepare(
+      "INSERT OR REPLACE INTO jobs(id, seq, name, bundle, overrides, first_frame, last_frame, width, height, spp, "
+      "tile_size, priority, state, error, submitted, ended, duplicates, rays) "
+      "VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13,?14,?15,?16,?17,?18)");
+  upd_job_ = prepare("UPDATE jobs SET state=?2, error=?3, ended=?4, duplicates=?5, rays=?6 WHERE id=?1");
+  ins_tile_ = prepare("INSERT OR REPLACE INTO tiles(job, frame, tile, rays, seconds) VALUES(?1,?2,?3,?4,?5)");
+  ins_ack_ = prepare("INSERT OR IGNORE INTO acked_frames(job, frame) VALUES(?1,?2)");
+  ins_lease_ = prepare("INSERT OR REPLACE INTO leases(id, worker, job, frame, tile, issued) VALUES(?1,?2,?3,?4,?5,?6)");
+  del_lease_ = prepare("DELETE FROM leases WHERE id=?1");
+  evict_ = prepare("UPDATE jobs SET resident=0 WHERE id=?1");
+  set_hwm_ = prepare("INSERT OR REPLACE INTO meta(key, value) VALUES('lease_hwm', ?1)");
+  if (sqlite3_open_v2(db.c_str(), &read_db_, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, nullptr) != SQLITE_OK) {
+    throw StoreError("cannot open the database " + db + " for reading: " + sqlite3_errmsg(read_db_));
+  }
+  sqlite3_busy_timeout(read_db_, 5000);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Loading
+
+JobStore::Loaded JobStore::load() {
+  Loaded out;
+  auto query = [&](const std::string& sql, auto&& row) {
+    sqlite3_stmt* st = nullptr;
+    if (sqlite3_prepare_v2(db_, sql.c_str(), -1, &st, nullptr) != SQLITE_OK) {
+      throw StoreError(db_path_.string() + ": " + sqlite3_errmsg(db_));
+    }
+    int rc;
+    while ((rc = sqlite3_step(st)) == SQLITE_ROW) row(st);
+    sqlite3_finalize(st);
+    if (rc != SQLITE_DONE) throw StoreError(db_path_.string() + ": " + sqlite3_errmsg(db_));
+  };
+  LeaseId hwm = 0;
+  query("SELECT value FROM meta WHERE key='lease_hwm'", [&](sqlite3_stmt* st) { hwm = LeaseId(sqlite3_column_int64(st, 0)); });
+  query("SELECT count(*), coalesce(max(id), 0) FROM leases", [&](sqlite3_stmt* st) {
+    out.leases_requeued = sqlite3_column_int64(st, 0);
+    hwm = std::max(hwm, LeaseId(sqlite3_column_int64(st, 1)));
+  });
+  out.next_lease = hwm + 1;
+  lease_hwm_ = hwm;
+
+  std::vector<std::pair<JobId, std::pair<int, int>>> missing;
+  std::map<JobId, std::set<std::pair<int, int>>> done_keys;
+  std::map<JobId, std::set<int>> acked_by_job;
+  query(std::string("SELECT ") + kJobColumns + " FROM jobs WHERE resident=1 ORDER BY seq", [&](sqlite3_stmt* st) {
+    JobSnapshot s = read_row(st);
+    JobRecord r;
+    r.id = s.id;
+    r.spec = s.spec;
+    r.state = s.state;
+    r.error = s.error;
+    r.seq = s.seq;
+    r.submitted = s.submitted;
+    r.ended = s.ended;
+    r.duplicates = s.duplicates_discarded;
+    out.jobs.push_back(std::move(r));
+  });
+  for (JobRecord& r : out.jobs) {
+    std::set<int>& acked = acked_by_job[r.id];
+    query("SELECT frame FROM acked_frames WHERE job='" + r.id + "'", [&](sqlite3_stmt* st) {
+      acked.insert(sqlite3_column_int(st, 0));
+    });
+    r.acknowledged.assign(acked.begin(), acked.end());
+    query("SELECT frame, tile, rays, seconds FROM tiles WHERE job='" + r.id + "' ORDER BY frame, tile",
+          [&](sqlite3_stmt* st) {
+            RestoredTile t;
+            t.frame = sqlite3_column_int(st, 0);
+            t.tile = sqlite3_column_int(st, 1);
+            t.output.rays = uint64_t(sqlite3_column_int64(st, 2));
+            t.output.seconds = sqlite3_column_double(st, 3);
+            done_keys[r.id].insert({t.frame, t.tile});
+            if (!acked.count(t.frame)) {
+              auto bytes = tiles_->read(r.id, t.frame, t.tile);
+              if (!bytes) {
+                // Should not happen (the file is durable before its row); re-render rather than lie.
+                spdlog::error("job {} frame {} tile {}: done in {} but {} is missing: the tile will be rendered again",
+                              r.id, t.frame, t.tile, db_path_.string(), tiles_->path(r.id, t.frame, t.tile).string());
+                missing.push_back({r.id, {t.frame, t.tile}});
+                ++out.tiles_missing;
+                return;
+              }
+              t.output.payload = std::make_shared<const std::string>(std::move(*bytes));
+            }
+            r.done.push_back(std::move(t));
+          });
+  }
+  if (!missing.empty()) {
+    exec("BEGIN");
+    for (const auto& [job, ft] : missing) {
+      exec(("DELETE FROM tiles WHERE job='" + job + "' AND frame=" + std::to_string(ft.first) +
+            " AND tile=" + std::to_string(ft.second))
+               .c_str());
+    }
+    exec("COMMIT");
+  }
+  // Leases in flight at the last stop: their tiles are queued again (rows without a done tile).
+  exec("DELETE FROM leases");
+  // Orphans: files of a crash between rename and commit, temp files, files of acknowledged
+  // frames or evicted jobs whose deletion was interrupted.
+  std::error_code ec;
+  for (const auto& jd : fs::directory_iterator(tiles_->root(), ec)) {
+    const std::string job = jd.path().filename().string();
+    auto dk = done_keys.find(job);
+    const bool resident = acked_by_job.count(job) > 0;
+    if (!resident) {
+      for (const auto& f : fs::directory_iterator(jd.path(), ec)) { (void)f; ++out.orphans_removed; }
+      fs::remove_all(jd.path(), ec);
+      continue;
+    }
+    const std::set<int>& acked = acked_by_job[job];
+    for (const auto& f : fs::directory_iterator(jd.path(), ec)) {
+      int frame = 0, tile = 0;
+      char tail[16] = {};
+      const std::string name = f.path().filename().string();
+      const bool parsed = std::sscanf(name.c_str(), "%d-%d.%15s", &frame, &tile, tail) == 3 && std::string(tail) == "tile";
+      const bool keep = parsed && !acked.count(frame) && dk != done_keys.end() && dk->second.count({frame, tile});
+      if (!keep) {
+        fs::remove(f.path(), ec);
+        ++out.orphans_removed;
+      }
+    }
+  }
+  return out;
+}
+
+std::optional<JobSnapshot> JobStore::read_job(const JobId& id) {
+  std::lock_guard lock(read_mu_);
+  sqlite3_stmt* st = nullptr;
+  const std::string sql = std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id=?1";
+  if (sqlite3_prepare_v2(read_db_, sql.c_str(), -1, &st, nullptr) != SQLITE_OK) return std::nullopt;
+  sqlite3_bind_text(st, 1, id.c_str(), int(id.size()), SQLITE_TRANSIENT);
+  std::optional<JobSnapshot> s;
+  if (sqlite3_step(st) == SQLITE_ROW) s = read_row(st);
+  sqlite3_finalize(st);
+  if (!s) return s;
+  if (sqlite3_prepare_v2(read_db_, "SELECT frame, count(*) FROM tiles WHERE job=?1 GROUP BY frame ORDER BY frame", -1,
+                         &st, nullptr) == SQLITE_OK) {
+    sqlite3_bind_text(st, 1, id.c_str(), int(id.size()), SQLITE_TRANSIENT);
+    while (sqlite3_step(st) == SQLITE_ROW) {
+      const int n = sqlite3_column_int(st, 1);
+      s->tiles_done += n;
+      if (n == s->tiles_per_frame) s->frames_done.push_back(sqlite3_column_int(st, 0));
+    }
+    sqlite3_finalize(st);
+  }
+  if (sqlite3_prepare_v2(read_db_, "SELECT frame FROM acked_frames WHERE job=?1 ORDER BY frame", -1, &st, nullptr) ==
+      SQLITE_OK) {
+    sqlite3_bind_text(st, 1, id.c_str(), int(id.size()), SQLITE_TRANSIENT);
+    while (sqlite3_step(st) == SQLITE_ROW) s->frames_acknowledged.push_back(sqlite3_column_int(st, 0));
+    sqlite3_finalize(st);
+  }
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Writes
+
+void JobStore::push(Op op) {
+  {
+    std::lock_guard lock(mu_);
+    queue_.push_back(std::move(op));
+  }
+  cv_.notify_one();
+}
+
+void JobStore::job_submitted(const JobSnapshot& s) { push(JobRow{s, true}); }
+void JobStore::job_updated(const JobSnapshot& s) { push(JobRow{s, false}); }
+void JobStore::tile_done(const TileKey& key, const TileOutput& out) {
+  push(TileDone{key, out.payload, out.rays, out.seconds});
+}
+void JobStore::frame_acknowledged(const JobId& job, int frame, int tiles) { push(FrameAck{job, frame, tiles}); }
+void JobStore::lease_issued(const Lease& l, const std::string& worker) {
+  push(LeaseIssued{l.id, worker, l.tile, to_unix_seconds(l.issued)});
+}
+void JobStore::lease_ended(LeaseId id) { push(LeaseEnded{id}); }
+void JobStore::job_evicted(const JobId& job) { push(Evicted{job}); }
+
+std::future<std::string> JobStore::barrier() {
+  auto p = std::make_shared<std::promise<std::string>>();
+  auto f = p->get_future();
+  push(Barrier{p});
+  return f;
+}
+
+bool JobStore::healthy() const {
+  std::lock_guard lock(mu_);
+  return healthy_;
+}
+std::string JobStore::last_error() const {
+  std::lock_guard lock(mu_);
+  return last_error_;
+}
+JobStore::Stats JobStore::stats() const {
+  std::lock_guard lock(mu_);
+  Stats s = stats_;
+  s.queued = queue_.size();
+  return s;
+}
+
+void JobStore::writer_loop() {
+  std::vector<Op> pending;
+  while (true) {
+    {
+      std::unique_lock lock(mu_);
+      cv_.wait(lock, [&] { return stopping_ || !queue_.empty() || !pending.empty(); });
+      if (pending.empty() && queue_.empty() && stopping_) break;
+      // Everything queued so far is one batch: under load batches grow and commits stay few.
+      for (auto& op : queue_) pending.push_back(std::move(op));
+      queue_.clear();
+    }
+    std::string error;
+    try {
+      apply(pending);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    for (auto it = pending.begin(); it != pending.end();) {
+      if (auto* b = std::get_if<Barrier>(&*it)) {
+        b->done->set_value(error);
+        it = pending.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    if (error.empty()) {
+      std::lock_guard lock(mu_);
+      if (!healthy_) spdlog::info("storage recovered: {} writes committed", pending.size());
+      healthy_ = true;
+      ++stats_.batches;
+      stats_.ops += int64_t(pending.size());
+      pending.clear();
+      continue;
+    }
+    bool stopping;
+    {
+      std::lock_guard lock(mu_);
+      healthy_ = false;
+      last_error_ = error;
+      ++stats_.failures;
+      stopping = stopping_;
+    }
+    spdlog::error("cannot persist {} writes, new jobs are refused until this is fixed (retrying every second): {}",
+                  pending.size(), error);
+    if (stopping) {
+      spdlog::error("stopping with {} writes not persisted: their tiles will be rendered again", pending.size());
+      break;
+    }
+    std::unique_lock lock(mu_);
+    cv_.wait_for(lock, std::chrono::seconds(1), [&] { return stopping_; });
+  }
+}
+
+void JobStore::apply(std::vector<Op>& batch) {
+  // 1. Tile files, durable before any row that says "done".
+  bool wrote = false;
+  for (const Op& op : batch) {
+    if (const auto* t = std::get_if<TileDone>(&op)) {
+      tiles_->write(t->key.job, t->key.frame, t->key.tile, *t->payload);
+      wrote = true;
+    }
+  }
+  if (wrote) tiles_->sync();
+  // A lease issued and ended within one batch never needs a row.
+  std::unordered_set<LeaseId> issued, transient;
+  LeaseId hwm = lease_hwm_;
+  for (const Op& op : batch) {
+    if (const auto* l = std::get_if<LeaseIssued>(&op)) {
+      issued.insert(l->id);
+      hwm = std::max(hwm, l->id);
+    } else if (const auto* e = std::get_if<LeaseEnded>(&op)) {
+      if (issued.count(e->id)) transient.insert(e->id);
+    }
+  }
+  // 2. One transaction, in queue order.
+  auto step = [&](sqlite3_stmt* st) {
+    const int rc = sqlite3_step(st);
+    sqlite3_reset(st);
+    sqlite3_clear_bindings(st);
+    if (rc != SQLITE_DONE) throw std::runtime_error(db_path_.string() + ": " + sqlite3_errmsg(db_));
+  };
+  auto bind_text = [](sqlite3_stmt* st, int i, const std::string& s) {
+    sqlite3_bind_text(st, i, s.data(), int(s.size()), SQLITE_TRANSIENT);
+  };
+  exec("BEGIN IMMEDIATE");
+  try {
+    for (const Op& op : batch) {
+      if (const auto* j = std::get_if<JobRow>(&op)) {
+        const JobSnapshot& s = j->s;
+        sqlite3_stmt* st = j->insert ? ins_job_ : upd_job_;
+        bind_text(st, 1, s.id);
+        if (j->insert) {
+          sqlite3_bind_int64(st, 2, int64_t(s.seq));
+          bind_text(st, 3, s.spec.name);
+          bind_text(st, 4, s.spec.bundle_sha256);
+          sqlite3_bind_blob(st, 5, s.spec.overrides.data(), int(s.spec.overrides.size()), SQLITE_TRANSIENT);
+          sqlite3_bind_int(st, 6, s.spec.first_frame);
+          sqlite3_bind_int(st, 7, s.spec.last_frame);
+          sqlite3_bind_int(st, 8, s.spec.width);
+          sqlite3_bind_int(st, 9, s.spec.height);
+          sqlite3_bind_int(st, 10, s.spec.spp);
+          sqlite3_bind_int(st, 11, s.spec.tile_size);
+          sqlite3_bind_int(st, 12, s.spec.priority);
+          bind_text(st, 13, job_state_name(s.state));
+          bind_text(st, 14, s.error);
+          sqlite3_bind_double(st, 15, to_unix_seconds(s.submitted));
+          if (s.ended) sqlite3_bind_double(st, 16, to_unix_seconds(*s.ended));
+          sqlite3_bind_int64(st, 17, s.duplicates_discarded);
+          sqlite3_bind_int64(st, 18, int64_t(s.rays));
+        } else {
+          bind_text(st, 2, job_state_name(s.state));
+          bind_text(st, 3, s.error);
+          if (s.ended) sqlite3_bind_double(st, 4, to_unix_seconds(*s.ended));
+          sqlite3_bind_int64(st, 5, s.duplicates_discarded);
+          sqlite3_bind_int64(st, 6, int64_t(s.rays));
+        }
+        step(st);
+      } else if (const auto* t = std::get_if<TileDone>(&op)) {
+        bind_text(ins_tile_, 1, t->key.job);
+        sqlite3_bind_int(ins_tile_, 2, t->key.frame);
+        sqlite3_bind_int(ins_tile_, 3, t->key.tile);
+        sqlite3_bind_int64(ins_tile_, 4, int64_t(t->rays));
+        sqlite3_bind_double(ins_tile_, 5, t->seconds);
+        step(ins_tile_);
+      } else if (const auto* a = std::get_if<FrameAck>(&op)) {
+        bind_text(ins_ack_, 1, a->job);
+        sqlite3_bind_int(ins_ack_, 2, a->frame);
+        step(ins_ack_);
+      } else if (const auto* l = std::get_if<LeaseIssued>(&op)) {
+        if (transient.count(l->id)) continue;
+        sqlite3_bind_int64(ins_lease_, 1, int64_t(l->id));
+        bind_text(ins_lease_, 2, l->worker);
+        bind_text(ins_lease_, 3, l->tile.job);
+        sqlite3_bind_int(ins_lease_, 4, l->tile.frame);
+        sqlite3_bind_int(ins_lease_, 5, l->tile.tile);
+        sqlite3_bind_double(ins_lease_, 6, l->issued);
+        step(ins_lease_);
+      } else if (const auto* e = std::get_if<LeaseEnded>(&op)) {
+        if (transient.count(e->id)) continue;
+        sqlite3_bind_int64(del_lease_, 1, int64_t(e->id));
+        step(del_lease_);
+      } else if (const auto* v = std::get_if<Evicted>(&op)) {
+        bind_text(evict_, 1, v->job);
+        step(evict_);
+      }
+    }
+    if (hwm != lease_hwm_) {
+      sqlite3_bind_int64(set_hwm_, 1, int64_t(hwm));
+      step(set_hwm_);
+    }
+    exec("COMMIT");
+  } catch (...) {
+    sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+    throw;
+  }
+  lease_hwm_ = hwm;
+  // 3. Only now may pixels go: the rows that say the client has them are committed.
+  for (const Op& op : batch) {
+    if (const auto* a = std::get_if<FrameAck>(&op)) {
+      for (int t = 0; t < a->tiles; ++t) tiles_->remove(a->job, a->frame, t);
+    } else if (const auto* v = std::get_if<Evicted>(&op)) {
+      tiles_->remove_job(v->job);
+    }
+  }
+}
+
+}  // namespace tessera::server

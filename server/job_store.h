@@ -1,0 +1,130 @@
+// The coordinator's durable state: jobs, tile states, acknowledged frames and leases in SQLite
+// (<data-dir>/tessera.db, WAL mode, synchronous=FULL), finished tile pixels in a TileStore
+// (<data-dir>/tiles). The database is the source of truth at restart.
+//
+// Writes are asynchronous and batched (group commit): the coordinator queues operations under
+// its mutex (cheap: a shared_ptr to the tile bytes), and one writer thread applies everything
+// queued so far as a single batch:
+//   1. write the batch's tile files (temp + rename), then TileStore::sync();
+//   2. one SQLite transaction for every row of the batch, in queue order;
+//   3. after the commit, delete the files of acknowledged frames and evicted jobs.
+// So a tile is marked done in SQLite only after its file is durable, and a committed prefix of
+// the queue is always a consistent state. A failed batch (full disk, I/O error) is rolled back,
+// marks the store unhealthy (submit answers RESOURCE_EXHAUSTED) and is retried every second, in
+// order, until it succeeds. barrier() tells a caller when everything queued before it is durable.
+#pragma once
+
+#include <sqlite3.h>
+
+#include <condition_variable>
+#include <deque>
+#include <filesystem>
+#include <future>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <variant>
+#include <vector>
+
+#include "scheduler.h"
+#include "tile_store.h"
+
+namespace tessera::server {
+
+// Cannot open the data directory or the database: the message names the file and the problem.
+struct StoreError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+class JobStore {
+ public:
+  static constexpr int kSchemaVersion = 1;
+
+  // Opens or creates the store; checks the directory is writable, the database's integrity
+  // (PRAGMA quick_check) and its schema version. Throws StoreError.
+  explicit JobStore(const std::filesystem::path& data_dir);
+  ~JobStore();  // writes everything still queued, then stops the writer
+  JobStore(const JobStore&) = delete;
+  JobStore& operator=(const JobStore&) = delete;
+
+  struct Loaded {
+    std::vector<JobRecord> jobs;      // resident jobs, in submit order
+    LeaseId next_lease = 1;
+    int64_t leases_requeued = 0;      // leases in flight at the last stop
+    int64_t tiles_missing = 0;        // done rows whose file was unreadable: re-rendered
+    int64_t orphans_removed = 0;      // tile files with no done row (crash before the commit)
+  };
+  // Reads the state back (call once, before any write). Leases in flight at the last stop come
+  // back as queued tiles; orphan and temp tile files are removed.
+  Loaded load();
+
+  // --- writes (queued; applied in order by the writer thread) ---------------------------------
+  void job_submitted(const JobSnapshot& s);
+  void job_updated(const JobSnapshot& s);  // state, error, counters
+  void tile_done(const TileKey& key, const TileOutput& out);
+  void frame_acknowledged(const JobId& job, int frame, int tiles_per_frame);
+  void lease_issued(const Lease& lease, const std::string& worker_name);
+  void lease_ended(LeaseId id);
+  void job_evicted(const JobId& job);  // left coordinator memory: its tile files are deleted
+  // Resolved with "" once every write queued before it is committed, or with the error of the
+  // batch that failed.
+  std::future<std::string> barrier();
+
+  bool healthy() const;
+  std::string last_error() const;
+  const std::filesystem::path& db_path() const { return db_path_; }
+
+  // An evicted job, read from SQLite (for status queries). Runs on the caller's thread.
+  std::optional<JobSnapshot> read_job(const JobId& id);
+
+  struct Stats {
+    int64_t batches = 0, ops = 0, failures = 0;
+    size_t queued = 0;
+  };
+  Stats stats() const;
+
+ private:
+  struct JobRow { JobSnapshot s; bool insert; };
+  struct TileDone { TileKey key; std::shared_ptr<const std::string> payload; uint64_t rays; double seconds; };
+  struct FrameAck { JobId job; int frame; int tiles; };
+  struct LeaseIssued { LeaseId id; std::string worker; TileKey tile; double issued; };
+  struct LeaseEnded { LeaseId id; };
+  struct Evicted { JobId job; };
+  struct Barrier { std::shared_ptr<std::promise<std::string>> done; };
+  using Op = std::variant<JobRow, TileDone, FrameAck, LeaseIssued, LeaseEnded, Evicted, Barrier>;
+
+  void push(Op op);
+  void writer_loop();
+  void apply(std::vector<Op>& batch);  // throws on failure (the transaction is rolled back)
+  void exec(const char* sql);
+  sqlite3_stmt* prepare(const char* sql);
+  void open_database();
+
+  std::filesystem::path dir_, db_path_;
+  std::unique_ptr<TileStore> tiles_;
+  sqlite3* db_ = nullptr;      // the writer's connection (and load()'s, before the writer runs)
+  sqlite3* read_db_ = nullptr; // read_job()'s connection (WAL: readers do not block the writer)
+  std::mutex read_mu_;
+  std::vector<sqlite3_stmt*> stmts_;
+  sqlite3_stmt *ins_job_ = nullptr, *upd_job_ = nullptr, *ins_tile_ = nullptr, *ins_ack_ = nullptr,
+               *ins_lease_ = nullptr, *del_lease_ = nullptr, *evict_ = nullptr, *set_hwm_ = nullptr;
+
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<Op> queue_;
+  bool stopping_ = false;
+  bool healthy_ = true;
+  std::string last_error_;
+  Stats stats_;
+  LeaseId lease_hwm_ = 0;  // writer thread only
+  std::thread writer_;
+};
+
+// Steady-clock time points <-> Unix seconds (what the database stores).
+double to_unix_seconds(TimePoint t);
+TimePoint from_unix_seconds(double unix_s);
+
+}  // namespace tessera::server

@@ -1,0 +1,66 @@
+#include "request_limits.h"
+
+#include <CLI/CLI.hpp>
+
+namespace tessera::server {
+
+void Limits::add_flags(CLI::App& app) {
+  app.add_option("--max-message-bytes", max_message_bytes, "Largest gRPC message accepted")
+      ->check(CLI::Range(int64_t(2) << 20, int64_t(1) << 30))->capture_default_str()->group("Limits");
+  app.add_option("--max-bundle-bytes", max_bundle_bytes, "Largest scene bundle accepted")
+      ->check(CLI::Range(int64_t(1), int64_t(2000) << 20))->capture_default_str()->group("Limits");
+  app.add_option("--max-pixels", max_pixels, "Largest width*height of a job")
+      ->check(CLI::Range(int64_t(1), int64_t(16384) * 16384))->capture_default_str()->group("Limits");
+  app.add_option("--max-spp", max_spp, "Most samples per pixel")
+      ->check(CLI::Range(1, tessera::SceneLimits::kMaxSpp))->capture_default_str()->group("Limits");
+  app.add_option("--max-frames", max_frames, "Most frames in one job")
+      ->check(CLI::Range(1, tessera::SceneLimits::kMaxFrames))->capture_default_str()->group("Limits");
+  app.add_option("--max-primitives", max_primitives, "Most primitives in a scene (triangles of every mesh instance)")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40))->capture_default_str()->group("Limits");
+  app.add_option("--max-jobs-per-client", max_jobs_per_client, "Most queued or running jobs per client")
+      ->check(CLI::Range(1, 1000000))->capture_default_str()->group("Limits");
+}
+
+grpc::Status over_limit(grpc::StatusCode code, const std::string& what, int64_t value, const char* flag,
+                        int64_t limit) {
+  return grpc::Status(code, what + " is " + std::to_string(value) + ", over this coordinator's limit " +
+                                std::to_string(limit) + " (tessera-server " + flag + ")");
+}
+
+grpc::Status Limits::check_job(const Scene& scene, int first_frame, int last_frame) const {
+  const int64_t pixels = int64_t(scene.image.width) * scene.image.height;
+  if (pixels > max_pixels) {
+    return over_limit(grpc::StatusCode::INVALID_ARGUMENT,
+                      "resolution " + std::to_string(scene.image.width) + "x" + std::to_string(scene.image.height) +
+                          " (width*height)",
+                      pixels, "--max-pixels", max_pixels);
+  }
+  if (scene.image.spp > max_spp) {
+    return over_limit(grpc::StatusCode::INVALID_ARGUMENT, "spp", scene.image.spp, "--max-spp", max_spp);
+  }
+  const int64_t frames = int64_t(last_frame) - first_frame + 1;
+  if (frames > max_frames) {
+    return over_limit(grpc::StatusCode::INVALID_ARGUMENT, "the job's frame count", frames, "--max-frames", max_frames);
+  }
+  return grpc::Status::OK;
+}
+
+void JobQuota::settle(const std::string& client, const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  if (--pending_[client] <= 0) pending_.erase(client);
+  if (!job_id.empty()) jobs_[client].insert(job_id);
+}
+
+std::string client_identity(const grpc::ServerContextBase& ctx) {
+  if (auto auth = ctx.auth_context()) {
+    for (const auto& cn : auth->FindPropertyValues(GRPC_X509_CN_PROPERTY_NAME)) {
+      return "cn:" + std::string(cn.data(), cn.size());
+    }
+  }
+  // "ipv4:127.0.0.1:54321" / "ipv6:[::1]:54321": the address without the port.
+  const std::string peer = ctx.peer();
+  const auto colon = peer.rfind(':');
+  return colon == std::string::npos || colon < 5 ? peer : peer.substr(0, colon);
+}
+
+}  // namespace tessera::server

@@ -1,0 +1,92 @@
+// Bad workers (tessera-worker --test-fault, testing only): every wrong result is refused with
+// its precise reason in the coordinator's log, the worker is blocklisted for the job after
+// --max-faults of them, the good worker finishes the job bit-identical; and a job that every
+// worker fails on fails with a clear error instead of hanging.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "farm_harness.h"
+
+namespace tessera::farmtest {
+namespace {
+
+using namespace std::chrono_literals;
+
+const fs::path kScene = source("tests/farm/whitted_orbit.json");
+
+TEST(FarmFaults, BadResultsAreRefusedAndTheirWorkersBlocklisted) {
+  Farm farm;
+  farm.start_server({"--max-faults", "3"});
+  // Four liars, one honest (slowed so the liars get tiles before the job ends).
+  const std::vector<std::pair<std::string, std::string>> faults{
+      {"nan", "is NaN"},
+      {"wrong-size", "tile rgb has"},
+      {"stale", "never issued by this coordinator"},
+      {"no-scene", "worker cannot render: cannot load the scene"}};
+  for (const auto& [mode, reason] : faults) farm.start_worker("bad-" + mode, 1, 0, {"--test-fault", mode});
+  farm.start_worker("good", 1, 20);
+  const fs::path out = farm.dir() / "out";
+  CliResult r = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "-o",
+                          (out / "frame_####.exr").string(), "--tile", "16"});
+  ASSERT_EQ(r.code, 0) << r.output << farm.server_logs();
+  for (int f = 0; f < 3; ++f) {
+    EXPECT_EQ(compare_exr(out / ("frame_000" + std::to_string(f) + ".exr"), reference_frame(kScene, f, {})), "")
+        << "frame " << f;
+  }
+  const std::string log = farm.server_logs();
+  const std::string job = job_id_from(r.output);
+  for (const auto& [mode, reason] : faults) {
+    const std::string name = "'bad-" + mode + "'";
+    EXPECT_NE(log.find(name + ": refused result for job " + job), std::string::npos) << mode << "\n" << log;
+    EXPECT_NE(log.find(reason), std::string::npos) << mode << "\n" << log;
+    EXPECT_NE(log.find(name + " is blocklisted for job " + job + " after 3 faults"), std::string::npos)
+        << mode << "\n" << log;
+  }
+  CliResult st = farm.cli({"status", job, "--json", "--coordinator", farm.address()});
+  ASSERT_EQ(st.code, 0) << st.output;
+  // Evicted after the client acknowledged every frame: the status comes from SQLite and has no
+  // blocklist; the job is done with every tile exactly once.
+  auto j = nlohmann::json::parse(st.output);
+  EXPECT_EQ(j.at("state"), "done");
+  EXPECT_EQ(j.at("tiles_done"), 72);
+  // Blocklisted workers rendered no accepted tile: all 72 came from the honest worker.
+  CliResult w = farm.cli({"workers", "--json", "--coordinator", farm.address()});
+  ASSERT_EQ(w.code, 0) << w.output;
+  for (const auto& x : nlohmann::json::parse(w.output)) {
+    if (x.at("name") == "good") {
+      EXPECT_EQ(x.at("tiles_done").get<int>(), 72);
+    } else {
+      EXPECT_EQ(x.at("tiles_done").get<int>(), 0) << x.dump();
+    }
+  }
+}
+
+TEST(FarmFaults, JobFailsClearlyWhenEveryWorkerIsBlocklisted) {
+  Farm farm;
+  farm.start_server({"--max-faults", "2"});
+  farm.start_worker("broken-1", 1, 0, {"--test-fault", "no-scene"});
+  farm.start_worker("broken-2", 1, 0, {"--test-fault", "nan"});
+  // Both must be registered before they run out of tiles, or the job would wait for a third.
+  for (int i = 0; i < 200; ++i) {
+    CliResult w = farm.cli({"workers", "--json", "--coordinator", farm.address()});
+    if (w.code == 0 && nlohmann::json::parse(w.output).size() == 2) break;
+    std::this_thread::sleep_for(50ms);
+  }
+  CliResult r = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "-o",
+                          (farm.dir() / "out" / "f_####.exr").string(), "--tile", "16"});
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("failed: every connected worker (2) is blocklisted for this job after 2 faults each"),
+            std::string::npos)
+      << r.output << farm.server_logs();
+  const std::string job = job_id_from(r.output);
+  CliResult st = farm.cli({"status", job, "--json", "--coordinator", farm.address()});
+  ASSERT_EQ(st.code, 0) << st.output;
+  auto j = nlohmann::json::parse(st.output);
+  EXPECT_EQ(j.at("state"), "failed");
+  EXPECT_EQ(j.at("blocklisted_workers").size(), 2u) << st.output;
+}
+
+}  // namespace
+}  // namespace tessera::farmtest

@@ -1,0 +1,176 @@
+// Persistence with real processes: finished tiles survive kill -9 of the coordinator and come
+// back bit-identical from disk; a corrupt database, an unwritable data directory and a full disk
+// give clear errors instead of silent data loss.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/mount.h>
+#include <unistd.h>
+
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "farm_harness.h"
+
+namespace tessera::farmtest {
+namespace {
+
+using namespace std::chrono_literals;
+
+const fs::path kScene = source("tests/farm/whitted_orbit.json");
+
+void expect_frames_identical(const fs::path& dir) {
+  for (int f = 0; f < 3; ++f) {
+    EXPECT_EQ(compare_exr(dir / ("frame_000" + std::to_string(f) + ".exr"), reference_frame(kScene, f, {})), "")
+        << "frame " << f;
+  }
+}
+
+// Starts tessera-server on `data` and returns (exit code, output) when it exits by itself.
+CliResult server_refusing(Farm& farm, const fs::path& data) {
+  Process p({bin("tessera-server").string(), "--listen", "127.0.0.1:0", "--data-dir", data.string()},
+            farm.dir() / "refused.log");
+  CliResult r;
+  r.code = p.wait(20s);
+  r.output = p.log();
+  return r;
+}
+
+TEST(FarmPersistence, FinishedTilesSurviveKill9AndComeBackFromDisk) {
+  Farm farm;
+  farm.start_server();
+  farm.start_worker("w1");
+  CliResult s = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--tile", "16", "--detach"});
+  ASSERT_EQ(s.code, 0) << s.output;
+  const std::string job = job_id_from(s.output);
+  ASSERT_TRUE(farm.wait_tiles_done(job, 72));
+  farm.workers().clear();  // no worker: every pixel below must come from the coordinator's disk
+  // A result is durable once its batch commits. SubmitJob answers only after everything queued
+  // before it is committed, so a second submit is the barrier that makes the first job's tiles
+  // durable; then kill -9 without warning.
+  CliResult barrier =
+      farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--tile", "16", "--detach"});
+  ASSERT_EQ(barrier.code, 0) << barrier.output;
+  farm.restart_server();
+  std::string state;
+  EXPECT_EQ(farm.tiles_done(job, &state), 72);
+  EXPECT_EQ(state, "done");
+  const fs::path out = farm.dir() / "out";
+  CliResult w = farm.cli({"watch", job, "--coordinator", farm.address(), "-o", (out / "frame_####.exr").string()});
+  ASSERT_EQ(w.code, 0) << w.output << farm.server_logs();
+  expect_frames_identical(out);
+  // Every frame acknowledged: the job left memory and its tile files are gone, but its status
+  // is still answered (from SQLite), across another restart too.
+  EXPECT_NE(farm.server().log().find("job " + job + " left memory"), std::string::npos) << farm.server().log();
+  // (Another submit as a barrier: the eviction's batch, file deletions included, is done.)
+  ASSERT_EQ(farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--tile", "16", "--detach"}).code, 0);
+  EXPECT_FALSE(fs::exists(farm.data_dir() / "tiles" / job / "0-0.tile"));
+  farm.restart_server();
+  EXPECT_EQ(farm.tiles_done(job, &state), 72);
+  EXPECT_EQ(state, "done");
+  CliResult list = farm.cli({"status", "--json", "--coordinator", farm.address()});
+  ASSERT_EQ(list.code, 0) << list.output;
+  // Only the two barrier jobs (queued, no worker) are in memory: the evicted job is not reloaded.
+  auto resident = nlohmann::json::parse(list.output);
+  EXPECT_EQ(resident.size(), 2u) << list.output;
+  for (const auto& j : resident) EXPECT_NE(j.at("job_id"), job) << "evicted jobs must not be loaded into memory";
+}
+
+TEST(FarmPersistence, CorruptDatabaseStopsTheCoordinatorNamingTheFile) {
+  Farm farm;
+  farm.start_server();
+  farm.server().signal(SIGTERM);
+  ASSERT_EQ(farm.server().wait(20s), 0);
+  const fs::path db = farm.data_dir() / "tessera.db";
+  ASSERT_TRUE(fs::exists(db));
+  fs::remove(farm.data_dir() / "tessera.db-wal");
+  fs::remove(farm.data_dir() / "tessera.db-shm");
+  {
+    std::ofstream f(db, std::ios::binary | std::ios::trunc);
+    for (int i = 0; i < 4096; ++i) f << "garbage!";
+  }
+  CliResult r = server_refusing(farm, farm.data_dir());
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find(db.string()), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("corrupt"), std::string::npos) << r.output;
+}
+
+TEST(FarmPersistence, UnwritableDataDirStopsTheCoordinator) {
+  Farm farm;
+  {
+    std::ofstream(farm.dir() / "a-file") << "x";
+  }
+  CliResult r = server_refusing(farm, farm.dir() / "a-file" / "data");
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find((farm.dir() / "a-file" / "data").string()), std::string::npos) << r.output;
+  // A read-only file system (root ignores permission bits, so mount one when we may).
+  const fs::path ro = farm.dir() / "ro";
+  fs::create_directories(ro);
+  if (mount("tmpfs", ro.c_str(), "tmpfs", MS_RDONLY, "size=1m") != 0) {
+    std::printf("[skip] read-only data dir: cannot mount a tmpfs here (%s)\n", std::strerror(errno));
+    return;
+  }
+  CliResult r2 = server_refusing(farm, ro);
+  umount(ro.c_str());
+  EXPECT_EQ(r2.code, 1) << r2.output;
+  EXPECT_NE(r2.output.find(ro.string()), std::string::npos) << r2.output;
+  EXPECT_NE(r2.output.find("Read-only file system"), std::string::npos) << r2.output;
+}
+
+TEST(FarmPersistence, FullDiskRefusesNewJobsAndRecovers) {
+  Farm farm;
+  const fs::path small = farm.dir() / "small";
+  fs::create_directories(small);
+  if (mount("tmpfs", small.c_str(), "tmpfs", 0, "size=16m") != 0) {
+    GTEST_SKIP() << "cannot mount a small tmpfs here (" << std::strerror(errno) << "): full-disk test skipped";
+  }
+  struct Unmount {
+    fs::path p;
+    ~Unmount() { umount2(p.c_str(), MNT_DETACH); }
+  } unmount{small};
+  // The coordinator's data on the small disk (the harness's --data-dir is replaced by the last one).
+  farm.start_server({"--data-dir", (small / "data").string()});
+  CliResult a = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--tile", "16", "--detach"});
+  ASSERT_EQ(a.code, 0) << a.output;
+  const std::string job = job_id_from(a.output);
+  // Fill the disk.
+  {
+    std::ofstream fill(small / "filler", std::ios::binary);
+    const std::string mb(1 << 20, 'x');
+    for (int i = 0; i < 32 && fill; ++i) fill << mb;
+  }
+  // Tiles can no longer be stored: the coordinator says so, loudly.
+  farm.start_worker("w1");
+  for (int i = 0; i < 100 && farm.server().log().find("cannot persist") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(100ms);
+  }
+  // SQLite's SQLITE_FULL or the tile file's ENOSPC, whichever write came first.
+  const std::string full_log = farm.server().log();
+  EXPECT_TRUE(full_log.find("database or disk is full") != std::string::npos ||
+              full_log.find("No space left on device") != std::string::npos)
+      << full_log;
+  CliResult b = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--tile", "16", "--detach"});
+  EXPECT_NE(b.code, 0) << b.output;
+  EXPECT_NE(b.output.find("no new jobs"), std::string::npos) << b.output;
+  // Space again: the queued writes go through, the job completes, new jobs are accepted.
+  fs::remove(small / "filler");
+  ASSERT_TRUE(farm.wait_tiles_done(job, 72, 60s));
+  for (int i = 0; i < 100 && farm.server().log().find("storage recovered") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(100ms);
+  }
+  CliResult c = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--tile", "16", "--detach"});
+  EXPECT_EQ(c.code, 0) << c.output << farm.server().log();
+  // And what was reported done is on disk: restart and read it back.
+  farm.restart_server();
+  std::string state;
+  EXPECT_EQ(farm.tiles_done(job, &state), 72);
+  const fs::path out = farm.dir() / "out";
+  farm.workers().clear();
+  CliResult w = farm.cli({"watch", job, "--coordinator", farm.address(), "-o", (out / "frame_####.exr").string()});
+  ASSERT_EQ(w.code, 0) << w.output << farm.server_logs();
+  expect_frames_identical(out);
+}
+
+}  // namespace
+}  // namespace tessera::farmtest

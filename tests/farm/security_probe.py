@@ -1,0 +1,114 @@
+#!/usr/bin/python3
+"""Bad input a hostile peer could send, from an independent client (Python + grpcio).
+
+Usage: security_probe.py HOST:PORT PROTO_DIR TMP_DIR CHECK...
+Checks (each prints "ok CHECK" or raises):
+  health          grpc.health.v1 Check answers SERVING without any token
+  message-size    a 3 MiB request is refused with RESOURCE_EXHAUSTED (server: --max-message-bytes 2 MiB)
+  bundle-paths    bundles with '..', absolute, duplicate and file-and-directory entries: INVALID_ARGUMENT
+  mesh-escape     a scene whose mesh is outside its bundle ('../..', absolute): INVALID_ARGUMENT
+  token-roles     the worker token does not grant ClientService calls, nor the client token
+                  WorkerService calls: UNAUTHENTICATED (env PROBE_WORKER_TOKEN, PROBE_CLIENT_TOKEN)
+"""
+import hashlib
+import os
+import subprocess
+import sys
+
+
+def main():
+    address, proto_dir, tmp = sys.argv[1:4]
+    checks = sys.argv[4:]
+    gen = os.path.join(tmp, "pygen")
+    os.makedirs(gen, exist_ok=True)
+    protos = [os.path.join(proto_dir, "tessera", "v1", n)
+              for n in ("common.proto", "client_service.proto", "worker_service.proto")]
+    subprocess.check_call([sys.executable, "-m", "grpc_tools.protoc", "-I", proto_dir,
+                           "--python_out", gen, "--grpc_python_out", gen] + protos)
+    sys.path.insert(0, gen)
+    import grpc
+    from tessera.v1 import client_service_pb2 as cs
+    from tessera.v1 import client_service_pb2_grpc as cs_grpc
+    from tessera.v1 import common_pb2 as common
+
+    channel = grpc.insecure_channel(address)
+    stub = cs_grpc.ClientServiceStub(channel)
+
+    def expect(code, fn, what, needle=None):
+        try:
+            fn()
+        except grpc.RpcError as e:
+            assert e.code() == code, f"{what}: expected {code}, got {e.code()}: {e.details()}"
+            if needle:
+                assert needle in e.details(), f"{what}: '{needle}' not in '{e.details()}'"
+            print(f"  {what}: {e.code().name}: {e.details()}")
+            return
+        raise AssertionError(f"{what}: accepted")
+
+    def upload(bundle):
+        data = bundle.SerializeToString()
+        sha = hashlib.sha256(data).hexdigest()
+        stub.UploadBundle(iter([common.BundleChunk(sha256=sha, data=data)]), timeout=10)
+        return sha
+
+    for check in checks:
+        if check == "health":
+            call = channel.unary_unary("/grpc.health.v1.Health/Check",
+                                       request_serializer=lambda b: b, response_deserializer=lambda b: b)
+            assert call(b"", timeout=10) == b"\x08\x01", "health: not SERVING"  # status: SERVING
+        elif check == "message-size":
+            expect(grpc.StatusCode.RESOURCE_EXHAUSTED,
+                   lambda: stub.HasBundle(cs.HasBundleRequest(sha256="a" * (3 << 20)), timeout=10),
+                   "3 MiB HasBundle request")
+        elif check == "bundle-paths":
+            scene = b'{"camera": {}, "objects": []}'
+            bad = {
+                "dotdot": common.Bundle(scene_file="s.json", files=[
+                    common.BundleFile(path="s.json", content=scene), common.BundleFile(path="../evil", content=b"x")]),
+                "absolute": common.Bundle(scene_file="/tmp/s.json", files=[
+                    common.BundleFile(path="/tmp/s.json", content=scene)]),
+                "inner-dotdot": common.Bundle(scene_file="a/../s.json", files=[
+                    common.BundleFile(path="a/../s.json", content=scene)]),
+                "duplicate": common.Bundle(scene_file="s.json", files=[
+                    common.BundleFile(path="s.json", content=scene), common.BundleFile(path="s.json", content=b"{}")]),
+                "file-and-dir": common.Bundle(scene_file="s.json", files=[
+                    common.BundleFile(path="s.json", content=scene), common.BundleFile(path="s.json/x", content=b"")]),
+            }
+            for name, b in bad.items():
+                expect(grpc.StatusCode.INVALID_ARGUMENT, lambda: upload(b), f"bundle {name}", "bundle refused")
+        elif check == "mesh-escape":
+            for target in ("../../../../../../../../etc/passwd", "/etc/passwd"):
+                scene = ('{"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1, 0], "vfov_deg": 40},'
+                         ' "objects": [{"type": "mesh", "file": "%s"}]}' % target).encode()
+                sha = upload(common.Bundle(scene_file="s.json", files=[common.BundleFile(path="s.json", content=scene)]))
+                expect(grpc.StatusCode.INVALID_ARGUMENT,
+                       lambda: stub.SubmitJob(cs.SubmitJobRequest(bundle_sha256=sha), timeout=10),
+                       f"mesh {target}", "outside the scene bundle")
+        elif check == "token-roles":
+            md = [("authorization", "Bearer " + os.environ["PROBE_WORKER_TOKEN"])]
+            expect(grpc.StatusCode.UNAUTHENTICATED,
+                   lambda: stub.ListJobs(cs.ListJobsRequest(), timeout=10, metadata=md),
+                   "ListJobs with the worker token", "invalid client token")
+            expect(grpc.StatusCode.UNAUTHENTICATED,
+                   lambda: stub.ListJobs(cs.ListJobsRequest(), timeout=10,
+                                         metadata=[("authorization", "Basic " + os.environ["PROBE_WORKER_TOKEN"])]),
+                   "ListJobs with a non-Bearer authorization")
+            # ... and the client token does not grant worker calls (bundle fetch, session).
+            from tessera.v1 import worker_service_pb2 as ws
+            from tessera.v1 import worker_service_pb2_grpc as ws_grpc
+            wstub = ws_grpc.WorkerServiceStub(channel)
+            cmd = [("authorization", "Bearer " + os.environ["PROBE_CLIENT_TOKEN"])]
+            expect(grpc.StatusCode.UNAUTHENTICATED,
+                   lambda: list(wstub.FetchBundle(ws.FetchBundleRequest(sha256="0" * 64), timeout=10, metadata=cmd)),
+                   "FetchBundle with the client token", "invalid worker token")
+            expect(grpc.StatusCode.UNAUTHENTICATED,
+                   lambda: list(wstub.Connect(iter([ws.WorkerMessage()]), timeout=10, metadata=cmd)),
+                   "Connect with the client token", "invalid worker token")
+        else:
+            raise SystemExit("unknown check " + check)
+        print("ok", check)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
