@@ -1,9 +1,40 @@
 #!/usr/bin/env bash
 # The test command: installs what is missing, builds, and runs every test (unit tests beside the
-# code, integration tests with real tessera-server/tessera-worker processes on loopback).
+# code; integration tests with real tessera-server/tessera-worker processes on loopback; the
+# container test when a Docker engine can be started). Three stages, all by default:
+#   main      build/       every test (ctest labels: color, cli, farm, stability, fuzz, bench-smoke,
+#                          containers, and the unlabelled unit tests)
+#   sanitize  build-asan/  the same suite built with -fsanitize=address,undefined; any report fails
+#                          (containers and bench smoke are left out: images and benchmarks are not
+#                          sanitizer builds)
+#   fuzz      build-fuzz/  each libFuzzer target for TESSERA_FUZZ_SECONDS (default 20) seconds
+# TESSERA_TEST_STAGES=main,fuzz (for example) runs a subset; extra args go to the main ctest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+stages=",${TESSERA_TEST_STAGES:-main,sanitize,fuzz},"
+jobs=$(nproc 2>/dev/null || echo 2)
 bash scripts/install-deps.sh
-bash scripts/build.sh
-cd build
-ctest --output-on-failure --timeout 600 -j "$(nproc 2>/dev/null || echo 2)" "$@"
+
+stage() { echo; echo "=== test stage: $1 ($(date -u +%H:%M:%S))"; }
+
+if [[ $stages == *,main,* ]]; then
+  stage main
+  bash scripts/build.sh
+  (cd build && ctest --output-on-failure --timeout 600 -j "$jobs" "$@")
+fi
+
+if [[ $stages == *,sanitize,* ]]; then
+  stage sanitize
+  TESSERA_BUILD_DIR=build-asan bash scripts/build.sh -DTESSERA_SANITIZE=ON -DTESSERA_BUILD_BENCH=OFF
+  # halt_on_error / abort: a sanitizer report ends the process with a failure the test sees; the
+  # server and worker processes that tests start inherit these settings.
+  export ASAN_OPTIONS=detect_leaks=1:halt_on_error=1:abort_on_error=1:detect_stack_use_after_return=0
+  export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
+  (cd build-asan && ctest --output-on-failure --timeout 900 -j "$jobs" -LE containers)
+fi
+
+if [[ $stages == *,fuzz,* ]]; then
+  stage fuzz
+  bash fuzz/run.sh "${TESSERA_FUZZ_SECONDS:-20}"
+fi
+stage done
