@@ -75,8 +75,10 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::WatchJobEvent> {
   struct Sink : WatchSink {
     explicit Sink(WatchReactor* r) : box(r) {}
     void push(v1::WatchJobEvent m) override { box.push(std::move(m)); }
+    void push_deferred(std::function<void(v1::WatchJobEvent*)> make) override { box.push_deferred(std::move(make)); }
     void finish(Status s) override { box.finish(std::move(s)); }
     void pump() override { box.pump(); }
+    size_t queued() const override { return box.queued(); }
     Outbox<WatchReactor, v1::WatchJobEvent> box;
   };
 
@@ -87,7 +89,11 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::WatchJobEvent> {
       sink_->pump();
     }
   }
-  void OnWriteDone(bool ok) override { sink_->box.on_write_done(ok); }
+  void OnWriteDone(bool ok) override {
+    sink_->box.on_write_done(ok);
+    // Flow control: this stream held its job back; once it has caught up, let the job go on.
+    if (sink_->throttled.load() && sink_->queued() <= coord_.watch_low_water()) coord_.watcher_drained(sink_);
+  }
   void OnCancel() override {
     // The client went away (or the server is shutting down): stop feeding this stream.
     coord_.detach_watcher(sink_);

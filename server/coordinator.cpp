@@ -349,9 +349,7 @@ Status Coordinator::attach_resident(const std::string& id, const std::shared_ptr
     for (const auto& [key, output] : scheduler_.finished_tiles(id)) {
       if (key.frame != current) close_frame(current);
       current = key.frame;
-      v1::WatchJobEvent te;
-      te.mutable_tile()->ParseFromString(*output.payload);
-      sink->push(std::move(te));
+      push_tile_locked(id, sink, output.payload);
     }
     close_frame(current);
     if (job_ended(s->state)) {
@@ -365,10 +363,58 @@ Status Coordinator::attach_resident(const std::string& id, const std::shared_ptr
 }
 
 void Coordinator::detach_watcher(const std::shared_ptr<WatchSink>& sink) {
-  std::lock_guard lock(mu_);
-  for (auto it = watchers_.begin(); it != watchers_.end();) {
-    it = it->second == sink ? watchers_.erase(it) : std::next(it);
+  locked([&] {
+    std::set<JobId> jobs;
+    for (auto it = watchers_.begin(); it != watchers_.end();) {
+      if (it->second == sink) {
+        jobs.insert(it->first);
+        it = watchers_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    // A stream that held its job back no longer does once it is gone.
+    if (sink->throttled.exchange(false)) {
+      for (const JobId& job : jobs) release_if_caught_up_locked(job);
+    }
+  });
+}
+
+void Coordinator::watcher_drained(const std::shared_ptr<WatchSink>& sink) {
+  locked([&] {
+    if (!sink->throttled.exchange(false)) return;
+    std::set<JobId> jobs;
+    for (const auto& [job, s] : watchers_) {
+      if (s == sink) jobs.insert(job);
+    }
+    for (const JobId& job : jobs) release_if_caught_up_locked(job);
+  });
+}
+
+void Coordinator::push_tile_locked(const JobId& job, const std::shared_ptr<WatchSink>& sink,
+                                   const std::shared_ptr<const std::string>& payload) {
+  // The scheduler keeps the encoded tile until its frame is acknowledged; the stream only refers
+  // to it and parses it when the tile's turn to be written comes.
+  sink->push_deferred([payload](v1::WatchJobEvent* ev) { ev->mutable_tile()->ParseFromString(*payload); });
+  touched_watchers_.push_back(sink);
+  const size_t bound = options_.watch_backlog_tiles;
+  if (bound == 0 || sink->throttled.load() || sink->queued() < bound) return;
+  sink->throttled = true;
+  if (!scheduler_.held(job) && scheduler_.hold(job, true)) {
+    spdlog::debug("job {} held: a watch stream has {} tiles queued, the client reads slower than the farm renders",
+                  job, sink->queued());
   }
+}
+
+void Coordinator::release_if_caught_up_locked(const JobId& job) {
+  if (!scheduler_.held(job)) return;
+  auto [b, e] = watchers_.equal_range(job);
+  for (auto it = b; it != e; ++it) {
+    if (it->second->throttled.load()) return;
+  }
+  scheduler_.hold(job, false);
+  spdlog::debug("job {} released: its watch streams caught up", job);
+  dispatch_locked();
 }
 
 // ------------------------------------------------------------------------------------------
@@ -576,13 +622,7 @@ void Coordinator::tile_finished(const TileKey& key, const TileOutput& out, Worke
     awaiting_first_tile_.erase(it);
   }
   auto [b, e] = watchers_.equal_range(key.job);
-  if (b == e) return;
-  v1::WatchJobEvent ev;
-  ev.mutable_tile()->ParseFromString(*out.payload);
-  for (auto it = b; it != e; ++it) {
-    it->second->push(ev);
-    touched_watchers_.push_back(it->second);
-  }
+  for (auto it = b; it != e; ++it) push_tile_locked(key.job, it->second, out.payload);
 }
 
 void Coordinator::frame_finished(const JobId& id, int frame) {

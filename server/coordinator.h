@@ -10,6 +10,7 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -34,8 +35,14 @@ class StreamSink {
  public:
   virtual ~StreamSink() = default;
   virtual void push(Msg m) = 0;
+  // Queues a message built only when it is written (see stream_outbox.h).
+  virtual void push_deferred(std::function<void(Msg*)> make) = 0;
   virtual void finish(grpc::Status s) = 0;
   virtual void pump() = 0;
+  virtual size_t queued() const = 0;  // messages not yet handed to gRPC
+  // Watch streams: set (under the coordinator's mutex) while this stream's backlog holds its job
+  // back; the stream calls Coordinator::watcher_drained once it has caught up.
+  std::atomic<bool> throttled{false};
 };
 using WorkerSink = StreamSink<tessera::v1::CoordinatorMessage>;
 using WatchSink = StreamSink<tessera::v1::WatchJobEvent>;
@@ -47,6 +54,13 @@ struct CoordinatorOptions {
   // Ended jobs leave memory once a client acknowledged every frame, or this long after they
   // ended (they stay in SQLite: `tessera status JOB` still answers).
   std::chrono::seconds retention{std::chrono::hours(24)};
+  // Flow control of watch streams: when one of a job's watch streams has this many messages
+  // queued and unwritten (the client reads slower than the farm renders), the job is held (no
+  // new leases; leases in flight finish) until that stream is down to half of it. This bounds
+  // the finished tiles the coordinator keeps in memory for a job to about this many plus the
+  // tiles in flight and the unacknowledged frames. 0: no bound. Unwatched jobs are not held:
+  // their tiles are durable and a client attaching later gets them in one go.
+  size_t watch_backlog_tiles = 2048;
 };
 
 class Coordinator : private SchedulerListener {
@@ -70,6 +84,10 @@ class Coordinator : private SchedulerListener {
   // attached for new tiles until the job ends. NOT_FOUND for an unknown job.
   grpc::Status attach_watcher(const std::string& id, std::shared_ptr<WatchSink> sink);
   void detach_watcher(const std::shared_ptr<WatchSink>& sink);
+  // A throttled watch stream is down to half its backlog bound: release its job if no other
+  // stream of it is still behind. Called by the stream, without locks.
+  void watcher_drained(const std::shared_ptr<WatchSink>& sink);
+  size_t watch_low_water() const { return options_.watch_backlog_tiles / 2; }
 
   // --- worker service -----------------------------------------------------------------------
   WorkerId register_worker(const WorkerInfo& info, std::shared_ptr<WorkerSink> sink);
@@ -104,6 +122,12 @@ class Coordinator : private SchedulerListener {
   void evict_expired_locked();
   std::optional<JobSnapshot> evicted_job(const std::string& id);  // without mu_
   grpc::Status attach_resident(const std::string& id, const std::shared_ptr<WatchSink>& sink);
+  // Queues a finished tile into a watch stream (shared encoded bytes, parsed when written) and
+  // holds the job when that stream's backlog reaches the bound.
+  void push_tile_locked(const JobId& job, const std::shared_ptr<WatchSink>& sink,
+                        const std::shared_ptr<const std::string>& payload);
+  // Releases a held job once none of its streams is throttled.
+  void release_if_caught_up_locked(const JobId& job);
 
   CoordinatorOptions options_;
   BundleStore& store_;

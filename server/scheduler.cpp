@@ -173,8 +173,44 @@ void Scheduler::request_tiles(WorkerId id, int count) {
   wanting_.insert(id);
 }
 
+bool Scheduler::dispatchable() const {
+  for (const QueueKey& key : runnable_) {
+    if (!find_job(std::get<2>(key))->held) return true;
+  }
+  if (options_.speculate) {
+    for (const JobId& id : speculable_) {
+      const Job& job = *find_job(id);
+      if (!job.held && job.state == JobState::kRunning) return true;
+    }
+  }
+  return false;
+}
+
+bool Scheduler::hold(const JobId& id, bool held) {
+  Job* job = find_job(id);
+  if (!job) return false;
+  job->held = held;
+  return true;
+}
+
+bool Scheduler::held(const JobId& id) const {
+  const Job* job = find_job(id);
+  return job && job->held;
+}
+
+void Scheduler::set_single_copy(Job& job, LeaseId lease, bool single) {
+  if (single) {
+    if (job.single_copies.insert(lease).second && job.single_copies.size() == 1) speculable_.insert(job.id);
+  } else if (job.single_copies.erase(lease) && job.single_copies.empty()) {
+    speculable_.erase(job.id);
+  }
+}
+
 std::vector<Assignment> Scheduler::dispatch() {
   std::vector<Assignment> out;
+  // Every worker message ends in a dispatch: with nothing to hand out, looking at each waiting
+  // worker would cost workers x jobs per message for nothing.
+  if (wanting_.empty() || !dispatchable()) return out;
   bool progress = true;
   while (progress && !wanting_.empty()) {
     progress = false;
@@ -197,7 +233,7 @@ std::optional<Assignment> Scheduler::next_for(Worker& w) {
   // always the first job).
   for (const QueueKey& key : runnable_) {
     Job& job = *find_job(std::get<2>(key));
-    if (blocked(job, w)) continue;
+    if (job.held || blocked(job, w)) continue;
     const auto [fi, t] = job.queue.front();
     job.queue.pop_front();
     update_runnable(job);
@@ -208,17 +244,25 @@ std::optional<Assignment> Scheduler::next_for(Worker& w) {
 
 std::optional<Assignment> Scheduler::speculate_for(Worker& w) {
   // The oldest lease whose tile has a single copy in flight, held by someone else: if its
-  // worker is slow or dying, the second copy finishes the job sooner.
-  for (const auto& [lid, lease] : leases_) {
-    if (lease.worker == w.stats.id) continue;
-    Job& job = *find_job(lease.tile.job);
-    if (job.state != JobState::kRunning || blocked(job, w)) continue;
-    const int fi = lease.tile.frame - job.spec.first_frame;
-    Tile& tile = job.frames[size_t(fi)].tiles[size_t(lease.tile.tile)];
-    if (tile.state != TileState::kLeased || tile.leases.size() != 1) continue;
-    return issue(w, job, fi, lease.tile.tile, true);
+  // worker is slow or dying, the second copy finishes the job sooner. Each job keeps its
+  // candidates ordered by lease id (age), so this looks at the first few of each running job
+  // (skipping only this worker's own) instead of every lease.
+  const Lease* best = nullptr;
+  for (const JobId& id : speculable_) {
+    const Job& job = *find_job(id);
+    if (job.held || job.state != JobState::kRunning || blocked(job, w)) continue;
+    for (LeaseId lid : job.single_copies) {
+      if (best && lid > best->id) break;
+      const Lease& lease = leases_.at(lid);
+      if (lease.worker == w.stats.id) continue;
+      best = &lease;
+      break;
+    }
   }
-  return std::nullopt;
+  if (!best) return std::nullopt;
+  const TileKey key = best->tile;
+  Job& job = *find_job(key.job);
+  return issue(w, job, key.frame - job.spec.first_frame, key.tile, true);
 }
 
 Assignment Scheduler::issue(Worker& w, Job& job, int fi, int t, bool speculative) {
@@ -236,6 +280,11 @@ Assignment Scheduler::issue(Worker& w, Job& job, int fi, int t, bool speculative
   a.overrides = job.spec.overrides;
   tile.state = TileState::kLeased;
   tile.leases.push_back(a.lease.id);
+  if (tile.leases.size() == 1) {
+    set_single_copy(job, a.lease.id, true);
+  } else {
+    for (LeaseId other : tile.leases) set_single_copy(job, other, false);
+  }
   leases_[a.lease.id] = a.lease;
   w.leases.insert(a.lease.id);
   w.stats.in_flight = int(w.leases.size());
@@ -257,6 +306,8 @@ void Scheduler::end_lease(LeaseId id, LeaseEnd why, bool requeue) {
   const int fi = lease.tile.frame - job.spec.first_frame;
   Tile& tile = job.frames[size_t(fi)].tiles[size_t(lease.tile.tile)];
   std::erase(tile.leases, id);
+  set_single_copy(job, id, false);
+  if (tile.state == TileState::kLeased && tile.leases.size() == 1) set_single_copy(job, tile.leases.front(), true);
   events().lease_ended(lease, why);
   const bool live = job.state == JobState::kQueued || job.state == JobState::kRunning;
   if (requeue && live && tile.state == TileState::kLeased && tile.leases.empty()) {
@@ -417,6 +468,7 @@ bool Scheduler::forget(const JobId& id) {
     if (lease.tile.job == id) return false;
   }
   runnable_.erase(queue_key(*job));
+  speculable_.erase(id);
   std::erase(job_order_, id);
   jobs_.erase(id);
   return true;

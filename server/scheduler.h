@@ -207,8 +207,18 @@ class Scheduler {
   // Pull: the worker can take `count` more tiles. Assignments come from dispatch().
   void request_tiles(WorkerId id, int count);
   // Hands out tiles to every worker with a standing request, one tile per worker per round so
-  // that a worker asking for many cannot starve the others of the last tiles.
+  // that a worker asking for many cannot starve the others of the last tiles. Returns at once
+  // (without looking at any worker) when nothing is dispatchable: it runs on every worker message.
   std::vector<Assignment> dispatch();
+  // Is there anything dispatch() could hand out: a queued tile of a job that is not held, or
+  // (with speculation) a tile of such a job with a single copy in flight?
+  bool dispatchable() const;
+  // Flow control: a held job gets no new leases, not even speculative copies; its leases in
+  // flight run on and their results are accepted. The coordinator holds a job while one of its
+  // watch streams is far behind (CoordinatorOptions::watch_backlog_tiles) so finished tiles
+  // cannot pile up in memory faster than the client takes them. Returns false for an unknown job.
+  bool hold(const JobId& id, bool held);
+  bool held(const JobId& id) const;
   enum class ResultOutcome {
     kAccepted,
     kDuplicate,     // another copy of the tile already finished (first copy wins)
@@ -279,6 +289,10 @@ class Scheduler {
     std::string error;
     std::map<std::string, int> faults;   // worker name -> faults for this job
     std::set<std::string> blocklisted;   // worker names that get no more tiles of this job
+    bool held = false;                   // see hold()
+    // Active leases whose tile has no other copy in flight, oldest first: the candidates for a
+    // speculative copy. Kept up to date by issue()/end_lease() so speculation never scans leases_.
+    std::set<LeaseId> single_copies;
   };
   struct Worker {
     WorkerStats stats;
@@ -295,6 +309,8 @@ class Scheduler {
   bool blocked(const Job& job, const Worker& w) const { return job.blocklisted.count(w.stats.info.name) > 0; }
   void fail_job(Job& job, const std::string& error);
   std::optional<Assignment> speculate_for(Worker& w);
+  // Adds or removes `lease` in job.single_copies (and the job in speculable_).
+  void set_single_copy(Job& job, LeaseId lease, bool single);
   Assignment issue(Worker& w, Job& job, int frame_index, int tile, bool speculative);
   // Ends a lease; requeues its tile (at the front) when `requeue` and no other copy is active.
   void end_lease(LeaseId id, LeaseEnd why, bool requeue);
@@ -312,6 +328,7 @@ class Scheduler {
   std::map<JobId, Job> jobs_;
   std::vector<JobId> job_order_;      // submit order
   std::set<QueueKey> runnable_;       // jobs with queued tiles
+  std::set<JobId> speculable_;        // jobs with a non-empty single_copies
   std::map<WorkerId, Worker> workers_;
   std::set<WorkerId> wanting_;        // workers with a standing request: dispatch() looks only here
   std::map<LeaseId, Lease> leases_;   // ids grow with time: begin() is the oldest lease

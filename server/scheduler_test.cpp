@@ -361,5 +361,61 @@ TEST_F(SchedulerTest, ForgetDropsOnlyEndedJobs) {
   EXPECT_TRUE(s.jobs().empty());
 }
 
+TEST_F(SchedulerTest, HeldJobGetsNoLeasesButItsResultsCountAndOtherJobsRun) {
+  const JobId slow = s.submit(spec(64, 16, 16, 1, 5));  // 4 tiles, first in line
+  const JobId other = s.submit(spec(32, 16, 16));       // 2 tiles
+  const WorkerId a = worker("a"), b = worker("b");
+  auto ta = pull(a, 1);
+  ASSERT_EQ(ta.size(), 1u);
+  EXPECT_EQ(ta[0].lease.tile.job, slow);
+  EXPECT_TRUE(s.hold(slow, true));
+  EXPECT_TRUE(s.held(slow));
+  EXPECT_FALSE(s.hold("nope", true));
+  // The held job's queued tiles are skipped, so b gets the other job; and no speculative copy
+  // of the held job's leased tile 0 either, once the other job is used up.
+  auto tb = pull(b, 3);
+  ASSERT_EQ(tb.size(), 2u);
+  for (const auto& x : tb) {
+    EXPECT_EQ(x.lease.tile.job, other);
+    EXPECT_EQ(s.complete(b, x.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  }
+  EXPECT_EQ(s.job(other)->state, JobState::kDone);
+  EXPECT_FALSE(s.dispatchable());
+  EXPECT_TRUE(pull(a, 1).empty());
+  // A lease issued before the hold still completes.
+  EXPECT_EQ(s.complete(a, ta[0].lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  EXPECT_EQ(s.job(slow)->tiles_done, 1);
+  // Released: the standing requests (a: 1, b: 1) get the held job's next tiles, in order.
+  EXPECT_TRUE(s.hold(slow, false));
+  EXPECT_TRUE(s.dispatchable());
+  auto after = s.dispatch();
+  ASSERT_EQ(after.size(), 2u);
+  std::set<int> tiles;
+  for (const auto& x : after) {
+    EXPECT_EQ(x.lease.tile.job, slow);
+    EXPECT_FALSE(x.lease.speculative);
+    tiles.insert(x.lease.tile.tile);
+  }
+  EXPECT_EQ(tiles, (std::set<int>{1, 2}));
+}
+
+TEST_F(SchedulerTest, NothingDispatchableOnceEveryTileHasTwoCopies) {
+  s.submit(spec(32, 16, 16));  // 2 tiles
+  const WorkerId a = worker("a"), b = worker("b"), c = worker("c");
+  ASSERT_EQ(pull(a, 2).size(), 2u);
+  EXPECT_TRUE(s.dispatchable());  // both tiles have a single copy: b may duplicate them
+  ASSERT_EQ(pull(b, 2).size(), 2u);
+  EXPECT_FALSE(s.dispatchable());
+  s.request_tiles(c, 5);
+  EXPECT_TRUE(s.dispatch().empty());
+  // b leaves: its copies end, so a's leases are single copies again and c may duplicate them.
+  s.remove_worker(b, "test");
+  EXPECT_TRUE(s.dispatchable());
+  auto tc = s.dispatch();
+  ASSERT_EQ(tc.size(), 2u);
+  EXPECT_TRUE(tc[0].lease.speculative);
+  EXPECT_EQ(tc[0].lease.tile.tile, 0);  // the oldest first
+}
+
 }  // namespace
 }  // namespace tessera::server

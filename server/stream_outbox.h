@@ -5,27 +5,35 @@
 //
 // Lifetime: the reactor owns a shared_ptr to its outbox and calls on_done() from OnDone() before
 // deleting itself; others (the coordinator) may keep the outbox longer and push into the void.
+//
+// A message can also be queued deferred: a function that builds it when its turn to be written
+// comes. A finished tile then waits in the queue as a reference to the coordinator's one encoded
+// copy (a few dozen bytes) rather than as a parsed copy per stream (its full size).
 #pragma once
 
 #include <grpcpp/grpcpp.h>
 
+#include <atomic>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
+#include <variant>
 
 namespace tessera::server {
 
 template <class Reactor, class Msg>
 class Outbox {
  public:
+  using Deferred = std::function<void(Msg*)>;  // fills a cleared message
+
   explicit Outbox(Reactor* reactor) : reactor_(reactor) {}
 
   // Queues a message; call pump() afterwards (outside other locks) to get it moving.
-  void push(Msg msg) {
-    std::lock_guard lock(mu_);
-    if (finish_requested_ || !reactor_) return;
-    queue_.push_back(std::move(msg));
-  }
+  void push(Msg msg) { enqueue(Item(std::in_place_index<0>, std::move(msg))); }
+  void push_deferred(Deferred make) { enqueue(Item(std::in_place_index<1>, std::move(make))); }
+  // Messages queued and not yet handed to gRPC (the flow-control measure; no lock needed).
+  size_t queued() const { return queued_.load(std::memory_order_relaxed); }
   // Finishes the stream with `status` once the queued messages are written (the first status
   // requested wins).
   void finish(grpc::Status status) {
@@ -38,8 +46,15 @@ class Outbox {
     std::unique_lock lock(mu_);
     if (!reactor_ || writing_ || finish_called_) return;
     if (!queue_.empty()) {
-      current_ = std::move(queue_.front());
+      Item& front = queue_.front();
+      if (front.index() == 0) {
+        current_ = std::move(std::get<0>(front));
+      } else {
+        current_.Clear();
+        std::get<1>(front)(&current_);
+      }
       queue_.pop_front();
+      queued_.store(queue_.size(), std::memory_order_relaxed);
       writing_ = true;
       Reactor* r = reactor_;
       lock.unlock();
@@ -61,6 +76,7 @@ class Outbox {
       writing_ = false;
       if (!ok) {  // the stream is broken: nothing more will get through
         queue_.clear();
+        queued_.store(0, std::memory_order_relaxed);
         if (!finish_requested_) {
           finish_requested_ = true;
           status_ = grpc::Status(grpc::StatusCode::UNAVAILABLE, "stream broken");
@@ -74,6 +90,7 @@ class Outbox {
     std::lock_guard lock(mu_);
     reactor_ = nullptr;
     queue_.clear();
+    queued_.store(0, std::memory_order_relaxed);
   }
   bool finishing() {
     std::lock_guard lock(mu_);
@@ -81,9 +98,18 @@ class Outbox {
   }
 
  private:
+  using Item = std::variant<Msg, Deferred>;
+  void enqueue(Item item) {
+    std::lock_guard lock(mu_);
+    if (finish_requested_ || !reactor_) return;
+    queue_.push_back(std::move(item));
+    queued_.store(queue_.size(), std::memory_order_relaxed);
+  }
+
   std::mutex mu_;
   Reactor* reactor_;
-  std::deque<Msg> queue_;
+  std::deque<Item> queue_;
+  std::atomic<size_t> queued_{0};
   Msg current_;
   bool writing_ = false;
   bool finish_requested_ = false;

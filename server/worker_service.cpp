@@ -23,8 +23,10 @@ class WorkerSession : public grpc::ServerBidiReactor<v1::WorkerMessage, v1::Coor
   struct Sink : WorkerSink {
     explicit Sink(WorkerSession* s) : box(s) {}
     void push(v1::CoordinatorMessage m) override { box.push(std::move(m)); }
+    void push_deferred(std::function<void(v1::CoordinatorMessage*)> make) override { box.push_deferred(std::move(make)); }
     void finish(Status s) override { box.finish(std::move(s)); }
     void pump() override { box.pump(); }
+    size_t queued() const override { return box.queued(); }
     Outbox<WorkerSession, v1::CoordinatorMessage> box;
   };
 
