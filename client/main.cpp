@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   tessera::cli::register_render_command(app);
   tessera::cli::register_color_commands(app);
   tessera::cli::register_farm_commands(app);
+  tessera::cli::register_health_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

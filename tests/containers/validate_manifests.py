@@ -1,0 +1,403 @@
+#!/usr/bin/python3
+"""Checks the container definitions that no test here can run: the Kubernetes manifests in
+docker/k8s (no cluster on these machines) and the structure of docker/compose.yaml, the root
+compose.yaml and docker/Dockerfile.
+
+Every YAML document is parsed; then the fields a cluster or compose would need are checked, and
+the references between objects (Service selector -> pod labels, HPA -> Deployment, volume ->
+PVC, worker -> coordinator Service, compose build target -> Dockerfile stage).
+
+  validate_manifests.py REPO_ROOT            check the real files (exit 0 ok, 1 problems)
+  validate_manifests.py --self-test REPO_ROOT   break the real files in memory, one way at a time,
+                                                and make sure every breakage is reported
+"""
+import copy
+import os
+import re
+import sys
+
+try:
+    import yaml
+except ImportError:
+    print("validate_manifests: needs PyYAML for /usr/bin/python3: apt-get install python3-yaml "
+          "(scripts/install-deps.sh installs it)", file=sys.stderr)
+    sys.exit(1)
+
+WORKLOADS = ("Deployment", "StatefulSet", "DaemonSet")
+
+
+def get(obj, path, default=None):
+    """obj['a']['b'][0]... for a dotted path; default when any step is missing."""
+    for part in path.split("."):
+        if isinstance(obj, list):
+            try:
+                obj = obj[int(part)]
+            except (ValueError, IndexError):
+                return default
+        elif isinstance(obj, dict):
+            if part not in obj:
+                return default
+            obj = obj[part]
+        else:
+            return default
+    return obj
+
+
+def load_yaml_docs(path):
+    with open(path) as f:
+        return [d for d in yaml.safe_load_all(f) if d is not None]
+
+
+def load_k8s(root):
+    k8s = os.path.join(root, "docker", "k8s")
+    files = {}
+    for name in sorted(os.listdir(k8s)):
+        if name.endswith((".yaml", ".yml")):
+            files[name] = load_yaml_docs(os.path.join(k8s, name))
+    return files
+
+
+def check_k8s(files):
+    errs = []
+    objects = []  # (file, doc)
+    kustomization = None
+    for name, docs in files.items():
+        for i, d in enumerate(docs):
+            where = f"docker/k8s/{name} document {i + 1}"
+            if not isinstance(d, dict):
+                errs.append(f"{where}: not a mapping")
+                continue
+            if d.get("kind") == "Kustomization":
+                kustomization = (name, d)
+                continue
+            for field in ("apiVersion", "kind", "metadata.name"):
+                if not get(d, field):
+                    errs.append(f"{where}: missing {field}")
+            objects.append((f"docker/k8s/{name} {d.get('kind')}/{get(d, 'metadata.name')}", d))
+
+    by_kind = {}
+    for where, d in objects:
+        by_kind.setdefault(d.get("kind"), []).append((where, d))
+
+    if kustomization is None:
+        errs.append("docker/k8s: no kustomization.yaml (kubectl apply -k docker/k8s)")
+    else:
+        listed = set(kustomization[1].get("resources") or [])
+        for name in files:
+            if name != kustomization[0] and name not in listed:
+                errs.append(f"docker/k8s/{kustomization[0]}: resources does not list {name}")
+        for r in listed:
+            if r not in files:
+                errs.append(f"docker/k8s/{kustomization[0]}: lists {r}, which does not exist")
+
+    pvcs = {get(d, "metadata.name"): (w, d) for w, d in by_kind.get("PersistentVolumeClaim", [])}
+    for w, d in pvcs.values():
+        if not get(d, "spec.accessModes"):
+            errs.append(f"{w}: missing spec.accessModes")
+        if not get(d, "spec.resources.requests.storage"):
+            errs.append(f"{w}: missing spec.resources.requests.storage")
+
+    workloads = {}
+    for kind in WORKLOADS:
+        for w, d in by_kind.get(kind, []):
+            workloads[get(d, "metadata.name")] = (w, d)
+            match = get(d, "spec.selector.matchLabels") or {}
+            labels = get(d, "spec.template.metadata.labels") or {}
+            if not match:
+                errs.append(f"{w}: missing spec.selector.matchLabels")
+            for k, v in match.items():
+                if labels.get(k) != v:
+                    errs.append(f"{w}: selector {k}={v} does not match the pod template labels {labels}")
+            containers = get(d, "spec.template.spec.containers") or []
+            if not containers:
+                errs.append(f"{w}: no containers")
+            volumes = {v.get("name"): v for v in get(d, "spec.template.spec.volumes") or []}
+            claim_templates = {get(t, "metadata.name") for t in get(d, "spec.volumeClaimTemplates") or []}
+            for c in containers:
+                cw = f"{w} container {c.get('name')}"
+                for field in ("name", "image"):
+                    if not c.get(field):
+                        errs.append(f"{cw}: missing {field}")
+                if not c.get("readinessProbe") and not c.get("livenessProbe"):
+                    errs.append(f"{cw}: no readinessProbe or livenessProbe")
+                for probe in ("readinessProbe", "livenessProbe", "startupProbe"):
+                    p = c.get(probe)
+                    if p is not None and not any(k in p for k in ("grpc", "exec", "httpGet", "tcpSocket")):
+                        errs.append(f"{cw}: {probe} has no grpc/exec/httpGet/tcpSocket handler")
+                    if p is not None and "grpc" in p:
+                        ports = {pp.get("containerPort") for pp in c.get("ports") or []}
+                        if get(p, "grpc.port") not in ports:
+                            errs.append(f"{cw}: {probe} grpc port {get(p, 'grpc.port')} is not a containerPort {sorted(ports)}")
+                for res in ("cpu", "memory"):
+                    if not get(c, f"resources.requests.{res}"):
+                        errs.append(f"{cw}: missing resources.requests.{res}")
+                for m in c.get("volumeMounts") or []:
+                    vol = volumes.get(m.get("name"))
+                    if vol is None and m.get("name") not in claim_templates:
+                        errs.append(f"{cw}: mounts volume {m.get('name')}, which the pod does not define")
+                    claim = get(vol or {}, "persistentVolumeClaim.claimName")
+                    if claim is not None and claim not in pvcs:
+                        errs.append(f"{cw}: volume {m.get('name')} claims {claim}, which no PersistentVolumeClaim defines")
+
+    # The coordinator: a workload mounting persistent storage at the data directory, with a port.
+    coordinators = [(n, w, d) for n, (w, d) in workloads.items() if "coordinator" in n]
+    if len(coordinators) != 1:
+        errs.append(f"docker/k8s: expected one coordinator workload, found {[n for n, _, _ in coordinators]}")
+    coord_ports = {}
+    coord_labels = {}
+    for n, w, d in coordinators:
+        if d.get("kind") == "Deployment" and get(d, "spec.replicas", 1) != 1:
+            errs.append(f"{w}: a coordinator Deployment must have exactly 1 replica")
+        coord_labels = get(d, "spec.template.metadata.labels") or {}
+        for c in get(d, "spec.template.spec.containers") or []:
+            for p in c.get("ports") or []:
+                coord_ports[p.get("name")] = p.get("containerPort")
+                coord_ports[p.get("containerPort")] = p.get("containerPort")
+            if not coord_ports:
+                errs.append(f"{w} container {c.get('name')}: no ports")
+            if not c.get("livenessProbe"):
+                errs.append(f"{w} container {c.get('name')}: the coordinator needs a livenessProbe")
+            persistent = False
+            volumes = {v.get("name"): v for v in get(d, "spec.template.spec.volumes") or []}
+            templates = {get(t, "metadata.name") for t in get(d, "spec.volumeClaimTemplates") or []}
+            for m in c.get("volumeMounts") or []:
+                if m.get("mountPath") == "/var/lib/tessera" and (
+                        get(volumes.get(m.get("name"), {}), "persistentVolumeClaim.claimName") or m.get("name") in templates):
+                    persistent = True
+            if not persistent:
+                errs.append(f"{w} container {c.get('name')}: /var/lib/tessera is not on a PersistentVolumeClaim")
+
+    services = {get(d, "metadata.name"): (w, d) for w, d in by_kind.get("Service", [])}
+    coord_service = None
+    for name, (w, d) in services.items():
+        sel = get(d, "spec.selector") or {}
+        if not sel:
+            errs.append(f"{w}: missing spec.selector")
+            continue
+        pods = [wn for wn, (_, wd) in workloads.items()
+                if all((get(wd, "spec.template.metadata.labels") or {}).get(k) == v for k, v in sel.items())]
+        if not pods:
+            errs.append(f"{w}: selector {sel} matches no pod template")
+        if sel and all(coord_labels.get(k) == v for k, v in sel.items()):
+            coord_service = (name, d)
+            for p in get(d, "spec.ports") or []:
+                if p.get("targetPort", p.get("port")) not in coord_ports:
+                    errs.append(f"{w}: targetPort {p.get('targetPort')} is not a coordinator containerPort")
+        if not get(d, "spec.ports"):
+            errs.append(f"{w}: missing spec.ports")
+    if coord_service is None:
+        errs.append("docker/k8s: no Service selects the coordinator pods")
+
+    # Workers: find the coordinator through its Service.
+    workers = [(n, w, d) for n, (w, d) in workloads.items() if "worker" in n]
+    if not workers:
+        errs.append("docker/k8s: no worker workload")
+    for n, w, d in workers:
+        for c in get(d, "spec.template.spec.containers") or []:
+            env = {e.get("name"): e.get("value") for e in c.get("env") or []}
+            addr = env.get("TESSERA_COORDINATOR", "")
+            if coord_service is not None:
+                host, _, port = addr.rpartition(":")
+                sports = {str(p.get("port")) for p in get(coord_service[1], "spec.ports") or []}
+                if host.split(".")[0] != coord_service[0] or port not in sports:
+                    errs.append(f"{w} container {c.get('name')}: TESSERA_COORDINATOR={addr!r} is not the "
+                                f"coordinator Service {coord_service[0]}:{'/'.join(sorted(sports))}")
+            threads = [a for a in c.get("args") or [] if str(a).startswith("--threads")]
+            cpu = str(get(c, "resources.requests.cpu", ""))
+            if threads and cpu and not cpu.endswith("m") and threads[0].split("=")[-1] != cpu:
+                errs.append(f"{w} container {c.get('name')}: {threads[0]} but requests.cpu {cpu}")
+
+    hpas = by_kind.get("HorizontalPodAutoscaler", [])
+    if not hpas:
+        errs.append("docker/k8s: no HorizontalPodAutoscaler for the workers")
+    for w, d in hpas:
+        ref = get(d, "spec.scaleTargetRef") or {}
+        target = workloads.get(ref.get("name"))
+        if target is None or target[1].get("kind") != ref.get("kind"):
+            errs.append(f"{w}: scaleTargetRef {ref.get('kind')}/{ref.get('name')} is not a workload defined here")
+        elif "worker" not in ref.get("name", ""):
+            errs.append(f"{w}: scales {ref.get('name')}, not the workers")
+        lo, hi = get(d, "spec.minReplicas", 1), get(d, "spec.maxReplicas")
+        if not isinstance(hi, int) or not isinstance(lo, int) or not 1 <= lo <= hi:
+            errs.append(f"{w}: needs 1 <= minReplicas ({lo}) <= maxReplicas ({hi})")
+        if not get(d, "spec.metrics"):
+            errs.append(f"{w}: missing spec.metrics")
+        for m in get(d, "spec.metrics") or []:
+            res = get(m, "resource.name")
+            if m.get("type") == "Resource" and target is not None:
+                for c in get(target[1], "spec.template.spec.containers") or []:
+                    if not get(c, f"resources.requests.{res}"):
+                        errs.append(f"{w}: scales on {res} utilization but {c.get('name')} requests no {res}")
+    return errs
+
+
+def dockerfile_stages(root):
+    """{stage name: [instruction lines]} of docker/Dockerfile, continuation lines joined."""
+    with open(os.path.join(root, "docker", "Dockerfile")) as f:
+        text = re.sub(r"\\\n", " ", f.read())
+    stages, current = {}, None
+    for line in text.splitlines():
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        m = re.match(r"FROM\s+(\S+)(?:\s+AS\s+(\S+))?", line, re.I)
+        if m:
+            current = m.group(2) or f"stage{len(stages)}"
+            stages[current] = [line]
+        elif current:
+            stages[current].append(line)
+    return stages
+
+
+def check_dockerfile(stages):
+    errs = []
+    first = next(iter(stages.values()), [""])[0]
+    if not re.match(r"FROM\s+debian:bookworm-slim\b", first, re.I):
+        errs.append(f"docker/Dockerfile: first stage is {first!r}, expected FROM debian:bookworm-slim")
+
+    def inherited(stage, prefix):
+        """Instructions starting with prefix in the stage or the stages it is built FROM."""
+        out = []
+        while stage in stages:
+            out += [l for l in stages[stage] if l.upper().startswith(prefix)]
+            stage = stages[stage][0].split()[1]
+        return out
+
+    for stage in ("server", "worker"):
+        if stage not in stages:
+            errs.append(f"docker/Dockerfile: no stage named {stage}")
+            continue
+        for prefix in ("HEALTHCHECK", "STOPSIGNAL", "USER", "ENTRYPOINT"):
+            if not inherited(stage, prefix):
+                errs.append(f"docker/Dockerfile: stage {stage} has no {prefix}")
+        users = inherited(stage, "USER")
+        if users and users[0].split()[1] in ("root", "0"):
+            errs.append(f"docker/Dockerfile: stage {stage} runs as root")
+        if inherited(stage, "STOPSIGNAL") and "SIGTERM" not in inherited(stage, "STOPSIGNAL")[0]:
+            errs.append(f"docker/Dockerfile: stage {stage} does not stop with SIGTERM")
+        if any("-dev" in l for l in inherited(stage, "RUN") if "apt-get install" in l):
+            errs.append(f"docker/Dockerfile: stage {stage} installs -dev packages")
+    if "server" in stages and not inherited("server", "VOLUME"):
+        errs.append("docker/Dockerfile: the server stage declares no data VOLUME")
+    return errs
+
+
+def check_compose(compose, root_compose, stages):
+    errs = []
+    services = compose.get("services") or {}
+    for name in ("coordinator", "worker"):
+        if name not in services:
+            errs.append(f"docker/compose.yaml: no service {name}")
+    coord = services.get("coordinator") or {}
+    worker = services.get("worker") or {}
+    for sname, s in services.items():
+        b = s.get("build") or {}
+        if not s.get("image"):
+            errs.append(f"docker/compose.yaml: service {sname} has no image name")
+        if b.get("target") not in stages:
+            errs.append(f"docker/compose.yaml: service {sname} builds target {b.get('target')!r}, "
+                        f"not a Dockerfile stage ({', '.join(stages)})")
+        if b.get("context") != "..":
+            errs.append(f"docker/compose.yaml: service {sname} build context must be the repository root (..)")
+    if not any(re.search(r":7878(/tcp)?$", str(p)) for p in coord.get("ports") or []):
+        errs.append("docker/compose.yaml: the coordinator does not publish port 7878")
+    named = set((compose.get("volumes") or {}).keys())
+    mounts = [str(v).split(":") for v in coord.get("volumes") or []]
+    if not any(len(m) >= 2 and m[0] in named and m[1] == "/var/lib/tessera" for m in mounts):
+        errs.append("docker/compose.yaml: /var/lib/tessera of the coordinator is not on a named volume")
+    listen = [a for a in coord.get("command") or [] if str(a).startswith("--listen")]
+    if not listen or "0.0.0.0:7878" not in listen[0]:
+        errs.append("docker/compose.yaml: the coordinator must listen on 0.0.0.0:7878 to be reachable")
+    env = worker.get("environment") or {}
+    if isinstance(env, list):
+        env = dict(e.split("=", 1) for e in env)
+    if env.get("TESSERA_COORDINATOR") != "coordinator:7878":
+        errs.append(f"docker/compose.yaml: worker TESSERA_COORDINATOR={env.get('TESSERA_COORDINATOR')!r}, "
+                    "expected the service name coordinator:7878")
+    if "ports" in worker or "container_name" in worker:
+        errs.append("docker/compose.yaml: a worker with ports or container_name cannot be scaled")
+    # The root compose.yaml: only extends docker/compose.yaml, every service of it.
+    rs = root_compose.get("services") or {}
+    for name in services:
+        ext = get(rs, f"{name}.extends") or {}
+        if ext.get("file") != "docker/compose.yaml" or ext.get("service") != name:
+            errs.append(f"compose.yaml: service {name} does not extend docker/compose.yaml's {name}")
+    for name in named:
+        if name not in (root_compose.get("volumes") or {}):
+            errs.append(f"compose.yaml: does not declare volume {name}")
+    return errs
+
+
+def check_all(k8s, compose, root_compose, stages):
+    return check_k8s(k8s) + check_dockerfile(stages) + check_compose(compose, root_compose, stages)
+
+
+def self_test(k8s, compose, root_compose, stages):
+    """Each breakage below must be reported; the unbroken files must pass."""
+    def find(files, kind, name_part):
+        for docs in files.values():
+            for d in docs:
+                if d.get("kind") == kind and name_part in get(d, "metadata.name", ""):
+                    return d
+        raise KeyError(f"{kind} {name_part}")
+
+    def container(d):
+        return get(d, "spec.template.spec.containers.0")
+
+    breakages = {
+        "HPA targets another Deployment": lambda k, c, r, s: find(k, "HorizontalPodAutoscaler", "worker")["spec"]["scaleTargetRef"].update(name="tessera-workers"),
+        "Service selector misses the pods": lambda k, c, r, s: find(k, "Service", "coordinator")["spec"]["selector"].update({"app.kubernetes.io/component": "coord"}),
+        "worker has no CPU request": lambda k, c, r, s: container(find(k, "Deployment", "worker"))["resources"]["requests"].pop("cpu"),
+        "coordinator has no probes": lambda k, c, r, s: [container(find(k, "Deployment", "coordinator")).pop(p) for p in ("readinessProbe", "livenessProbe")],
+        "coordinator has no image": lambda k, c, r, s: container(find(k, "Deployment", "coordinator")).pop("image"),
+        "PVC has no storage request": lambda k, c, r, s: find(k, "PersistentVolumeClaim", "coordinator")["spec"].pop("resources"),
+        "volume claims an unknown PVC": lambda k, c, r, s: get(find(k, "Deployment", "coordinator"), "spec.template.spec.volumes.0")["persistentVolumeClaim"].update(claimName="other"),
+        "object without a name": lambda k, c, r, s: find(k, "Service", "coordinator")["metadata"].pop("name"),
+        "worker points elsewhere": lambda k, c, r, s: container(find(k, "Deployment", "worker"))["env"][0].update(value="localhost:7878"),
+        "compose worker uses localhost": lambda k, c, r, s: c["services"]["worker"]["environment"].update(TESSERA_COORDINATOR="localhost:7878"),
+        "compose coordinator port not published": lambda k, c, r, s: c["services"]["coordinator"].pop("ports"),
+        "compose volume not declared": lambda k, c, r, s: c.pop("volumes"),
+        "compose builds a missing stage": lambda k, c, r, s: c["services"]["worker"]["build"].update(target="wrker"),
+        "root compose does not extend": lambda k, c, r, s: r["services"]["worker"].pop("extends"),
+        "worker image runs as root": lambda k, c, r, s: s["runtime"].__setitem__(s["runtime"].index(next(l for l in s["runtime"] if l.startswith("USER"))), "USER root"),
+        "server image has no HEALTHCHECK": lambda k, c, r, s: s.__setitem__("server", [l for l in s["server"] if not l.startswith("HEALTHCHECK")]),
+    }
+    base = check_all(k8s, compose, root_compose, stages)
+    if base:
+        print("self-test: the real files already have problems:\n  " + "\n  ".join(base))
+        return 1
+    failed = 0
+    for what, breakage in breakages.items():
+        k, c, r, s = copy.deepcopy(k8s), copy.deepcopy(compose), copy.deepcopy(root_compose), copy.deepcopy(stages)
+        breakage(k, c, r, s)
+        errs = check_all(k, c, r, s)
+        print(f"self-test: {what}: {'caught: ' + errs[0] if errs else 'NOT CAUGHT'}")
+        failed += not errs
+    return 1 if failed else 0
+
+
+def main(argv):
+    args = [a for a in argv[1:] if not a.startswith("--")]
+    root = args[0] if args else os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+    try:
+        k8s = load_k8s(root)
+        compose = load_yaml_docs(os.path.join(root, "docker", "compose.yaml"))[0]
+        root_compose = load_yaml_docs(os.path.join(root, "compose.yaml"))[0]
+        stages = dockerfile_stages(root)
+    except (OSError, yaml.YAMLError) as e:
+        print(f"validate_manifests: {e}", file=sys.stderr)
+        return 1
+    if "--self-test" in argv:
+        return self_test(k8s, compose, root_compose, stages)
+    errs = check_all(k8s, compose, root_compose, stages)
+    for e in errs:
+        print(e, file=sys.stderr)
+    ndocs = sum(len(d) for d in k8s.values())
+    print(f"validate_manifests: {ndocs} Kubernetes documents in {len(k8s)} files, docker/compose.yaml, "
+          f"compose.yaml, docker/Dockerfile ({len(stages)} stages): "
+          + ("ok" if not errs else f"{len(errs)} problem(s)"))
+    return 1 if errs else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
