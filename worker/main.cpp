@@ -10,13 +10,14 @@
 #include <thread>
 
 #include "connection.h"
+#include "cpu_quota.h"
 
 int main(int argc, char** argv) {
   using namespace tessera::worker;
   WorkerOptions o;
   const char* env = std::getenv("TESSERA_COORDINATOR");
   if (env && *env) o.coordinator = env;
-  o.threads = int(std::max(1u, std::thread::hardware_concurrency()));
+  o.threads = available_cores();
   char host[256] = "worker";
   gethostname(host, sizeof host);
   o.name = std::string(host) + "-" + std::to_string(getpid());
@@ -26,7 +27,11 @@ int main(int argc, char** argv) {
   CLI::App app{"tessera-worker: renders tiles for a Tessera render farm coordinator"};
   app.add_option("--coordinator", o.coordinator, "Coordinator HOST:PORT (env TESSERA_COORDINATOR)")
       ->capture_default_str();
-  app.add_option("--threads", o.threads, "Render threads (default: all cores)")->check(CLI::Range(1, 4096));
+  app.add_option("--threads", o.threads,
+                 "Render threads (env TESSERA_THREADS; default: the cores this process may use, "
+                 "counting CPU affinity and a container's CPU quota)")
+      ->envname("TESSERA_THREADS")
+      ->check(CLI::Range(1, 4096));
   app.add_option("--name", o.name, "Name shown by `tessera workers` (default: host-pid)");
   app.add_option("--cache-dir", cache, "Where fetched scene bundles are kept")->capture_default_str();
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
