@@ -10,23 +10,15 @@ Proves the .proto files are a usable contract on their own.
 import hashlib
 import os
 import struct
-import subprocess
 import sys
+
+import tessera_stubs
 
 
 def main():
     address, proto_dir, scene_path, tmp = sys.argv[1:5]
-    gen = os.path.join(tmp, "pygen")
-    os.makedirs(gen, exist_ok=True)
-    protos = [os.path.join(proto_dir, "tessera", "v1", n)
-              for n in ("common.proto", "client_service.proto", "worker_service.proto")]
-    subprocess.check_call([sys.executable, "-m", "grpc_tools.protoc", "-I", proto_dir,
-                           "--python_out", gen, "--grpc_python_out", gen] + protos)
-    sys.path.insert(0, gen)
     import grpc
-    from tessera.v1 import client_service_pb2 as cs
-    from tessera.v1 import client_service_pb2_grpc as cs_grpc
-    from tessera.v1 import common_pb2 as common
+    cs, cs_grpc, common = tessera_stubs.generate(proto_dir, tmp)
 
     channel = grpc.insecure_channel(address)
     stub = cs_grpc.ClientServiceStub(channel)

@@ -18,12 +18,6 @@
 namespace tessera::stability {
 namespace {
 
-std::string num(double v) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.17g", v);
-  return b;
-}
-
 std::string lit_plane(double intensity, double light_height, int size) {
   return R"({"camera": {"position": [0.3, 2, 3], "look_at": [0, 0, 0], "vfov_deg": 50},
     "image": {"width": )" + std::to_string(size) + R"(, "height": )" + std::to_string(size) +

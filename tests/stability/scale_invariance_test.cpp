@@ -17,11 +17,6 @@
 namespace tessera::stability {
 namespace {
 
-std::string num(double v) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.17g", v);
-  return b;
-}
 std::string vec(const Vec3d& v) { return "[" + num(v.x) + ", " + num(v.y) + ", " + num(v.z) + "]"; }
 
 // World point p of the showcase, moved by the similarity x -> s x + T.

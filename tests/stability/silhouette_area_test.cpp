@@ -17,12 +17,6 @@
 namespace tessera::stability {
 namespace {
 
-std::string num(double v) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.17g", v);
-  return b;
-}
-
 // Background 1, a black sphere (diffuse albedo 0, no lights): pixel = 1 - coverage.
 double coverage_sum(const std::string& camera, const std::string& sphere, int w, int h, int spp) {
   RenderScene rs(scene_from(R"({"camera": )" + camera + R"(,

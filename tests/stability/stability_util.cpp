@@ -13,6 +13,12 @@
 
 namespace tessera::stability {
 
+std::string num(double v) {
+  char b[40];
+  std::snprintf(b, sizeof b, "%.17g", v);
+  return b;
+}
+
 bool full_mode() {
 #ifdef TESSERA_STABILITY_FULL
   return true;

@@ -25,6 +25,9 @@ bool check(const std::string& case_id, const std::string& quantity, double measu
 // A measurement with no pass/fail meaning (timings, fitted values reported for information).
 void report(const std::string& case_id, const std::string& quantity, double measured, const std::string& note);
 
+// A double as a JSON number that reads back to the same double (%.17g), for scene text.
+std::string num(double v);
+
 Scene scene_from(const std::string& json, const std::string& path = "stability.json");
 // A fresh directory under the system temp dir, removed by the caller's fixture.
 std::string make_temp_dir(const std::string& tag);
