@@ -67,11 +67,7 @@ TEST(FarmChaos, WorkersAndCoordinatorKilledEveryFrameStillBitIdentical) {
   auto client = farm.cli_async({"submit", kScene.string(), "--coordinator", farm.address(), "-o",
                                 (out / "frame_####.exr").string(), "--tile", "16"},
                                "submit.log");
-  std::string job;
-  for (int i = 0; i < 400 && job.empty(); ++i) {
-    std::this_thread::sleep_for(25ms);
-    job = job_id_from(client->log());
-  }
+  const std::string job = wait_job_id(*client);
   ASSERT_FALSE(job.empty()) << client->log() << farm.server_logs();
 
   std::mt19937 rng(8);  // fixed: the same kill schedule every run

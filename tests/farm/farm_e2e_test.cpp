@@ -59,11 +59,7 @@ TEST(FarmEndToEnd, WorkerKilledMidJobJobStillCompletesIdentical) {
   auto client = farm.cli_async({"submit", kScene.string(), "--coordinator", farm.address(), "-o",
                                 (out / "frame_####.exr").string(), "--tile", "16"},
                                "submit.log");
-  std::string job;
-  for (int i = 0; i < 400 && job.empty(); ++i) {
-    std::this_thread::sleep_for(25ms);
-    job = job_id_from(client->log());
-  }
+  const std::string job = wait_job_id(*client);
   ASSERT_FALSE(job.empty()) << client->log();
   ASSERT_TRUE(farm.wait_tiles_done(job, 12));
   std::string state;
@@ -85,11 +81,7 @@ TEST(FarmEndToEnd, ClientKilledThenWatchWritesCompleteFrames) {
   auto client = farm.cli_async({"submit", kScene.string(), "--coordinator", farm.address(), "-o", pattern, "--tile",
                                 "16"},
                                "submit.log");
-  std::string job;
-  for (int i = 0; i < 400 && job.empty(); ++i) {
-    std::this_thread::sleep_for(25ms);
-    job = job_id_from(client->log());
-  }
+  const std::string job = wait_job_id(*client);
   ASSERT_FALSE(job.empty()) << client->log();
   ASSERT_TRUE(farm.wait_tiles_done(job, 30));  // frame 0 finished, frame 1 under way
   client->signal(SIGKILL);

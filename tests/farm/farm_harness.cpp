@@ -248,4 +248,13 @@ std::string job_id_from(const std::string& output) {
   return {};
 }
 
+std::string wait_job_id(const Process& client) {
+  std::string job;
+  for (int i = 0; i < 400 && job.empty(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+    job = job_id_from(client.log());
+  }
+  return job;
+}
+
 }  // namespace tessera::farmtest

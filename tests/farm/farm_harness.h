@@ -87,5 +87,7 @@ fs::path reference_frame(const fs::path& scene, int frame, const std::vector<std
 std::string compare_exr(const fs::path& a, const fs::path& b);
 // The job id from a `tessera submit` output ("job ID submitted ...").
 std::string job_id_from(const std::string& output);
+// The job id a running `tessera submit` prints, waiting up to 10 s for it; empty if none came.
+std::string wait_job_id(const Process& client);
 
 }  // namespace tessera::farmtest
