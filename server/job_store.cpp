@@ -6,6 +6,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <set>
 #include <unordered_set>
@@ -37,10 +38,12 @@ CREATE TABLE jobs(
   state TEXT NOT NULL, error TEXT NOT NULL DEFAULT '', submitted REAL NOT NULL, ended REAL,
   duplicates INTEGER NOT NULL DEFAULT 0, rays INTEGER NOT NULL DEFAULT 0,
   resident INTEGER NOT NULL DEFAULT 1);
--- A row per finished tile; its pixels are in tiles/<job>/<frame>-<tile>.tile until the frame is
--- acknowledged. Tiles without a row are queued (or were leased when the coordinator stopped).
+-- A row per finished tile; its pixels are the record at byte `offset` of tiles/<segment>.seg
+-- (payload `length` bytes) until the frame is acknowledged. Tiles without a row are queued (or
+-- were leased when the coordinator stopped).
 CREATE TABLE tiles(job TEXT NOT NULL, frame INTEGER NOT NULL, tile INTEGER NOT NULL, rays INTEGER NOT NULL,
-  seconds REAL NOT NULL, PRIMARY KEY(job, frame, tile)) WITHOUT ROWID;
+  seconds REAL NOT NULL, segment INTEGER NOT NULL, offset INTEGER NOT NULL, length INTEGER NOT NULL,
+  PRIMARY KEY(job, frame, tile)) WITHOUT ROWID;
 CREATE TABLE acked_frames(job TEXT NOT NULL, frame INTEGER NOT NULL, PRIMARY KEY(job, frame)) WITHOUT ROWID;
 CREATE TABLE leases(id INTEGER PRIMARY KEY, worker TEXT NOT NULL, job TEXT NOT NULL, frame INTEGER NOT NULL,
   tile INTEGER NOT NULL, issued REAL NOT NULL);
@@ -119,6 +122,10 @@ JobStore::JobStore(const fs::path& data_dir) : dir_(data_dir), db_path_(data_dir
   open_database();
   try {
     tiles_ = std::make_unique<TileStore>(dir_ / "tiles");
+    // A segment number a row ever held is never used again, even if its file is gone.
+    sqlite3_stmt* st = prepare("SELECT coalesce(max(segment), 0) FROM tiles");
+    if (sqlite3_step(st) == SQLITE_ROW) tiles_->reserve_above(sqlite3_column_int64(st, 0));
+    sqlite3_reset(st);
   } catch (const std::exception& e) {
     throw StoreError(e.what());
   }
@@ -220,6 +227,12 @@ void JobStore::open_database() {
       int version = -1;
       if (sqlite3_step(st) == SQLITE_ROW) version = sqlite3_column_int(st, 0);
       sqlite3_finalize(st);
+      if (version == 1) {
+        throw StoreError("the database " + db + " has schema version 1 (a file per tile under tiles/<job>/); this "
+                         "tessera-server reads version " + std::to_string(kSchemaVersion) +
+                         " (tiles in segment files) and does not migrate it. Let the old tessera-server finish "
+                         "its jobs, or start with another --data-dir");
+      }
       if (version != kSchemaVersion) {
         throw StoreError("the database " + db + " has schema version " + std::to_string(version) +
                          "; this tessera-server reads version " + std::to_string(kSchemaVersion) +
@@ -236,7 +249,9 @@ void JobStore::open_database() {
       "tile_size, priority, state, error, submitted, ended, duplicates, rays) "
       "VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13,?14,?15,?16,?17,?18)");
   upd_job_ = prepare("UPDATE jobs SET state=?2, error=?3, ended=?4, duplicates=?5, rays=?6 WHERE id=?1");
-  ins_tile_ = prepare("INSERT OR REPLACE INTO tiles(job, frame, tile, rays, seconds) VALUES(?1,?2,?3,?4,?5)");
+  ins_tile_ = prepare(
+      "INSERT OR REPLACE INTO tiles(job, frame, tile, rays, seconds, segment, offset, length) "
+      "VALUES(?1,?2,?3,?4,?5,?6,?7,?8)");
   ins_ack_ = prepare("INSERT OR IGNORE INTO acked_frames(job, frame) VALUES(?1,?2)");
   ins_lease_ = prepare("INSERT OR REPLACE INTO leases(id, worker, job, frame, tile, issued) VALUES(?1,?2,?3,?4,?5,?6)");
   del_lease_ = prepare("DELETE FROM leases WHERE id=?1");
@@ -273,8 +288,9 @@ JobStore::Loaded JobStore::load() {
   lease_hwm_ = hwm;
 
   std::vector<std::pair<JobId, std::pair<int, int>>> missing;
-  std::map<JobId, std::set<std::pair<int, int>>> done_keys;
   std::map<JobId, std::set<int>> acked_by_job;
+  frame_tiles_.clear();
+  segment_live_.clear();
   query(std::string("SELECT ") + kJobColumns + " FROM jobs WHERE resident=1 ORDER BY seq", [&](sqlite3_stmt* st) {
     JobSnapshot s = read_row(st);
     JobRecord r;
@@ -294,25 +310,29 @@ JobStore::Loaded JobStore::load() {
       acked.insert(sqlite3_column_int(st, 0));
     });
     r.acknowledged.assign(acked.begin(), acked.end());
-    query("SELECT frame, tile, rays, seconds FROM tiles WHERE job='" + r.id + "' ORDER BY frame, tile",
+    query("SELECT frame, tile, rays, seconds, segment, offset, length FROM tiles WHERE job='" + r.id +
+              "' ORDER BY frame, tile",
           [&](sqlite3_stmt* st) {
             RestoredTile t;
             t.frame = sqlite3_column_int(st, 0);
             t.tile = sqlite3_column_int(st, 1);
             t.output.rays = uint64_t(sqlite3_column_int64(st, 2));
             t.output.seconds = sqlite3_column_double(st, 3);
-            done_keys[r.id].insert({t.frame, t.tile});
+            const TileStore::Location at{sqlite3_column_int64(st, 4), sqlite3_column_int64(st, 5),
+                                         sqlite3_column_int64(st, 6)};
             if (!acked.count(t.frame)) {
-              auto bytes = tiles_->read(r.id, t.frame, t.tile);
-              if (!bytes) {
-                // Should not happen (the file is durable before its row); re-render rather than lie.
-                spdlog::error("job {} frame {} tile {}: done in {} but {} is missing: the tile will be rendered again",
-                              r.id, t.frame, t.tile, db_path_.string(), tiles_->path(r.id, t.frame, t.tile).string());
+              auto got = tiles_->read(at);
+              if (!got.bytes) {
+                // Should not happen (the segment is durable before its row); re-render rather than lie.
+                spdlog::error("job {} frame {} tile {}: done in {} but its pixels are unreadable ({}): the tile will "
+                              "be rendered again",
+                              r.id, t.frame, t.tile, db_path_.string(), got.error);
                 missing.push_back({r.id, {t.frame, t.tile}});
                 ++out.tiles_missing;
                 return;
               }
-              t.output.payload = std::make_shared<const std::string>(std::move(*bytes));
+              t.output.payload = std::make_shared<const std::string>(std::move(*got.bytes));
+              track_tile({r.id, t.frame, t.tile}, at.segment);
             }
             r.done.push_back(std::move(t));
           });
@@ -328,30 +348,20 @@ JobStore::Loaded JobStore::load() {
   }
   // Leases in flight at the last stop: their tiles are queued again (rows without a done tile).
   exec("DELETE FROM leases");
-  // Orphans: files of a crash between rename and commit, temp files, files of acknowledged
-  // frames or evicted jobs whose deletion was interrupted.
+  // Orphans: everything in tiles/ but the segments holding a readable tile of an unacknowledged
+  // frame of a resident job. That is segments of a crash between the segment's sync and the
+  // commit, of acknowledged frames or evicted jobs whose unlink was interrupted, and any
+  // directory left by schema version 1.
   std::error_code ec;
-  for (const auto& jd : fs::directory_iterator(tiles_->root(), ec)) {
-    const std::string job = jd.path().filename().string();
-    auto dk = done_keys.find(job);
-    const bool resident = acked_by_job.count(job) > 0;
-    if (!resident) {
-      for (const auto& f : fs::directory_iterator(jd.path(), ec)) { (void)f; ++out.orphans_removed; }
-      fs::remove_all(jd.path(), ec);
-      continue;
-    }
-    const std::set<int>& acked = acked_by_job[job];
-    for (const auto& f : fs::directory_iterator(jd.path(), ec)) {
-      int frame = 0, tile = 0;
-      char tail[16] = {};
-      const std::string name = f.path().filename().string();
-      const bool parsed = std::sscanf(name.c_str(), "%d-%d.%15s", &frame, &tile, tail) == 3 && std::string(tail) == "tile";
-      const bool keep = parsed && !acked.count(frame) && dk != done_keys.end() && dk->second.count({frame, tile});
-      if (!keep) {
-        fs::remove(f.path(), ec);
-        ++out.orphans_removed;
-      }
-    }
+  std::vector<fs::path> doomed;
+  for (const auto& e : fs::directory_iterator(tiles_->root(), ec)) {
+    const auto n = TileStore::parse_segment_name(e.path().filename().string());
+    if (!n || !segment_live_.count(*n)) doomed.push_back(e.path());
+  }
+  for (const fs::path& p : doomed) {
+    std::error_code rec;
+    const auto removed = fs::remove_all(p, rec);
+    if (removed != static_cast<std::uintmax_t>(-1)) out.orphans_removed += int64_t(removed);
   }
   return out;
 }
@@ -484,15 +494,14 @@ void JobStore::writer_loop() {
 }
 
 void JobStore::apply(std::vector<Op>& batch) {
-  // 1. Tile files, durable before any row that says "done".
-  bool wrote = false;
+  // 1. One segment with every tile of the batch, durable before any row that says "done".
+  std::vector<const std::string*> payloads;
   for (const Op& op : batch) {
-    if (const auto* t = std::get_if<TileDone>(&op)) {
-      tiles_->write(t->key.job, t->key.frame, t->key.tile, *t->payload);
-      wrote = true;
-    }
+    if (const auto* t = std::get_if<TileDone>(&op)) payloads.push_back(t->payload.get());
   }
-  if (wrote) tiles_->sync();
+  std::vector<TileStore::Location> at;
+  if (!payloads.empty()) at = tiles_->write_segment(payloads);
+  size_t next_at = 0;
   // A lease issued and ended within one batch never needs a row.
   std::unordered_set<LeaseId> issued, transient;
   LeaseId hwm = lease_hwm_;
@@ -553,6 +562,10 @@ void JobStore::apply(std::vector<Op>& batch) {
         sqlite3_bind_int(ins_tile_, 3, t->key.tile);
         sqlite3_bind_int64(ins_tile_, 4, int64_t(t->rays));
         sqlite3_bind_double(ins_tile_, 5, t->seconds);
+        const TileStore::Location& loc = at[next_at++];
+        sqlite3_bind_int64(ins_tile_, 6, loc.segment);
+        sqlite3_bind_int64(ins_tile_, 7, loc.offset);
+        sqlite3_bind_int64(ins_tile_, 8, loc.length);
         step(ins_tile_);
       } else if (const auto* a = std::get_if<FrameAck>(&op)) {
         bind_text(ins_ack_, 1, a->job);
@@ -583,16 +596,60 @@ void JobStore::apply(std::vector<Op>& batch) {
     exec("COMMIT");
   } catch (...) {
     sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+    // No row points into this batch's segment; the retry writes a new one. (Were this unlink
+    // lost in a crash, the next start would delete the segment as an orphan.)
+    if (!at.empty()) tiles_->remove_segment(at.front().segment);
     throw;
   }
   lease_hwm_ = hwm;
-  // 3. Only now may pixels go: the rows that say the client has them are committed.
+  // 3. Only now may pixels go: the rows that say the client has them are committed. Bookkeeping
+  // in queue order; a segment is deleted once no tile of an unacknowledged frame is left in it.
+  std::vector<int64_t> emptied;
+  next_at = 0;
   for (const Op& op : batch) {
-    if (const auto* a = std::get_if<FrameAck>(&op)) {
-      for (int t = 0; t < a->tiles; ++t) tiles_->remove(a->job, a->frame, t);
+    if (const auto* t = std::get_if<TileDone>(&op)) {
+      track_tile(t->key, at[next_at++].segment);
+    } else if (const auto* a = std::get_if<FrameAck>(&op)) {
+      release_frame({a->job, a->frame}, emptied);
     } else if (const auto* v = std::get_if<Evicted>(&op)) {
-      tiles_->remove_job(v->job);
+      release_job(v->job, emptied);
     }
+  }
+  for (int64_t seg : emptied) {
+    // A segment can empty and then gain a later tile of the same batch: check at the end.
+    auto it = segment_live_.find(seg);
+    if (it != segment_live_.end() && it->second == 0) {
+      segment_live_.erase(it);
+      tiles_->remove_segment(seg);
+    }
+  }
+}
+
+void JobStore::track_tile(const TileKey& key, int64_t segment) {
+  auto& tiles = frame_tiles_[{key.job, key.frame}];
+  auto [it, inserted] = tiles.try_emplace(key.tile, segment);
+  if (!inserted) {
+    // The same tile stored again (INSERT OR REPLACE): its old record is dead.
+    --segment_live_[it->second];
+    it->second = segment;
+  }
+  ++segment_live_[segment];
+}
+
+void JobStore::release_frame(const FrameKey& frame, std::vector<int64_t>& emptied) {
+  auto it = frame_tiles_.find(frame);
+  if (it == frame_tiles_.end()) return;
+  for (const auto& [tile, seg] : it->second) {
+    if (--segment_live_[seg] == 0) emptied.push_back(seg);
+  }
+  frame_tiles_.erase(it);
+}
+
+void JobStore::release_job(const JobId& job, std::vector<int64_t>& emptied) {
+  auto it = frame_tiles_.lower_bound({job, std::numeric_limits<int>::min()});
+  while (it != frame_tiles_.end() && it->first.first == job) {
+    const FrameKey key = (it++)->first;
+    release_frame(key, emptied);
   }
 }
 

@@ -1,14 +1,16 @@
 // The coordinator's durable state: jobs, tile states, acknowledged frames and leases in SQLite
 // (<data-dir>/tessera.db, WAL mode, synchronous=FULL), finished tile pixels in a TileStore
-// (<data-dir>/tiles). The database is the source of truth at restart.
+// (<data-dir>/tiles/<n>.seg, one segment file per batch). The database is the source of truth at restart.
 //
 // Writes are asynchronous and batched (group commit): the coordinator queues operations under
 // its mutex (cheap: a shared_ptr to the tile bytes), and one writer thread applies everything
 // queued so far as a single batch:
-//   1. write the batch's tile files (temp + rename), then TileStore::sync();
-//   2. one SQLite transaction for every row of the batch, in queue order;
-//   3. after the commit, delete the files of acknowledged frames and evicted jobs.
-// So a tile is marked done in SQLite only after its file is durable, and a committed prefix of
+//   1. append the batch's tiles to one new segment file, fdatasync it, fsync the directory;
+//   2. one SQLite transaction for every row of the batch (a tile row holds its segment, offset
+//      and length), in queue order;
+//   3. after the commit, delete every segment whose records all belong to acknowledged frames or
+//      evicted jobs (a segment with one unacknowledged frame left stays whole).
+// So a tile is marked done in SQLite only after its bytes are durable, and a committed prefix of
 // the queue is always a consistent state. A failed batch (full disk, I/O error) is rolled back,
 // marks the store unhealthy (submit answers RESOURCE_EXHAUSTED) and is retried every second, in
 // order, until it succeeds. barrier() tells a caller when everything queued before it is durable.
@@ -20,12 +22,14 @@
 #include <deque>
 #include <filesystem>
 #include <future>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <unordered_map>
 #include <variant>
 #include <vector>
 
@@ -41,7 +45,9 @@ struct StoreError : std::runtime_error {
 
 class JobStore {
  public:
-  static constexpr int kSchemaVersion = 1;
+  // 2: tiles live in segment files (tiles.segment/offset/length). Version 1 (a file per tile) is
+  // refused with a message, not migrated: no farm ran it in production.
+  static constexpr int kSchemaVersion = 2;
 
   // Opens or creates the store; checks the directory is writable, the database's integrity
   // (PRAGMA quick_check) and its schema version. Throws StoreError.
@@ -54,11 +60,12 @@ class JobStore {
     std::vector<JobRecord> jobs;      // resident jobs, in submit order
     LeaseId next_lease = 1;
     int64_t leases_requeued = 0;      // leases in flight at the last stop
-    int64_t tiles_missing = 0;        // done rows whose file was unreadable: re-rendered
-    int64_t orphans_removed = 0;      // tile files with no done row (crash before the commit)
+    int64_t tiles_missing = 0;        // done rows whose record was unreadable: re-rendered
+    int64_t orphans_removed = 0;      // files in tiles/ no committed row needs (segments of a crash
+                                      // before the commit, or of acknowledged frames)
   };
   // Reads the state back (call once, before any write). Leases in flight at the last stop come
-  // back as queued tiles; orphan and temp tile files are removed.
+  // back as queued tiles; orphan segments (and any other file in tiles/) are removed.
   Loaded load();
 
   // --- writes (queued; applied in order by the writer thread) ---------------------------------
@@ -68,7 +75,7 @@ class JobStore {
   void frame_acknowledged(const JobId& job, int frame, int tiles_per_frame);
   void lease_issued(const Lease& lease, const std::string& worker_name);
   void lease_ended(LeaseId id);
-  void job_evicted(const JobId& job);  // left coordinator memory: its tile files are deleted
+  void job_evicted(const JobId& job);  // left coordinator memory: its tiles are released
   // Resolved with "" once every write queued before it is committed, or with the error of the
   // batch that failed.
   std::future<std::string> barrier();
@@ -102,6 +109,16 @@ class JobStore {
   void exec(const char* sql);
   sqlite3_stmt* prepare(const char* sql);
   void open_database();
+  // Segment bookkeeping (writer thread, and load() before it): which segment holds each tile of
+  // an unacknowledged frame of a resident job, and how many such tiles each segment holds. A
+  // segment whose count drops to zero is deleted; rows of acknowledged frames keep their (dead)
+  // location, which is never read.
+  using FrameKey = std::pair<JobId, int>;
+  void track_tile(const TileKey& key, int64_t segment);
+  void release_frame(const FrameKey& frame, std::vector<int64_t>& emptied);
+  void release_job(const JobId& job, std::vector<int64_t>& emptied);
+  std::map<FrameKey, std::map<int, int64_t>> frame_tiles_;
+  std::unordered_map<int64_t, int64_t> segment_live_;
 
   std::filesystem::path dir_, db_path_;
   std::unique_ptr<TileStore> tiles_;

@@ -65,7 +65,10 @@ TEST(FarmPersistence, FinishedTilesSurviveKill9AndComeBackFromDisk) {
   EXPECT_NE(farm.server().log().find("job " + job + " left memory"), std::string::npos) << farm.server().log();
   // (Another submit as a barrier: the eviction's batch, file deletions included, is done.)
   ASSERT_EQ(farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--tile", "16", "--detach"}).code, 0);
-  EXPECT_FALSE(fs::exists(farm.data_dir() / "tiles" / job / "0-0.tile"));
+  // The only finished tiles were this job's, all acknowledged: no segment file may remain.
+  int segments = 0;
+  for (const auto& e : fs::directory_iterator(farm.data_dir() / "tiles")) segments += e.path().extension() == ".seg";
+  EXPECT_EQ(segments, 0);
   farm.restart_server();
   EXPECT_EQ(farm.tiles_done(job, &state), 72);
   EXPECT_EQ(state, "done");
