@@ -119,17 +119,35 @@ JobStore::JobStore(const fs::path& data_dir) : dir_(data_dir), db_path_(data_dir
   }
   ::close(fd);
   ::unlink(probe.c_str());
-  open_database();
+  // A constructor that throws runs no destructor: close what was opened before passing the
+  // refusal on (LeakSanitizer caught the SQLite connection leaking on a corrupt database).
   try {
-    tiles_ = std::make_unique<TileStore>(dir_ / "tiles");
-    // A segment number a row ever held is never used again, even if its file is gone.
-    sqlite3_stmt* st = prepare("SELECT coalesce(max(segment), 0) FROM tiles");
-    if (sqlite3_step(st) == SQLITE_ROW) tiles_->reserve_above(sqlite3_column_int64(st, 0));
-    sqlite3_reset(st);
-  } catch (const std::exception& e) {
-    throw StoreError(e.what());
+    open_database();
+    try {
+      tiles_ = std::make_unique<TileStore>(dir_ / "tiles");
+      // A segment number a row ever held is never used again, even if its file is gone.
+      sqlite3_stmt* st = prepare("SELECT coalesce(max(segment), 0) FROM tiles");
+      if (sqlite3_step(st) == SQLITE_ROW) tiles_->reserve_above(sqlite3_column_int64(st, 0));
+      sqlite3_reset(st);
+    } catch (const StoreError&) {
+      throw;
+    } catch (const std::exception& e) {
+      throw StoreError(e.what());
+    }
+  } catch (...) {
+    close_handles();
+    throw;
   }
   writer_ = std::thread([this] { writer_loop(); });
+}
+
+void JobStore::close_handles() {
+  for (sqlite3_stmt* st : stmts_) sqlite3_finalize(st);
+  stmts_.clear();
+  if (read_db_) sqlite3_close(read_db_);
+  if (db_) sqlite3_close(db_);
+  read_db_ = nullptr;
+  db_ = nullptr;
 }
 
 JobStore::~JobStore() {
@@ -139,9 +157,7 @@ JobStore::~JobStore() {
   }
   cv_.notify_all();
   if (writer_.joinable()) writer_.join();
-  for (sqlite3_stmt* st : stmts_) sqlite3_finalize(st);
-  if (db_) sqlite3_close(db_);
-  if (read_db_) sqlite3_close(read_db_);
+  close_handles();
 }
 
 void JobStore::exec(const char* sql) {

@@ -109,6 +109,7 @@ class JobStore {
   void exec(const char* sql);
   sqlite3_stmt* prepare(const char* sql);
   void open_database();
+  void close_handles();  // finalizes statements and closes both connections (idempotent)
   // Segment bookkeeping (writer thread, and load() before it): which segment holds each tile of
   // an unacknowledged frame of a resident job, and how many such tiles each segment holds. A
   // segment whose count drops to zero is deleted; rows of acknowledged frames keep their (dead)

@@ -6,11 +6,14 @@
 
 #include "color/color_error.h"
 
+#include <unistd.h>
+
 namespace tessera::color {
 namespace {
 
+// Per process: ctest -j runs each parameterized case in its own process at the same time.
 std::string temp(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / name).string();
+  return (std::filesystem::temp_directory_path() / (std::to_string(::getpid()) + "_" + name)).string();
 }
 
 TEST(PngIo, TruecolorRoundTrips) {
