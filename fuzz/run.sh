@@ -28,12 +28,15 @@ for t in "${targets[@]}"; do
   mkdir -p "$work" "$artifacts"
   dict=()
   [ -f "fuzz/$t.dict" ] && dict=(-dict="fuzz/$t.dict")
+  # Regressions are seeds too; git keeps no empty directory, so a target may have none yet.
+  seeds=("fuzz/corpus/$t")
+  [ -d "fuzz/regressions/$t" ] && seeds+=("fuzz/regressions/$t")
   log="$build/fuzz-$t.log"
   echo "fuzz $t: ${secs} s"
   # -timeout: an input running 10 s is a hang; -rss_limit_mb: one using 2 GiB is a memory bomb.
   if ASAN_OPTIONS=detect_leaks=1 "$build/fuzz/fuzz_$t" -max_total_time="$secs" -timeout=10 -rss_limit_mb=2048 \
       -max_len=65536 -print_final_stats=1 -artifact_prefix="$artifacts" "${dict[@]}" \
-      "$work" "fuzz/corpus/$t" "fuzz/regressions/$t" >"$log" 2>&1; then
+      "$work" "${seeds[@]}" >"$log" 2>&1; then
     result=ok
   else
     result="CRASH (see $log and $artifacts)"
