@@ -95,11 +95,7 @@ double self_cpu_seconds() {
 // channel (and a local subchannel pool) forces separate ones. Otherwise the same arguments as
 // farm::make_coordinator_channel (keepalive, message size).
 std::shared_ptr<grpc::Channel> sim_channel(const std::string& address, int index) {
-  grpc::ChannelArguments args;
-  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 10000);
-  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
-  args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
-  args.SetInt(GRPC_ARG_MAX_RECEIVE_MESSAGE_LENGTH, 64 << 20);
+  grpc::ChannelArguments args = tessera::farm::coordinator_channel_args();
   args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
   args.SetInt("tessera.bench.connection", index);
   return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);

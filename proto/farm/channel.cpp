@@ -79,12 +79,17 @@ std::string read_pem(const std::string& file, const std::string& what) {
   }
 }
 
-std::shared_ptr<grpc::Channel> make_coordinator_channel(const std::string& address, const ChannelSecurity& security) {
+grpc::ChannelArguments coordinator_channel_args() {
   grpc::ChannelArguments args;
   args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 10000);
   args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
   args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
   args.SetInt(GRPC_ARG_MAX_RECEIVE_MESSAGE_LENGTH, 64 << 20);
+  return args;
+}
+
+std::shared_ptr<grpc::Channel> make_coordinator_channel(const std::string& address, const ChannelSecurity& security) {
+  grpc::ChannelArguments args = coordinator_channel_args();
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
   std::shared_ptr<grpc::ChannelCredentials> creds;
   if (!security.tls_ca.empty()) {

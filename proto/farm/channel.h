@@ -24,6 +24,10 @@ struct ChannelSecurity {
 // the one place every call of the channel passes, on plaintext and TLS channels alike (gRPC's
 // call credentials refuse to travel without TLS). Throws std::runtime_error for unreadable
 // certificate files.
+// The channel arguments every connection to a coordinator uses: keepalive (a dead coordinator
+// or NAT drop is noticed in seconds) and the farm's message size limit.
+grpc::ChannelArguments coordinator_channel_args();
+
 std::shared_ptr<grpc::Channel> make_coordinator_channel(const std::string& address,
                                                         const ChannelSecurity& security = {});
 
