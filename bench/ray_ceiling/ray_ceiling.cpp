@@ -1,6 +1,7 @@
 // Ray throughput against the ceiling (issue 6, part 2). Records the exact Embree queries the
 // renderer makes for one frame (render/ray_log.h), replays them with bare Embree calls on the
-// same RTCScene (same geometry, same sphere user-geometry callbacks, no shading, no sampling):
+// same RTCScene (same geometry, same user-geometry callbacks for spheres and watertight
+// triangles, no shading, no sampling; --triangles picks the triangle test):
 // single rays, and 8-/16-wide packets. Reports the renderer's own Mrays/s (the whole render:
 // sampling, shading, accumulation) as a ratio of each. One thread everywhere, best of --reps,
 // timed in thread CPU time.
@@ -15,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -197,6 +199,13 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 64));
   app.add_option("--reps", reps, "Repetitions; the best time counts")->check(CLI::Range(1, 100));
   app.add_option("--markdown", markdown, "Append a markdown table row to this file");
+  TriangleTest triangles = TriangleTest::kWatertight;
+  const std::map<std::string, TriangleTest> triangle_tests = {
+      {triangle_test_name(TriangleTest::kWatertight), TriangleTest::kWatertight},
+      {triangle_test_name(TriangleTest::kEmbreeRobust), TriangleTest::kEmbreeRobust},
+      {triangle_test_name(TriangleTest::kEmbreeFast), TriangleTest::kEmbreeFast}};
+  app.add_option("--triangles", triangles, "Triangle test (docs/accuracy.md, case 4)")
+      ->transform(CLI::CheckedTransformer(triangle_tests));
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::warn);
 
@@ -211,7 +220,7 @@ int main(int argc, char** argv) {
   scene.image.height = height;
   scene.image.spp = spp;
   if (depth) scene.image.max_depth = *depth;
-  const RenderScene rs(scene, 0);
+  const RenderScene rs(scene, 0, {triangles});
   const std::vector<TileRect> tiles = split_into_tiles(width, height, 32);
 
   // 1. The renderer, one thread, whole frame (sampling + tracing + shading + accumulation).
@@ -273,6 +282,7 @@ int main(int argc, char** argv) {
                         {"spp", spp},
                         {"max_depth", scene.image.max_depth},
                         {"threads", 1},
+                        {"triangles", triangle_test_name(triangles)},
                         {"renderer", embree_isa()},
                         {"rays", {{"camera", counts.camera}, {"shadow", counts.shadow}, {"secondary", counts.secondary},
                                   {"extra_glass_walk_queries", glass_walk}}},

@@ -33,8 +33,26 @@ struct Hit {
   PrimRef prim;
 };
 
+// How rays meet triangles (docs/accuracy.md, case 4, has the leak counts and costs).
+enum class TriangleTest : uint8_t {
+  // Default. Woop, Benthin and Wald's watertight test with double edge functions
+  // (render/watertight_triangle.h), as Embree user geometry: no ray passes between the
+  // triangles of a closed mesh, at edges or vertices.
+  kWatertight,
+  // Embree's RTC_SCENE_FLAG_ROBUST (Pluecker) test: closed along shared edges, but a ray aimed
+  // at a shared vertex can miss the whole fan. About 2x faster per triangle-bound ray.
+  kEmbreeRobust,
+  // Embree's default test: the fastest; leaks along edges and at vertices.
+  kEmbreeFast,
+};
+
+// "watertight", "embree-robust", "embree-fast" (benchmarks' --triangles).
+constexpr const char* triangle_test_name(TriangleTest t) {
+  return t == TriangleTest::kWatertight ? "watertight" : t == TriangleTest::kEmbreeRobust ? "embree-robust" : "embree-fast";
+}
+
 struct RenderOptions {
-  bool robust = true;  // RTC_SCENE_FLAG_ROBUST: watertight triangle tests (see docs/accuracy.md)
+  TriangleTest triangles = TriangleTest::kWatertight;
 };
 
 class RenderScene {
@@ -98,6 +116,16 @@ class RenderScene {
   };
   // Public for the Embree user-geometry callbacks.
   struct SphereGeomData { const RenderScene* scene; const SphereBucket* bucket; };
+  struct TriangleGeomData {
+    const RenderScene* scene;
+    const TriangleBucket* bucket;
+    uint32_t bucket_index;  // 0 opaque, 1 glass: PrimRef::geom of its triangles
+    uint32_t mask;
+  };
+  // Half-width added to every user-geometry bounding box (see box_padding() in the .cpp): a
+  // bound on the rounding error of Embree's box test for rays starting within 32x the radius
+  // of the scene's bounded geometry around the eye.
+  float box_padding(float box_magnitude) const { return 0x1p-16f * (box_magnitude + bounds_radius_); }
   const std::vector<Sphere>& spheres() const { return spheres_; }
 
   // A glass surface met by a shadow ray (collected during one occlusion query).
@@ -152,6 +180,8 @@ class RenderScene {
   SphereBucket sphere_buckets_[2];
   bool has_glass_ = false;
   SphereGeomData sphere_data_[2];
+  TriangleGeomData triangle_data_[2];
+  float bounds_radius_ = 0;  // max |coordinate| of bounded geometry, render space
   SceneHandle rtc_scene_;
 };
 

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <string>
+#include <tuple>
 
 #include "render/render_scene.h"
 #include "render/sampler.h"
@@ -38,11 +39,18 @@ void expect_same_hit(bool found_a, const Hit& a, bool found_b, const Hit& b, boo
   }
 }
 
-class PacketTest : public ::testing::TestWithParam<const char*> {};
+// (scene file, triangle test): packets must match single rays under every triangle test.
+class PacketTest : public ::testing::TestWithParam<std::tuple<const char*, TriangleTest>> {
+ protected:
+  Scene scene() const { return load_scene(std::string(TESSERA_SOURCE_DIR) + "/scenes/" + std::get<0>(GetParam())); }
+  RenderOptions options() const { return {std::get<1>(GetParam())}; }
+};
 
 TEST_P(PacketTest, PacketHitsMatchSingleRayHitsAndDoNotDependOnTheLane) {
-  const Scene scene = load_scene(std::string(TESSERA_SOURCE_DIR) + "/scenes/" + GetParam());
-  const RenderScene rs(scene, 0);
+  const RenderScene rs(scene(), 0, options());
+  // Our own primitive tests (spheres, planes, watertight triangles) run the same code per lane in
+  // both paths: bit-identical. Embree's triangle tests have separate packet kernels.
+  const bool own_triangles = options().triangles == TriangleTest::kWatertight;
   const std::vector<Ray> rays = camera_rays(rs, 200);
   constexpr int P = RenderScene::kPacket;
   const PrimRef none[P] = {};
@@ -54,8 +62,7 @@ TEST_P(PacketTest, PacketHitsMatchSingleRayHitsAndDoNotDependOnTheLane) {
     for (int i = 0; i < P; ++i) {
       const bool f = rs.intersect(rays[base + i], PrimRef{}, &single);
       hits += f;
-      // Spheres and planes are our own double-precision code in both paths: bit-identical.
-      const bool exact = !f || single.prim.kind != PrimRef::Kind::kTriangle;
+      const bool exact = !f || own_triangles || single.prim.kind != PrimRef::Kind::kTriangle;
       expect_same_hit(f, single, found[i], packet[i], exact, "ray " + std::to_string(base + i));
     }
     // The same ray alone in a 1-lane packet, and in the last lane of a reversed packet: identical.
@@ -78,8 +85,7 @@ TEST_P(PacketTest, PacketHitsMatchSingleRayHitsAndDoNotDependOnTheLane) {
 }
 
 TEST_P(PacketTest, PacketTransmittanceMatchesSingleRays) {
-  const Scene scene = load_scene(std::string(TESSERA_SOURCE_DIR) + "/scenes/" + GetParam());
-  const RenderScene rs(scene, 0);
+  const RenderScene rs(scene(), 0, options());
   const std::vector<Ray> rays = camera_rays(rs, 160);
   // Shadow rays from each hit toward the camera-side light position, up and to the left.
   std::vector<Ray> shadow;
@@ -109,7 +115,14 @@ TEST_P(PacketTest, PacketTransmittanceMatchesSingleRays) {
   EXPECT_GT(blocked + open, 50);
 }
 
-INSTANTIATE_TEST_SUITE_P(Showcase, PacketTest, ::testing::Values("whitted.json", "cornell.json", "bunny.json"));
+INSTANTIATE_TEST_SUITE_P(Showcase, PacketTest,
+                         ::testing::Combine(::testing::Values("whitted.json", "cornell.json", "bunny.json"),
+                                            ::testing::Values(TriangleTest::kWatertight, TriangleTest::kEmbreeRobust)),
+                         [](const auto& info) {
+                           std::string name = std::string(std::get<0>(info.param));
+                           name = name.substr(0, name.find('.'));
+                           return name + (std::get<1>(info.param) == TriangleTest::kWatertight ? "Watertight" : "EmbreeRobust");
+                         });
 
 }  // namespace
 }  // namespace tessera
