@@ -51,7 +51,11 @@ std::shared_ptr<const Scene> BundleCache::scene(const std::string& sha256, const
       // Exactly what `tessera render` does: load the file, apply the overrides.
       tessera::v1::ImageOverrides o;
       o.ParseFromString(overrides);
-      auto s = std::make_shared<Scene>(load_scene(ensure_extracted(sha256).string()));
+      // Confined to the bundle as on the coordinator: a scene from the farm reads nothing else.
+      const fs::path scene_path = ensure_extracted(sha256);
+      SceneLoadOptions options;
+      options.confine_to = (dir_ / sha256).string();  // the bundle's root, as the coordinator's
+      auto s = std::make_shared<Scene>(load_scene(scene_path.string(), options));
       apply_overrides(*s, farm::from_proto(o));
       promise.set_value(std::move(s));
     } catch (...) {

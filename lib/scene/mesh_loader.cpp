@@ -1,5 +1,6 @@
 #include "scene/mesh_loader.h"
 
+#include <assimp/DefaultIOSystem.h>
 #include <assimp/ObjMaterial.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
@@ -14,6 +15,37 @@
 namespace tessera {
 
 namespace {
+
+namespace fs = std::filesystem;
+
+// Assimp opens a model's side files itself (an OBJ's mtllib, a glTF's buffers), wherever their
+// names point. For a scene from a bundle every file must stay inside the bundle, so this IO
+// system refuses the others, and remembers them for load_mesh's error. Paths are compared after
+// resolving symlinks and "..", so neither can lead out.
+class ConfinedIOSystem : public Assimp::DefaultIOSystem {
+ public:
+  explicit ConfinedIOSystem(const fs::path& root) : root_(resolve(root)) {}
+  bool Exists(const char* file) const override { return allowed(file) && DefaultIOSystem::Exists(file); }
+  Assimp::IOStream* Open(const char* file, const char* mode = "rb") override {
+    return allowed(file) ? DefaultIOSystem::Open(file, mode) : nullptr;
+  }
+  const std::vector<std::string>& refused() const { return refused_; }
+
+ private:
+  static fs::path resolve(const fs::path& p) {
+    std::error_code ec;
+    fs::path r = fs::weakly_canonical(fs::absolute(p, ec), ec);
+    return ec ? fs::absolute(p).lexically_normal() : r;
+  }
+  bool allowed(const char* file) const {
+    const fs::path rel = resolve(file).lexically_relative(root_);
+    if (!rel.empty() && *rel.begin() != "..") return true;
+    if (std::find(refused_.begin(), refused_.end(), file) == refused_.end()) refused_.emplace_back(file);
+    return false;
+  }
+  fs::path root_;
+  mutable std::vector<std::string> refused_;
+};
 
 Rgb color_or(const aiMaterial* m, const char* key, unsigned type, unsigned idx, Rgb fallback) {
   aiColor3D c;
@@ -79,16 +111,23 @@ std::vector<std::string> mtl_libraries(const std::string& path) {
 
 }  // namespace
 
-MeshLoadResult load_mesh(const std::string& path, const std::vector<std::string>& exclude) {
+MeshLoadResult load_mesh(const std::string& path, const std::vector<std::string>& exclude,
+                         const std::string& confine_to) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) {
     throw SceneError(path + ": mesh file not found");
   }
   Assimp::Importer importer;
-  // Drop points and lines: only triangles are surfaces.
+  ConfinedIOSystem* confined = nullptr;
+  if (!confine_to.empty()) importer.SetIOHandler(confined = new ConfinedIOSystem(confine_to));  // importer owns it
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
   const aiScene* ai = importer.ReadFile(
       path, aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_ValidateDataStructure);
+  if (confined && !confined->refused().empty()) {
+    throw SceneError(path + ": refers to '" + confined->refused().front() +
+                     "', which is outside the scene bundle (side files such as an OBJ's mtllib or a glTF's "
+                     "buffers must lie in the bundle's directory)");
+  }
   if (ai == nullptr || ai->mRootNode == nullptr) {
     throw SceneError(path + ": cannot load mesh: " + importer.GetErrorString());
   }

@@ -19,6 +19,10 @@ struct MeshLoadResult {
 
 // Throws SceneError("<path>: ...") if the file is missing, unreadable or holds no triangles.
 // Node transforms in the file are baked in. Meshes/nodes named in `exclude` are skipped.
-MeshLoadResult load_mesh(const std::string& path, const std::vector<std::string>& exclude = {});
+// With `confine_to` set, every file the importer opens (the mesh and its side files: an OBJ's
+// material libraries, a glTF's buffers) must lie inside that directory; one outside is refused
+// and the load fails with a SceneError naming it.
+MeshLoadResult load_mesh(const std::string& path, const std::vector<std::string>& exclude = {},
+                         const std::string& confine_to = {});
 
 }  // namespace tessera

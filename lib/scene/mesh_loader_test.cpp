@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <filesystem>
+#include <fstream>
 
 #include "scene/scene_parser.h"
 
@@ -97,6 +100,84 @@ TEST(MeshLoader, MissingFileIsNamed) {
   } catch (const SceneError& e) {
     EXPECT_NE(std::string(e.what()).find("/no/such/mesh.obj: mesh file not found"), std::string::npos);
   }
+}
+
+// Side files (an OBJ's mtllib, a glTF's buffers) are opened by assimp itself: with confinement
+// every one must lie in the bundle, also through "..", absolute paths and symlinks.
+class MeshConfinement : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::temp_directory_path() / ("tessera_confine_" + std::to_string(::getpid()));
+    fs::remove_all(root_);
+    fs::create_directories(root_ / "bundle");
+    write("outside.mtl", "newmtl red\nKd 1 0 0\n");
+    write("bundle/inside.mtl", "newmtl green\nKd 0 1 0\n");
+    const float tri[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    write("buf.bin", std::string(reinterpret_cast<const char*>(tri), sizeof tri));
+  }
+  void TearDown() override { fs::remove_all(root_); }
+  void write(const std::string& rel, const std::string& text) {
+    std::ofstream(root_ / rel, std::ios::binary) << text;
+  }
+  std::string obj_using(const std::string& mtllib) {
+    write("bundle/m.obj", "mtllib " + mtllib + "\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl x\nf 1 2 3\n");
+    return (root_ / "bundle/m.obj").string();
+  }
+  void expect_refused(const std::string& mesh, const std::string& named) {
+    try {
+      load_mesh(mesh, {}, (root_ / "bundle").string());
+      FAIL() << mesh << " loaded although it refers to " << named;
+    } catch (const SceneError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("outside the scene bundle"), std::string::npos) << what;
+      EXPECT_NE(what.find(named), std::string::npos) << what;
+      EXPECT_EQ(what.rfind(mesh, 0), 0u) << what;  // the message starts with the mesh file
+    }
+  }
+  fs::path root_;
+};
+
+TEST_F(MeshConfinement, ObjMaterialLibraryOutsideTheBundleIsRefused) {
+  const std::string mesh = obj_using("../outside.mtl");
+  // Unconfined (a local render) the library is read: the test's files are valid.
+  const MeshLoadResult open = load_mesh(mesh);
+  bool red = false;
+  for (const Material& m : open.materials) red = red || (m.albedo.x == 1.0f && m.albedo.y == 0.0f);
+  EXPECT_TRUE(red);
+  expect_refused(mesh, "outside.mtl");
+  // An absolute mtllib: assimp's OBJ reader joins it to the OBJ's directory, so it names a file
+  // inside the bundle that does not exist. Either way nothing outside may be read.
+  try {
+    const MeshLoadResult r = load_mesh(obj_using((root_ / "outside.mtl").string()), {}, (root_ / "bundle").string());
+    for (const Material& m : r.materials) EXPECT_FALSE(m.albedo.x == 1.0f && m.albedo.y == 0.0f) << m.name;
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("outside the scene bundle"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(MeshConfinement, SymlinkOutOfTheBundleIsRefused) {
+  fs::create_symlink(root_ / "outside.mtl", root_ / "bundle/link.mtl");
+  expect_refused(obj_using("link.mtl"), "link.mtl");
+}
+
+TEST_F(MeshConfinement, SideFilesInsideTheBundleLoad) {
+  const MeshLoadResult r = load_mesh(obj_using("inside.mtl"), {}, (root_ / "bundle").string());
+  EXPECT_EQ(r.mesh.triangle_count(), 1u);
+  ASSERT_EQ(r.material_files.size(), 1u);
+  EXPECT_EQ(r.material_files[0], "inside.mtl");
+}
+
+TEST_F(MeshConfinement, GltfBufferOutsideTheBundleIsRefused) {
+  write("bundle/t.gltf", R"({"asset": {"version": "2.0"},
+    "buffers": [{"uri": "../buf.bin", "byteLength": 36}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                   "min": [0, 0, 0], "max": [1, 1, 0]}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+    "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0})");
+  const std::string mesh = (root_ / "bundle/t.gltf").string();
+  EXPECT_EQ(load_mesh(mesh).mesh.triangle_count(), 1u);
+  expect_refused(mesh, "buf.bin");
 }
 
 }  // namespace

@@ -295,7 +295,7 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
         }
         MeshLoadResult loaded;
         try {
-          loaded = load_mesh(mesh_path.string(), exclude);
+          loaded = load_mesh(mesh_path.string(), exclude, options.confine_to);
         } catch (const SceneError& e) {
           o.at("file").fail(e.what());
         }
