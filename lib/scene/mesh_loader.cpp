@@ -9,8 +9,6 @@
 #include <assimp/Importer.hpp>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
 namespace tessera {
 
@@ -19,25 +17,36 @@ namespace {
 namespace fs = std::filesystem;
 
 // Assimp opens a model's side files itself (an OBJ's mtllib, a glTF's buffers), wherever their
-// names point. For a scene from a bundle every file must stay inside the bundle, so this IO
-// system refuses the others, and remembers them for load_mesh's error. Paths are compared after
-// resolving symlinks and "..", so neither can lead out.
-class ConfinedIOSystem : public Assimp::DefaultIOSystem {
+// names point. This IO system records every file it opens, so bundles can carry them (assimp
+// reports none of them), and, when confined, refuses files outside a directory and remembers
+// them for load_mesh's error: a scene from a bundle must read nothing else. Paths are compared
+// after resolving symlinks and "..", so neither can lead out.
+class TrackingIOSystem : public Assimp::DefaultIOSystem {
  public:
-  explicit ConfinedIOSystem(const fs::path& root) : root_(resolve(root)) {}
+  explicit TrackingIOSystem(const std::string& confine_to) {
+    if (!confine_to.empty()) root_ = resolve(confine_to);
+  }
   bool Exists(const char* file) const override { return allowed(file) && DefaultIOSystem::Exists(file); }
   Assimp::IOStream* Open(const char* file, const char* mode = "rb") override {
-    return allowed(file) ? DefaultIOSystem::Open(file, mode) : nullptr;
+    if (!allowed(file)) return nullptr;
+    Assimp::IOStream* stream = DefaultIOSystem::Open(file, mode);
+    if (stream) {
+      const fs::path p = resolve(file);
+      if (std::find(opened_.begin(), opened_.end(), p) == opened_.end()) opened_.push_back(p);
+    }
+    return stream;
   }
   const std::vector<std::string>& refused() const { return refused_; }
-
- private:
+  const std::vector<fs::path>& opened() const { return opened_; }  // resolved, in order
   static fs::path resolve(const fs::path& p) {
     std::error_code ec;
     fs::path r = fs::weakly_canonical(fs::absolute(p, ec), ec);
     return ec ? fs::absolute(p).lexically_normal() : r;
   }
+
+ private:
   bool allowed(const char* file) const {
+    if (root_.empty()) return true;
     const fs::path rel = resolve(file).lexically_relative(root_);
     if (!rel.empty() && *rel.begin() != "..") return true;
     if (std::find(refused_.begin(), refused_.end(), file) == refused_.end()) refused_.emplace_back(file);
@@ -45,6 +54,7 @@ class ConfinedIOSystem : public Assimp::DefaultIOSystem {
   }
   fs::path root_;
   mutable std::vector<std::string> refused_;
+  std::vector<fs::path> opened_;
 };
 
 Rgb color_or(const aiMaterial* m, const char* key, unsigned type, unsigned idx, Rgb fallback) {
@@ -87,28 +97,6 @@ Material map_material(const aiMaterial* m, const std::string& file) {
   return out;
 }
 
-std::vector<std::string> mtl_libraries(const std::string& path) {
-  // assimp does not report which material libraries an OBJ pulled in; bundles need them.
-  std::vector<std::string> libs;
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-  if (ext != ".obj") return libs;
-  std::ifstream in(path);
-  std::string line;
-  while (std::getline(in, line)) {
-    std::istringstream ls(line);
-    std::string word;
-    if (ls >> word && word == "mtllib") {
-      std::string rest;
-      std::getline(ls, rest);
-      rest.erase(0, rest.find_first_not_of(" \t"));
-      while (!rest.empty() && (rest.back() == '\r' || rest.back() == ' ' || rest.back() == '\t')) rest.pop_back();
-      if (!rest.empty()) libs.push_back(rest);
-    }
-  }
-  return libs;
-}
-
 }  // namespace
 
 MeshLoadResult load_mesh(const std::string& path, const std::vector<std::string>& exclude,
@@ -118,13 +106,13 @@ MeshLoadResult load_mesh(const std::string& path, const std::vector<std::string>
     throw SceneError(path + ": mesh file not found");
   }
   Assimp::Importer importer;
-  ConfinedIOSystem* confined = nullptr;
-  if (!confine_to.empty()) importer.SetIOHandler(confined = new ConfinedIOSystem(confine_to));  // importer owns it
+  auto* io = new TrackingIOSystem(confine_to);
+  importer.SetIOHandler(io);  // the importer owns it
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
   const aiScene* ai = importer.ReadFile(
       path, aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_ValidateDataStructure);
-  if (confined && !confined->refused().empty()) {
-    throw SceneError(path + ": refers to '" + confined->refused().front() +
+  if (!io->refused().empty()) {
+    throw SceneError(path + ": refers to '" + io->refused().front() +
                      "', which is outside the scene bundle (side files such as an OBJ's mtllib or a glTF's "
                      "buffers must lie in the bundle's directory)");
   }
@@ -137,9 +125,9 @@ MeshLoadResult load_mesh(const std::string& path, const std::vector<std::string>
     result.materials.push_back(map_material(ai->mMaterials[i], file_name));
   }
   if (result.materials.empty()) result.materials.push_back(Material{.name = file_name + ":default"});
-  for (const std::string& lib : mtl_libraries(path)) {
-    const auto p = std::filesystem::path(path).parent_path() / lib;
-    if (std::filesystem::is_regular_file(p, ec)) result.material_files.push_back(lib);
+  const fs::path self = TrackingIOSystem::resolve(path);
+  for (const fs::path& f : io->opened()) {
+    if (f != self) result.side_files.push_back(f.lexically_relative(self.parent_path()).generic_string());
   }
 
   auto excluded = [&](const aiString& n) {

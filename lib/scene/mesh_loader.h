@@ -12,7 +12,9 @@ namespace tessera {
 struct MeshLoadResult {
   Mesh mesh;                          // material_ids index into `materials` (local to this file)
   std::vector<Material> materials;    // from the file (MTL etc.), mapped to Tessera materials
-  std::vector<std::string> material_files;  // extra files read (e.g. the .mtl), relative to the mesh
+  // Every other file the importer read (an OBJ's .mtl, a glTF's buffers), relative to the mesh's
+  // directory, in the order read: a bundle must carry them.
+  std::vector<std::string> side_files;
   size_t dropped_degenerate = 0;      // zero-area triangles dropped
   size_t dropped_nonfinite = 0;       // triangles with a NaN/Inf vertex dropped
 };

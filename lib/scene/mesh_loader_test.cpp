@@ -72,7 +72,7 @@ TEST(MeshLoader, CornellBoxMaterialsMapFromMtl) {
   EXPECT_EQ(mirrors, 1);
   EXPECT_EQ(glass, 1);
   EXPECT_EQ(emitters, 1);
-  EXPECT_EQ(r.material_files, std::vector<std::string>{"CornellBox-Sphere.mtl"});
+  EXPECT_EQ(r.side_files, std::vector<std::string>{"CornellBox-Sphere.mtl"});
   // Excluding the two tessellated spheres leaves the box: 7 quads = 14 triangles... plus none.
   const MeshLoadResult box =
       load_mesh((kSource / "scenes/models/CornellBox-Sphere.obj").string(), {"leftSphere", "rightSphere"});
@@ -163,21 +163,38 @@ TEST_F(MeshConfinement, SymlinkOutOfTheBundleIsRefused) {
 TEST_F(MeshConfinement, SideFilesInsideTheBundleLoad) {
   const MeshLoadResult r = load_mesh(obj_using("inside.mtl"), {}, (root_ / "bundle").string());
   EXPECT_EQ(r.mesh.triangle_count(), 1u);
-  ASSERT_EQ(r.material_files.size(), 1u);
-  EXPECT_EQ(r.material_files[0], "inside.mtl");
+  ASSERT_EQ(r.side_files.size(), 1u);
+  EXPECT_EQ(r.side_files[0], "inside.mtl");
 }
 
-TEST_F(MeshConfinement, GltfBufferOutsideTheBundleIsRefused) {
-  write("bundle/t.gltf", R"({"asset": {"version": "2.0"},
-    "buffers": [{"uri": "../buf.bin", "byteLength": 36}],
+// A glTF with one triangle in an external buffer at `uri`.
+std::string gltf_with_buffer(const std::string& uri) {
+  return R"({"asset": {"version": "2.0"},
+    "buffers": [{"uri": ")" + uri + R"(", "byteLength": 36}],
     "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}],
     "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
                    "min": [0, 0, 0], "max": [1, 1, 0]}],
     "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
-    "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0})");
+    "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0})";
+}
+
+TEST_F(MeshConfinement, GltfBufferOutsideTheBundleIsRefused) {
+  write("bundle/t.gltf", gltf_with_buffer("../buf.bin"));
   const std::string mesh = (root_ / "bundle/t.gltf").string();
-  EXPECT_EQ(load_mesh(mesh).mesh.triangle_count(), 1u);
+  const MeshLoadResult open = load_mesh(mesh);
+  EXPECT_EQ(open.mesh.triangle_count(), 1u);
+  EXPECT_EQ(open.side_files, std::vector<std::string>{"../buf.bin"});
   expect_refused(mesh, "buf.bin");
+}
+
+// Side files are reported whatever the format, so a bundle carries a glTF's buffers too.
+TEST_F(MeshConfinement, GltfBufferInsideTheBundleIsASideFile) {
+  fs::create_directories(root_ / "bundle/data");
+  fs::copy_file(root_ / "buf.bin", root_ / "bundle/data/buf.bin");
+  write("bundle/t.gltf", gltf_with_buffer("data/buf.bin"));
+  const MeshLoadResult r = load_mesh((root_ / "bundle/t.gltf").string(), {}, (root_ / "bundle").string());
+  EXPECT_EQ(r.mesh.triangle_count(), 1u);
+  EXPECT_EQ(r.side_files, std::vector<std::string>{"data/buf.bin"});
 }
 
 }  // namespace

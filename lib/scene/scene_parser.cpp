@@ -312,7 +312,7 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
         mesh_cache[key] = obj.mesh;
         scene.dependencies.push_back(obj.file);
         const fs::path mesh_dir = fs::path(obj.file).parent_path();
-        for (const auto& lib : loaded.material_files) scene.dependencies.push_back((mesh_dir / lib).string());
+        for (const auto& lib : loaded.side_files) scene.dependencies.push_back((mesh_dir / lib).string());
       }
       if (options.max_primitives > 0 &&
           primitives + scene.meshes[size_t(obj.mesh)].triangle_count() > options.max_primitives) {
