@@ -141,8 +141,11 @@ grpc::ServerUnaryReactor* ClientServiceImpl::SubmitJob(grpc::CallbackServerConte
            (st.state() == v1::JOB_STATE_QUEUED || st.state() == v1::JOB_STATE_RUNNING);
   });
   if (!s.ok()) return reply(ctx, std::move(s));
-  s = admit_job(ctx, *req);
-  if (s.ok()) s = coord_.submit(*req, resp);
+  Admission admission;
+  admission.owner = client;
+  admission.max_primitives = limits_.max_primitives;
+  admission.check = [&](const Scene& scene, int first, int last) { return limits_.check_job(scene, first, last); };
+  s = coord_.submit(*req, resp, admission);
   quota_.settle(client, s.ok() ? resp->job_id() : std::string());
   if (!s.ok()) spdlog::info("submission from {} refused: {}", client, s.error_message());
   return reply(ctx, std::move(s));
@@ -187,32 +190,6 @@ grpc::ServerUnaryReactor* ClientServiceImpl::ListWorkers(grpc::CallbackServerCon
   if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
   coord_.list_workers(resp);
   return reply(ctx, Status::OK);
-}
-
-// The limits that need the scene: loaded here with the primitive limit (checked while loading,
-// before instanced meshes are copied) and with every mesh confined to the bundle, so a scene
-// cannot make the coordinator read files outside it. Errors other than limits are left to
-// Coordinator::submit, which reports them as before.
-Status ClientServiceImpl::admit_job(grpc::CallbackServerContext*, const v1::SubmitJobRequest& req) {
-  if (!farm::is_sha256_hex(req.bundle_sha256()) || !coord_.bundles().has(req.bundle_sha256())) return Status::OK;
-  try {
-    SceneLoadOptions options;
-    options.confine_to = (coord_.bundles().dir() / req.bundle_sha256()).string();
-    options.max_primitives = limits_.max_primitives;
-    Scene scene = load_scene(coord_.bundles().scene_path(req.bundle_sha256()).string(), options);
-    apply_overrides(scene, farm::from_proto(req.overrides()));
-    const int first = req.has_first_frame() ? req.first_frame() : 0;
-    const int last = req.has_last_frame() ? req.last_frame() : scene.frame_count() - 1;
-    return limits_.check_job(scene, first, std::max(first, last));
-  } catch (const SceneError& e) {
-    const std::string what = e.what();
-    // The primitive limit is a resource limit; other scene errors are the scene's fault.
-    const bool limit = what.find("limit max_primitives") != std::string::npos;
-    return Status(limit ? StatusCode::RESOURCE_EXHAUSTED : StatusCode::INVALID_ARGUMENT,
-                  std::string("invalid scene: ") + what + (limit ? " (tessera-server --max-primitives)" : ""));
-  } catch (const std::exception& e) {
-    return Status(StatusCode::INTERNAL, std::string("cannot load the bundle's scene: ") + e.what());
-  }
 }
 
 }  // namespace tessera::server

@@ -11,8 +11,12 @@ namespace tessera::server {
 class ClientServiceImpl final : public tessera::v1::ClientService::CallbackService {
  public:
   // Every method first checks the client token (auth.h); uploads and submissions the limits.
+  // The per-client quota starts from the active jobs the coordinator restored: a restart does
+  // not give every client a fresh allowance.
   explicit ClientServiceImpl(Coordinator& c, Authenticator auth = {}, Limits limits = {})
-      : coord_(c), auth_(std::move(auth)), limits_(limits), quota_(limits.max_jobs_per_client) {}
+      : coord_(c), auth_(std::move(auth)), limits_(limits), quota_(limits.max_jobs_per_client) {
+    for (const auto& [owner, job] : coord_.active_jobs_by_owner()) quota_.restore(owner, job);
+  }
 
   grpc::ServerUnaryReactor* HasBundle(grpc::CallbackServerContext*, const tessera::v1::HasBundleRequest*,
                                       tessera::v1::HasBundleResponse*) override;
@@ -34,7 +38,6 @@ class ClientServiceImpl final : public tessera::v1::ClientService::CallbackServi
                                         tessera::v1::ListWorkersResponse*) override;
 
  private:
-  grpc::Status admit_job(grpc::CallbackServerContext* ctx, const tessera::v1::SubmitJobRequest& req);
 
   Coordinator& coord_;
   Authenticator auth_;

@@ -167,7 +167,7 @@ void Coordinator::status_proto(const JobSnapshot& s, v1::JobStatus* out) const {
   for (const auto& w : s.blocklisted) out->add_blocklisted_workers(w);
 }
 
-Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out) {
+Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out, const Admission& admission) {
   if (jobs_store_ && !jobs_store_->healthy()) {
     return Status(StatusCode::RESOURCE_EXHAUSTED,
                   "the coordinator cannot write its data directory, so it takes no new jobs: " +
@@ -186,19 +186,28 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out) 
     return Status(StatusCode::INVALID_ARGUMENT, "tile_size: must be in [4, 256], got " + std::to_string(tile));
   }
   JobSpec spec;
-  int frame_count = 0;
+  Scene scene;
   try {
-    Scene scene = load_scene(store_.scene_path(req.bundle_sha256()).string());
+    // Every file the scene reads must be in its bundle: a scene cannot make the coordinator (or
+    // a worker: worker/bundle_cache.cpp) read anything else.
+    SceneLoadOptions options;
+    options.confine_to = (store_.dir() / req.bundle_sha256()).string();
+    options.max_primitives = admission.max_primitives;
+    scene = load_scene(store_.scene_path(req.bundle_sha256()).string(), options);
     apply_overrides(scene, farm::from_proto(req.overrides()));
-    spec.width = scene.image.width;
-    spec.height = scene.image.height;
-    spec.spp = scene.image.spp;
-    frame_count = scene.frame_count();
   } catch (const SceneError& e) {
-    return Status(StatusCode::INVALID_ARGUMENT, std::string("invalid scene: ") + e.what());
+    const std::string what = e.what();
+    // The primitive limit is a resource limit; other scene errors are the scene's fault.
+    const bool limit = what.find("limit max_primitives") != std::string::npos;
+    return Status(limit ? StatusCode::RESOURCE_EXHAUSTED : StatusCode::INVALID_ARGUMENT,
+                  "invalid scene: " + what + (limit ? " (tessera-server --max-primitives)" : ""));
   } catch (const std::exception& e) {
     return Status(StatusCode::INTERNAL, std::string("cannot load the bundle's scene: ") + e.what());
   }
+  spec.width = scene.image.width;
+  spec.height = scene.image.height;
+  spec.spp = scene.image.spp;
+  const int frame_count = scene.frame_count();
   spec.first_frame = req.has_first_frame() ? req.first_frame() : 0;
   spec.last_frame = req.has_last_frame() ? req.last_frame() : frame_count - 1;
   if (spec.first_frame < 0 || spec.last_frame >= frame_count || spec.first_frame > spec.last_frame) {
@@ -206,6 +215,10 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out) 
                                                     std::to_string(spec.last_frame) + ": the scene has frames 0-" +
                                                     std::to_string(frame_count - 1));
   }
+  if (admission.check) {
+    if (Status s = admission.check(scene, spec.first_frame, spec.last_frame); !s.ok()) return s;
+  }
+  spec.owner = admission.owner;
   spec.name = req.name();
   spec.bundle_sha256 = req.bundle_sha256();
   spec.overrides = req.overrides().SerializeAsString();
@@ -235,6 +248,16 @@ std::optional<JobSnapshot> Coordinator::evicted_job(const std::string& id) {
   // committed. Called without mu_ held.
   jobs_store_->barrier().get();
   return jobs_store_->read_job(id);
+}
+
+std::vector<std::pair<std::string, std::string>> Coordinator::active_jobs_by_owner() {
+  return locked([&] {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const JobSnapshot& s : scheduler_.jobs()) {
+      if (!s.spec.owner.empty() && !job_ended(s.state)) out.emplace_back(s.spec.owner, s.id);
+    }
+    return out;
+  });
 }
 
 Status Coordinator::get_job(const std::string& id, v1::JobStatus* out) {

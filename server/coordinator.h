@@ -23,6 +23,7 @@
 #include "bundle_store.h"
 #include "job_store.h"
 #include "scheduler.h"
+#include "scene/scene.h"
 #include "stream_outbox.h"
 #include "tessera/v1/client_service.pb.h"
 #include "tessera/v1/worker_service.pb.h"
@@ -63,6 +64,15 @@ struct CoordinatorOptions {
   size_t watch_backlog_tiles = 2048;
 };
 
+// What a submission must satisfy besides naming a valid scene, and whose it is. The scene is
+// parsed once, by Coordinator::submit, with these limits and confined to its bundle.
+struct Admission {
+  std::string owner;            // the client identity the job counts against (stored with the job)
+  uint64_t max_primitives = 0;  // checked while loading (SceneLoadOptions); 0: no limit
+  // The request limits that need the parsed scene (resolution, spp, frames); may be empty.
+  std::function<grpc::Status(const Scene&, int first_frame, int last_frame)> check;
+};
+
 class Coordinator : private SchedulerListener {
  public:
   // `jobs` (may be null: memory only, for tests) is loaded and restored here, before any stream.
@@ -74,7 +84,10 @@ class Coordinator : private SchedulerListener {
   BundleStore& bundles() { return store_; }
 
   // --- client service -----------------------------------------------------------------------
-  grpc::Status submit(const tessera::v1::SubmitJobRequest& req, tessera::v1::JobStatus* out);
+  grpc::Status submit(const tessera::v1::SubmitJobRequest& req, tessera::v1::JobStatus* out,
+                      const Admission& admission = {});
+  // (owner, job id) of every queued or running job with an owner: the quota after a restart.
+  std::vector<std::pair<std::string, std::string>> active_jobs_by_owner();
   grpc::Status get_job(const std::string& id, tessera::v1::JobStatus* out);
   void list_jobs(tessera::v1::ListJobsResponse* out);
   grpc::Status cancel(const std::string& id, tessera::v1::JobStatus* out);

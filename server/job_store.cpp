@@ -37,7 +37,7 @@ CREATE TABLE jobs(
   spp INTEGER NOT NULL, tile_size INTEGER NOT NULL, priority INTEGER NOT NULL,
   state TEXT NOT NULL, error TEXT NOT NULL DEFAULT '', submitted REAL NOT NULL, ended REAL,
   duplicates INTEGER NOT NULL DEFAULT 0, rays INTEGER NOT NULL DEFAULT 0,
-  resident INTEGER NOT NULL DEFAULT 1);
+  resident INTEGER NOT NULL DEFAULT 1, owner TEXT NOT NULL DEFAULT '');
 -- A row per finished tile; its pixels are the record at byte `offset` of tiles/<segment>.seg
 -- (payload `length` bytes) until the frame is acknowledged. Tiles without a row are queued (or
 -- were leased when the coordinator stopped).
@@ -69,7 +69,7 @@ std::string blob(sqlite3_stmt* st, int col) {
 // The columns read by read_row(), in this order.
 constexpr const char* kJobColumns =
     "id, seq, name, bundle, overrides, first_frame, last_frame, width, height, spp, tile_size, priority, state, "
-    "error, submitted, ended, duplicates, rays";
+    "error, submitted, ended, duplicates, rays, owner";
 
 JobSnapshot read_row(sqlite3_stmt* st) {
   JobSnapshot s;
@@ -93,6 +93,7 @@ JobSnapshot read_row(sqlite3_stmt* st) {
   if (sqlite3_column_type(st, 15) != SQLITE_NULL) s.ended = from_unix_seconds(sqlite3_column_double(st, 15));
   s.duplicates_discarded = sqlite3_column_int64(st, 16);
   s.rays = uint64_t(sqlite3_column_int64(st, 17));
+  s.spec.owner = text(st, 18);
   const int ts = s.spec.tile_size;
   s.tiles_per_frame = ((s.spec.width + ts - 1) / ts) * ((s.spec.height + ts - 1) / ts);
   s.tiles_total = int64_t(s.spec.last_frame - s.spec.first_frame + 1) * s.tiles_per_frame;
@@ -249,6 +250,16 @@ void JobStore::open_database() {
                          " (tiles in segment files) and does not migrate it. Let the old tessera-server finish "
                          "its jobs, or start with another --data-dir");
       }
+      if (version == 2) {
+        // Version 3 added jobs.owner (the per-client job quota survives a restart). Jobs stored
+        // by version 2 have no owner: they count for no client, as before.
+        exec("BEGIN");
+        exec("ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT ''");
+        exec(("UPDATE schema_version SET version=" + std::to_string(kSchemaVersion)).c_str());
+        exec("COMMIT");
+        spdlog::info("database {}: migrated schema version 2 to {}", db, kSchemaVersion);
+        version = kSchemaVersion;
+      }
       if (version != kSchemaVersion) {
         throw StoreError("the database " + db + " has schema version " + std::to_string(version) +
                          "; this tessera-server reads version " + std::to_string(kSchemaVersion) +
@@ -262,8 +273,8 @@ void JobStore::open_database() {
   }
   ins_job_ = prepare(
       "INSERT OR REPLACE INTO jobs(id, seq, name, bundle, overrides, first_frame, last_frame, width, height, spp, "
-      "tile_size, priority, state, error, submitted, ended, duplicates, rays) "
-      "VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13,?14,?15,?16,?17,?18)");
+      "tile_size, priority, state, error, submitted, ended, duplicates, rays, owner) "
+      "VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13,?14,?15,?16,?17,?18,?19)");
   upd_job_ = prepare("UPDATE jobs SET state=?2, error=?3, ended=?4, duplicates=?5, rays=?6 WHERE id=?1");
   ins_tile_ = prepare(
       "INSERT OR REPLACE INTO tiles(job, frame, tile, rays, seconds, segment, offset, length) "
@@ -564,6 +575,7 @@ void JobStore::apply(std::vector<Op>& batch) {
           if (s.ended) sqlite3_bind_double(st, 16, to_unix_seconds(*s.ended));
           sqlite3_bind_int64(st, 17, s.duplicates_discarded);
           sqlite3_bind_int64(st, 18, int64_t(s.rays));
+          bind_text(st, 19, s.spec.owner);
         } else {
           bind_text(st, 2, job_state_name(s.state));
           bind_text(st, 3, s.error);

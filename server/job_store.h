@@ -47,7 +47,7 @@ class JobStore {
  public:
   // 2: tiles live in segment files (tiles.segment/offset/length). Version 1 (a file per tile) is
   // refused with a message, not migrated: no farm ran it in production.
-  static constexpr int kSchemaVersion = 2;
+  static constexpr int kSchemaVersion = 3;  // 3: jobs.owner (version 2 is migrated)
 
   // Opens or creates the store; checks the directory is writable, the database's integrity
   // (PRAGMA quick_check) and its schema version. Throws StoreError.

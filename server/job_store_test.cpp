@@ -44,6 +44,7 @@ class JobStoreTest : public ::testing::Test {
     s.spec.spp = 4;
     s.spec.tile_size = 16;  // 3x2 = 6 tiles a frame
     s.spec.priority = 7;
+    s.spec.owner = "ipv4:127.0.0.1";
     s.state = JobState::kRunning;
     s.submitted = Clock::now();
     return s;
@@ -125,6 +126,7 @@ TEST_F(JobStoreTest, RoundTripsJobsTilesAcksAndLeases) {
   EXPECT_EQ(r.spec.overrides, std::string("\x08\x02\0x", 4));
   EXPECT_EQ(r.spec.first_frame, 5);
   EXPECT_EQ(r.spec.priority, 7);
+  EXPECT_EQ(r.spec.owner, "ipv4:127.0.0.1");
   EXPECT_EQ(r.state, JobState::kRunning);
   EXPECT_EQ(r.acknowledged, std::vector<int>{5});
   ASSERT_EQ(r.done.size(), 7u);
@@ -271,6 +273,45 @@ TEST_F(JobStoreTest, SchemaVersionOneIsRefusedWithTheReason) {
     EXPECT_NE(std::string(e.what()).find("schema version 1 (a file per tile"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("does not migrate"), std::string::npos) << e.what();
   }
+}
+
+TEST_F(JobStoreTest, SchemaVersionTwoIsMigratedKeepingItsJobs) {
+  {
+    JobStore store(dir);
+    store.load();
+    store.job_submitted(job("j1", 1));
+    ASSERT_EQ(store.barrier().get(), "");
+  }
+  // Make it a version-2 database: the same tables without jobs.owner.
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((dir / "tessera.db").c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "ALTER TABLE jobs DROP COLUMN owner; UPDATE schema_version SET version=2", nullptr,
+                         nullptr, nullptr),
+            SQLITE_OK)
+      << sqlite3_errmsg(db);
+  sqlite3_close(db);
+  {
+    JobStore store(dir);
+    JobStore::Loaded l = store.load();
+    ASSERT_EQ(l.jobs.size(), 1u);
+    EXPECT_EQ(l.jobs[0].id, "j1");
+    EXPECT_EQ(l.jobs[0].spec.owner, "");  // version 2 stored none: the job counts for no client
+    EXPECT_EQ(l.jobs[0].spec.priority, 7);
+    JobSnapshot j2 = job("j2", 2);
+    store.job_submitted(j2);
+    ASSERT_EQ(store.barrier().get(), "");
+  }
+  JobStore store(dir);
+  JobStore::Loaded l = store.load();
+  ASSERT_EQ(l.jobs.size(), 2u);
+  EXPECT_EQ(l.jobs[1].spec.owner, "ipv4:127.0.0.1");
+  ASSERT_EQ(sqlite3_open((dir / "tessera.db").c_str(), &db), SQLITE_OK);
+  sqlite3_stmt* st = nullptr;
+  sqlite3_prepare_v2(db, "SELECT version FROM schema_version", -1, &st, nullptr);
+  ASSERT_EQ(sqlite3_step(st), SQLITE_ROW);
+  EXPECT_EQ(sqlite3_column_int(st, 0), JobStore::kSchemaVersion);
+  sqlite3_finalize(st);
+  sqlite3_close(db);
 }
 
 TEST_F(JobStoreTest, RestoredJobRequeuesEverythingNotDone) {

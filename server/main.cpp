@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
   bool no_speculation = false;
   int max_faults = 3;
   double retention_hours = 24;
+  size_t watch_backlog_tiles = CoordinatorOptions{}.watch_backlog_tiles;
 
   CLI::App app{"tessera-server: the Tessera render farm coordinator"};
   app.add_option("--listen", listen, "HOST:PORT to listen on (port 0 picks a free one; 0.0.0.0 for all interfaces)")
@@ -45,6 +46,10 @@ int main(int argc, char** argv) {
   app.add_option("--retention-hours", retention_hours,
                  "Ended jobs whose frames no client took leave memory after this long (they stay in the database)")
       ->check(CLI::Range(0.0, 24.0 * 3650))->capture_default_str();
+  app.add_option("--watch-backlog-tiles", watch_backlog_tiles,
+                 "Hold a job (no new leases) while one of its watch streams has this many tiles unsent; "
+                 "bounds the coordinator's memory for slow clients (0: no bound)")
+      ->check(CLI::Range(size_t(0), size_t(1) << 24))->capture_default_str();
   ServerSecurity security;
   security.add_flags(app);
   Limits limits;
@@ -92,6 +97,7 @@ int main(int argc, char** argv) {
   opts.scheduler.speculate = !no_speculation;
   opts.scheduler.max_faults = max_faults;
   opts.retention = std::chrono::seconds(int64_t(retention_hours * 3600));
+  opts.watch_backlog_tiles = watch_backlog_tiles;
   Coordinator coordinator(opts, *store, jobs.get());
   ClientServiceImpl client_service(coordinator, auth, limits);
   WorkerServiceImpl worker_service(coordinator, auth);

@@ -51,6 +51,11 @@ void JobQuota::settle(const std::string& client, const std::string& job_id) {
   if (!job_id.empty()) jobs_[client].insert(job_id);
 }
 
+void JobQuota::restore(const std::string& client, const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  jobs_[client].insert(job_id);
+}
+
 std::string client_identity(const grpc::ServerContextBase& ctx) {
   if (auto auth = ctx.auth_context()) {
     for (const auto& cn : auth->FindPropertyValues(GRPC_X509_CN_PROPERTY_NAME)) {

@@ -42,7 +42,8 @@ grpc::Status over_limit(grpc::StatusCode code, const std::string& what, int64_t 
 
 // Active jobs per client identity (a TLS client certificate's CN, else the peer's address without
 // the port). A submission reserves a slot before the scene is parsed, so concurrent submissions
-// cannot overshoot; jobs that ended are forgotten the next time that client submits.
+// cannot overshoot; jobs that ended are forgotten the next time that client submits. Each job
+// stores its owner, so the count survives a coordinator restart (restore()).
 class JobQuota {
  public:
   explicit JobQuota(int max_jobs) : max_(max_jobs) {}
@@ -51,6 +52,8 @@ class JobQuota {
   grpc::Status reserve(const std::string& client, ActiveFn active);
   // After the submission: records the job (empty id: it failed) and releases the reservation.
   void settle(const std::string& client, const std::string& job_id);
+  // A job of `client` restored from the database at startup.
+  void restore(const std::string& client, const std::string& job_id);
 
  private:
   int max_;

@@ -45,6 +45,7 @@ struct JobSpec {
   int width = 0, height = 0, spp = 0;
   int tile_size = 32;
   int priority = 0;        // higher first; ties in submit order
+  std::string owner;       // the submitting client's identity (request_limits.h); opaque here
 };
 
 // kFailed: every connected worker was blocklisted for the job (see SchedulerOptions::max_faults).

@@ -248,6 +248,11 @@ TEST(FarmSecurity, JobsPerClientLimitCountsOnlyActiveJobs) {
   ASSERT_EQ(cancel.code, 0) << cancel.output;
   CliResult d = submit();
   EXPECT_EQ(d.code, 0) << d.output;
+  // The count survives a coordinator restart: each job stores its owner (jobs.owner).
+  farm.restart_server();
+  CliResult e = submit();
+  EXPECT_EQ(e.code, 1) << e.output << farm.server().log();
+  EXPECT_TRUE(has(e.output, "active jobs of client ipv4:127.0.0.1 is 3, over this coordinator's limit 2")) << e.output;
 }
 
 TEST(FarmSecurity, HostileBundlesAndMessagesAreRefused) {
