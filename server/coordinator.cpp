@@ -196,7 +196,11 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out, 
     scene = load_scene(store_.scene_path(req.bundle_sha256()).string(), options);
     apply_overrides(scene, farm::from_proto(req.overrides()));
   } catch (const SceneError& e) {
-    const std::string what = e.what();
+    // Paths in the message are relative to the bundle: the client knows its files by those
+    // names, and the coordinator's --data-dir is none of its business.
+    std::string what = e.what();
+    const std::string prefix = (store_.dir() / req.bundle_sha256()).string() + "/";
+    for (size_t at; (at = what.find(prefix)) != std::string::npos;) what.erase(at, prefix.size());
     // The primitive limit is a resource limit; other scene errors are the scene's fault.
     const bool limit = what.find("limit max_primitives") != std::string::npos;
     return Status(limit ? StatusCode::RESOURCE_EXHAUSTED : StatusCode::INVALID_ARGUMENT,

@@ -26,13 +26,15 @@ def main():
     channel = grpc.insecure_channel(address)
     stub = cs_grpc.ClientServiceStub(channel)
 
-    def expect(code, fn, what, needle=None):
+    def expect(code, fn, what, needle=None, forbid=None):
         try:
             fn()
         except grpc.RpcError as e:
             assert e.code() == code, f"{what}: expected {code}, got {e.code()}: {e.details()}"
             if needle:
                 assert needle in e.details(), f"{what}: '{needle}' not in '{e.details()}'"
+            if forbid:
+                assert forbid not in e.details(), f"{what}: '{forbid}' leaked into '{e.details()}'"
             print(f"  {what}: {e.code().name}: {e.details()}")
             return
         raise AssertionError(f"{what}: accepted")
@@ -75,7 +77,17 @@ def main():
                 sha = upload(common.Bundle(scene_file="s.json", files=[common.BundleFile(path="s.json", content=scene)]))
                 expect(grpc.StatusCode.INVALID_ARGUMENT,
                        lambda: stub.SubmitJob(cs.SubmitJobRequest(bundle_sha256=sha), timeout=10),
-                       f"mesh {target}", "outside the scene bundle")
+                       f"mesh {target}", "outside the scene bundle", forbid=tmp)
+            # A mesh inside the bundle whose material library is not: assimp's own file access
+            # is confined too. The message names files as the bundle does (no coordinator paths).
+            obj = b"mtllib ../../../../../../../../etc/passwd\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+            scene = (b'{"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1, 0], "vfov_deg": 40},'
+                     b' "objects": [{"type": "mesh", "file": "m.obj"}]}')
+            sha = upload(common.Bundle(scene_file="s.json", files=[common.BundleFile(path="s.json", content=scene),
+                                                                    common.BundleFile(path="m.obj", content=obj)]))
+            expect(grpc.StatusCode.INVALID_ARGUMENT,
+                   lambda: stub.SubmitJob(cs.SubmitJobRequest(bundle_sha256=sha), timeout=10),
+                   "mtllib outside the bundle", "invalid scene: s.json: objects[0].file: m.obj: refers to", forbid=tmp)
         elif check == "token-roles":
             md = [("authorization", "Bearer " + os.environ["PROBE_WORKER_TOKEN"])]
             expect(grpc.StatusCode.UNAUTHENTICATED,
