@@ -46,10 +46,10 @@ using TriangleGeomData = RenderScene::TriangleGeomData;
 // (2u + e_rcp)(|org| + |lower|) in distance along an axis, e_rcp <= 2^-22: at most
 // 2^-21 (|org| + |box|). Padding every box by 2^-16 (|box| + R), R = the radius of the bounded
 // geometry around the eye, covers that with a factor 32 for every ray starting within 32 R of
-// the eye: all camera rays (they start at the eye) and all rays leaving bounded geometry. Only a
-// ray leaving an infinite plane farther out than that could still graze past a padded box, and
-// only within ~2^-21 |org| of its boundary. Padding only adds candidates; the primitive tests
-// decide, so it cannot change a pixel, only cost a little culling.
+// the eye: all camera rays (they start at the eye) and all rays leaving bounded geometry. A ray
+// leaving an infinite plane farther out is moved to start near the geometry first
+// (RenderScene::embree_ray). Padding only adds candidates; the primitive tests decide, so it
+// cannot change a pixel, only cost a little culling.
 void set_padded_bounds(RTCBounds* b, const Vec3f& lo, const Vec3f& hi, const RenderScene& scene) {
   const float pad = scene.box_padding(std::max(max_component(abs(lo)), max_component(abs(hi))));
   const float inf = std::numeric_limits<float>::infinity();
@@ -441,22 +441,48 @@ double RenderScene::nearest_plane(const Vec3d& o, const Vec3d& d, const PrimRef&
   return best;
 }
 
+double RenderScene::embree_ray(const Ray& ray, Ray* out) const {
+  *out = ray;
+  if (max_component(abs(ray.o)) <= 16.0f * bounds_radius_) return 0.0;
+  const double L = 2.0 * double(bounds_radius_);
+  double t_in = 0.0, t_out = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 3; ++k) {
+    const double o = ray.o[k], d = ray.d[k];
+    if (d == 0.0) {
+      if (std::abs(o) > L) return -1.0;
+      continue;
+    }
+    const double a = (-L - o) / d, b = (L - o) / d;
+    t_in = std::max(t_in, std::min(a, b));
+    t_out = std::min(t_out, std::max(a, b));
+  }
+  if (!(t_in <= t_out) || !(t_in < double(ray.tmax))) return -1.0;
+  out->o = Vec3f(Vec3d(ray.o) + Vec3d(ray.d) * t_in);
+  out->tmax = float(double(ray.tmax) - t_in);
+  return t_in;
+}
+
 bool RenderScene::intersect(const Ray& ray, const PrimRef& from, Hit* hit) const {
   const Vec3d o(ray.o), d(ray.d);
   int plane = -1;
   const double tp = nearest_plane(o, d, from, double(ray.tmax), &plane);
-  TraceContext ctx;
-  rtcInitIntersectContext(&ctx.rtc);
-  ctx.scene = this;
-  ctx.from = from;
   // Embree only needs to look closer than the nearest plane.
-  RTCRayHit rh = make_rayhit(ray, 0.0f, plane >= 0 ? float(tp) : ray.tmax, 0xFFFFFFFFu);
-  if (RayLog* log = thread_ray_log()) {
+  Ray er;
+  const double t0 = embree_ray({ray.o, ray.d, plane >= 0 ? float(tp) : ray.tmax}, &er);
+  RTCRayHit rh = make_rayhit(er, 0.0f, er.tmax, 0xFFFFFFFFu);
+  if (RayLog* log = thread_ray_log()) {  // every ray, queried or not: the log counts the renderer's rays
     log->rays.push_back({rh.ray, from, from.kind == PrimRef::Kind::kNone ? LoggedRay::Kind::kCamera
                                                                          : LoggedRay::Kind::kSecondary});
   }
-  rtcIntersect1(rtc_scene_.get(), &ctx.rtc, &rh);
-  return finish_hit(o, d, plane, tp, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, rh.ray.tfar, hit);
+  if (t0 >= 0.0) {
+    TraceContext ctx;
+    rtcInitIntersectContext(&ctx.rtc);
+    ctx.scene = this;
+    ctx.from = from;
+    rtcIntersect1(rtc_scene_.get(), &ctx.rtc, &rh);
+  }
+  const float t = t0 > 0.0 ? float(t0 + double(rh.ray.tfar)) : rh.ray.tfar;
+  return finish_hit(o, d, plane, tp, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, t, hit);
 }
 
 bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double tp, uint32_t g, uint32_t prim_id,
@@ -534,10 +560,14 @@ Rgb RenderScene::transmittance(const Ray& ray, const PrimRef& from) const {
   // This replaced an occlusion query plus a crossing-by-crossing glass walk (two or more
   // traversals for every unblocked shadow ray).
   if (has_glass_) ctx.glass = &glass;
-  RTCRay r = make_rayhit(ray, 0.0f, ray.tmax, has_glass_ ? kOpaqueMask | kGlassMask : kOpaqueMask).ray;
+  Ray er;
+  const double t0 = embree_ray(ray, &er);
+  RTCRay r = make_rayhit(er, 0.0f, er.tmax, has_glass_ ? kOpaqueMask | kGlassMask : kOpaqueMask).ray;
   if (RayLog* log = thread_ray_log()) log->rays.push_back({r, from, LoggedRay::Kind::kShadow});
-  rtcOccluded1(rtc_scene_.get(), &ctx.rtc, &r);
-  if (r.tfar < 0.0f) return Rgb(0.0f);
+  if (t0 >= 0.0) {
+    rtcOccluded1(rtc_scene_.get(), &ctx.rtc, &r);
+    if (r.tfar < 0.0f) return Rgb(0.0f);
+  }
   if (!has_glass_) return Rgb(1.0f);
   ctx.glass = nullptr;
   return glass_product(ray, &ctx, &glass);
@@ -573,7 +603,9 @@ Rgb RenderScene::glass_product(const Ray& ray, TraceContext* ctx, GlassHits* gla
 }
 
 // The crossing-by-crossing walk, kept for rays that cross more than kMaxGlassHits glass surfaces.
-Rgb RenderScene::glass_transmittance_walk(const Ray& ray, TraceContext* ctx, Rgb T) const {
+Rgb RenderScene::glass_transmittance_walk(const Ray& original, TraceContext* ctx, Rgb T) const {
+  Ray ray;
+  if (embree_ray(original, &ray) < 0.0) return T;
   float tnear = 0.0f;
   for (int crossing = 0; crossing < kMaxGlassCrossings; ++crossing) {
     RTCRayHit rh = make_rayhit(ray, tnear, ray.tmax, kGlassMask);

@@ -122,9 +122,9 @@ class RenderScene {
     uint32_t bucket_index;  // 0 opaque, 1 glass: PrimRef::geom of its triangles
     uint32_t mask;
   };
-  // Half-width added to every user-geometry bounding box (see box_padding() in the .cpp): a
-  // bound on the rounding error of Embree's box test for rays starting within 32x the radius
-  // of the scene's bounded geometry around the eye.
+  // Half-width added to every user-geometry bounding box (see set_padded_bounds() in the .cpp):
+  // a bound on the rounding error of Embree's box test for rays starting within 32x the radius
+  // of the scene's bounded geometry around the eye (embree_ray() keeps every ray there).
   float box_padding(float box_magnitude) const { return 0x1p-16f * (box_magnitude + bounds_radius_); }
   const std::vector<Sphere>& spheres() const { return spheres_; }
 
@@ -156,6 +156,13 @@ class RenderScene {
  private:
   void build(const Scene& scene, int frame);
   double nearest_plane(const Vec3d& o, const Vec3d& d, const PrimRef& from, double tmax, int* which) const;
+  // The ray as Embree gets it. Embree's box test errs in proportion to the origin's magnitude,
+  // and box_padding() covers origins within 16 R (max norm) of the eye; a ray starting farther
+  // out (only a ray leaving an infinite plane can) starts instead where it enters the cube
+  // |x| <= 2 R, which holds all bounded geometry. Returns the distance skipped (0 for every
+  // other ray) and sets *embree_ray (tmax shortened to match), or -1 when the ray never enters
+  // the cube before tmax, so no bounded geometry can be met.
+  double embree_ray(const Ray& ray, Ray* embree_ray) const;
   Rgb glass_transmittance_walk(const Ray& ray, TraceContext* ctx, Rgb T) const;
   // The halves of intersect() and transmittance() around the Embree query, shared with the
   // packet versions (render_scene_packet.cpp).

@@ -52,21 +52,21 @@ void RenderScene::intersect_packet(const Ray* rays, const PrimRef* from, int n, 
   alignas(32) int valid[kPacket];
   alignas(32) RTCRayHit8 rh;
   int plane[kPacket];
-  double tp[kPacket];
+  double tp[kPacket], t0[kPacket];
   for (int i = 0; i < kPacket; ++i) {
     valid[i] = 0;
     rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
     if (i >= n) continue;
-    valid[i] = -1;
     tp[i] = nearest_plane(Vec3d(rays[i].o), Vec3d(rays[i].d), from[i], double(rays[i].tmax), &plane[i]);
-    set_lane(&rh.ray, i, rays[i], plane[i] >= 0 ? float(tp[i]) : rays[i].tmax, 0xFFFFFFFFu);
-  }
-  if (RayLog* log = thread_ray_log()) {
-    for (int i = 0; i < n; ++i) {
+    Ray er;
+    t0[i] = embree_ray({rays[i].o, rays[i].d, plane[i] >= 0 ? float(tp[i]) : rays[i].tmax}, &er);
+    set_lane(&rh.ray, i, er, er.tmax, 0xFFFFFFFFu);
+    if (RayLog* log = thread_ray_log()) {
       log->rays.push_back({lane_ray(rh.ray, i), from[i],
                            from[i].kind == PrimRef::Kind::kNone ? LoggedRay::Kind::kCamera : LoggedRay::Kind::kSecondary});
     }
+    if (t0[i] >= 0.0) valid[i] = -1;  // else no bounded geometry within reach: planes only
   }
   TraceContext ctx;
   rtcInitIntersectContext(&ctx.rtc);
@@ -74,8 +74,9 @@ void RenderScene::intersect_packet(const Ray* rays, const PrimRef* from, int n, 
   ctx.from_by_id = from;
   rtcIntersect8(valid, rtc_scene_.get(), &ctx.rtc, &rh);
   for (int i = 0; i < n; ++i) {
+    const float t = t0[i] > 0.0 ? float(t0[i] + double(rh.ray.tfar[i])) : rh.ray.tfar[i];
     found[i] = finish_hit(Vec3d(rays[i].o), Vec3d(rays[i].d), plane[i], tp[i], rh.hit.geomID[i], rh.hit.primID[i],
-                          rh.hit.u[i], rh.hit.v[i], rh.ray.tfar[i], &hits[i]);
+                          rh.hit.u[i], rh.hit.v[i], t, &hits[i]);
   }
 }
 
@@ -92,10 +93,24 @@ void RenderScene::transmittance_packet(const Ray* rays, const PrimRef* from, int
       T[i] = Rgb(0.0f);
       continue;
     }
+    Ray er;
+    const double t0 = embree_ray(rays[i], &er);
+    if (RayLog* log = thread_ray_log()) {
+      set_lane(&r, i, er, er.tmax, mask);
+      log->rays.push_back({lane_ray(r, i), from[i], LoggedRay::Kind::kShadow});
+    }
+    if (t0 < 0.0) {  // no bounded geometry within reach: planes only
+      TraceContext one;
+      rtcInitIntersectContext(&one.rtc);
+      one.scene = this;
+      one.from = from[i];
+      GlassHits none;
+      T[i] = has_glass_ ? glass_product(rays[i], &one, &none) : Rgb(1.0f);
+      continue;
+    }
     valid[i] = -1;
     ++live;
-    set_lane(&r, i, rays[i], rays[i].tmax, mask);
-    if (RayLog* log = thread_ray_log()) log->rays.push_back({lane_ray(r, i), from[i], LoggedRay::Kind::kShadow});
+    set_lane(&r, i, er, er.tmax, mask);
   }
   if (live == 0) return;
   TraceContext ctx;
