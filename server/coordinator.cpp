@@ -701,6 +701,7 @@ void Coordinator::worker_faulted(const JobId& job, const WorkerStats& w, std::st
   if (blocklisted) {
     spdlog::error("worker {} '{}' is blocklisted for job {} after {} faults: it gets no more of its tiles", w.id,
                   w.info.name, job, faults);
+    if (jobs_store_) jobs_store_->worker_blocklisted(job, w.info.name);  // survives a restart
   }
 }
 

@@ -47,6 +47,8 @@ CREATE TABLE tiles(job TEXT NOT NULL, frame INTEGER NOT NULL, tile INTEGER NOT N
 CREATE TABLE acked_frames(job TEXT NOT NULL, frame INTEGER NOT NULL, PRIMARY KEY(job, frame)) WITHOUT ROWID;
 CREATE TABLE leases(id INTEGER PRIMARY KEY, worker TEXT NOT NULL, job TEXT NOT NULL, frame INTEGER NOT NULL,
   tile INTEGER NOT NULL, issued REAL NOT NULL);
+-- Workers (by name) that get no more tiles of a job after --max-faults bad results.
+CREATE TABLE blocklist(job TEXT NOT NULL, worker TEXT NOT NULL, PRIMARY KEY(job, worker)) WITHOUT ROWID;
 )sql";
 
 std::optional<JobState> parse_state(const std::string& s) {
@@ -251,10 +253,12 @@ void JobStore::open_database() {
                          "its jobs, or start with another --data-dir");
       }
       if (version == 2) {
-        // Version 3 added jobs.owner (the per-client job quota survives a restart). Jobs stored
-        // by version 2 have no owner: they count for no client, as before.
+        // Version 3 added jobs.owner (the per-client job quota survives a restart) and the
+        // blocklist table (so do blocklists). Jobs stored by version 2 have no owner: they count
+        // for no client, as before; and no blocklist.
         exec("BEGIN");
         exec("ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT ''");
+        exec("CREATE TABLE blocklist(job TEXT NOT NULL, worker TEXT NOT NULL, PRIMARY KEY(job, worker)) WITHOUT ROWID");
         exec(("UPDATE schema_version SET version=" + std::to_string(kSchemaVersion)).c_str());
         exec("COMMIT");
         spdlog::info("database {}: migrated schema version 2 to {}", db, kSchemaVersion);
@@ -283,6 +287,7 @@ void JobStore::open_database() {
   ins_lease_ = prepare("INSERT OR REPLACE INTO leases(id, worker, job, frame, tile, issued) VALUES(?1,?2,?3,?4,?5,?6)");
   del_lease_ = prepare("DELETE FROM leases WHERE id=?1");
   evict_ = prepare("UPDATE jobs SET resident=0 WHERE id=?1");
+  ins_block_ = prepare("INSERT OR IGNORE INTO blocklist(job, worker) VALUES(?1,?2)");
   set_hwm_ = prepare("INSERT OR REPLACE INTO meta(key, value) VALUES('lease_hwm', ?1)");
   if (sqlite3_open_v2(db.c_str(), &read_db_, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, nullptr) != SQLITE_OK) {
     throw StoreError("cannot open the database " + db + " for reading: " + sqlite3_errmsg(read_db_));
@@ -337,6 +342,8 @@ JobStore::Loaded JobStore::load() {
       acked.insert(sqlite3_column_int(st, 0));
     });
     r.acknowledged.assign(acked.begin(), acked.end());
+    query("SELECT worker FROM blocklist WHERE job='" + r.id + "' ORDER BY worker",
+          [&](sqlite3_stmt* st) { r.blocklisted.push_back(text(st, 0)); });
     query("SELECT frame, tile, rays, seconds, segment, offset, length FROM tiles WHERE job='" + r.id +
               "' ORDER BY frame, tile",
           [&](sqlite3_stmt* st) {
@@ -419,6 +426,12 @@ std::optional<JobSnapshot> JobStore::read_job(const JobId& id) {
     while (sqlite3_step(st) == SQLITE_ROW) s->frames_acknowledged.push_back(sqlite3_column_int(st, 0));
     sqlite3_finalize(st);
   }
+  if (sqlite3_prepare_v2(read_db_, "SELECT worker FROM blocklist WHERE job=?1 ORDER BY worker", -1, &st, nullptr) ==
+      SQLITE_OK) {
+    sqlite3_bind_text(st, 1, id.c_str(), int(id.size()), SQLITE_TRANSIENT);
+    while (sqlite3_step(st) == SQLITE_ROW) s->blocklisted.push_back(text(st, 0));
+    sqlite3_finalize(st);
+  }
   return s;
 }
 
@@ -444,6 +457,7 @@ void JobStore::lease_issued(const Lease& l, const std::string& worker) {
 }
 void JobStore::lease_ended(LeaseId id) { push(LeaseEnded{id}); }
 void JobStore::job_evicted(const JobId& job) { push(Evicted{job}); }
+void JobStore::worker_blocklisted(const JobId& job, const std::string& worker) { push(Blocklisted{job, worker}); }
 
 std::future<std::string> JobStore::barrier() {
   auto p = std::make_shared<std::promise<std::string>>();
@@ -615,6 +629,10 @@ void JobStore::apply(std::vector<Op>& batch) {
       } else if (const auto* v = std::get_if<Evicted>(&op)) {
         bind_text(evict_, 1, v->job);
         step(evict_);
+      } else if (const auto* b = std::get_if<Blocklisted>(&op)) {
+        bind_text(ins_block_, 1, b->job);
+        bind_text(ins_block_, 2, b->worker);
+        step(ins_block_);
       }
     }
     if (hwm != lease_hwm_) {

@@ -47,7 +47,7 @@ class JobStore {
  public:
   // 2: tiles live in segment files (tiles.segment/offset/length). Version 1 (a file per tile) is
   // refused with a message, not migrated: no farm ran it in production.
-  static constexpr int kSchemaVersion = 3;  // 3: jobs.owner (version 2 is migrated)
+  static constexpr int kSchemaVersion = 3;  // 3: jobs.owner, blocklist (version 2 is migrated)
 
   // Opens or creates the store; checks the directory is writable, the database's integrity
   // (PRAGMA quick_check) and its schema version. Throws StoreError.
@@ -76,6 +76,7 @@ class JobStore {
   void lease_issued(const Lease& lease, const std::string& worker_name);
   void lease_ended(LeaseId id);
   void job_evicted(const JobId& job);  // left coordinator memory: its tiles are released
+  void worker_blocklisted(const JobId& job, const std::string& worker);  // by worker name
   // Resolved with "" once every write queued before it is committed, or with the error of the
   // batch that failed.
   std::future<std::string> barrier();
@@ -100,8 +101,9 @@ class JobStore {
   struct LeaseIssued { LeaseId id; std::string worker; TileKey tile; double issued; };
   struct LeaseEnded { LeaseId id; };
   struct Evicted { JobId job; };
+  struct Blocklisted { JobId job; std::string worker; };
   struct Barrier { std::shared_ptr<std::promise<std::string>> done; };
-  using Op = std::variant<JobRow, TileDone, FrameAck, LeaseIssued, LeaseEnded, Evicted, Barrier>;
+  using Op = std::variant<JobRow, TileDone, FrameAck, LeaseIssued, LeaseEnded, Evicted, Blocklisted, Barrier>;
 
   void push(Op op);
   void writer_loop();
@@ -128,7 +130,8 @@ class JobStore {
   std::mutex read_mu_;
   std::vector<sqlite3_stmt*> stmts_;
   sqlite3_stmt *ins_job_ = nullptr, *upd_job_ = nullptr, *ins_tile_ = nullptr, *ins_ack_ = nullptr,
-               *ins_lease_ = nullptr, *del_lease_ = nullptr, *evict_ = nullptr, *set_hwm_ = nullptr;
+               *ins_lease_ = nullptr, *del_lease_ = nullptr, *evict_ = nullptr, *set_hwm_ = nullptr,
+               *ins_block_ = nullptr;
 
   mutable std::mutex mu_;
   std::condition_variable cv_;

@@ -285,8 +285,8 @@ TEST_F(JobStoreTest, SchemaVersionTwoIsMigratedKeepingItsJobs) {
   // Make it a version-2 database: the same tables without jobs.owner.
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open((dir / "tessera.db").c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db, "ALTER TABLE jobs DROP COLUMN owner; UPDATE schema_version SET version=2", nullptr,
-                         nullptr, nullptr),
+  ASSERT_EQ(sqlite3_exec(db, "ALTER TABLE jobs DROP COLUMN owner; DROP TABLE blocklist; UPDATE schema_version SET version=2",
+                         nullptr, nullptr, nullptr),
             SQLITE_OK)
       << sqlite3_errmsg(db);
   sqlite3_close(db);
@@ -299,11 +299,13 @@ TEST_F(JobStoreTest, SchemaVersionTwoIsMigratedKeepingItsJobs) {
     EXPECT_EQ(l.jobs[0].spec.priority, 7);
     JobSnapshot j2 = job("j2", 2);
     store.job_submitted(j2);
+    store.worker_blocklisted("j1", "bad");  // the migration created the blocklist table
     ASSERT_EQ(store.barrier().get(), "");
   }
   JobStore store(dir);
   JobStore::Loaded l = store.load();
   ASSERT_EQ(l.jobs.size(), 2u);
+  EXPECT_EQ(l.jobs[0].blocklisted, std::vector<std::string>{"bad"});
   EXPECT_EQ(l.jobs[1].spec.owner, "ipv4:127.0.0.1");
   ASSERT_EQ(sqlite3_open((dir / "tessera.db").c_str(), &db), SQLITE_OK);
   sqlite3_stmt* st = nullptr;
@@ -312,6 +314,32 @@ TEST_F(JobStoreTest, SchemaVersionTwoIsMigratedKeepingItsJobs) {
   EXPECT_EQ(sqlite3_column_int(st, 0), JobStore::kSchemaVersion);
   sqlite3_finalize(st);
   sqlite3_close(db);
+}
+
+TEST_F(JobStoreTest, BlocklistsSurviveARestartAndEviction) {
+  {
+    JobStore store(dir);
+    store.load();
+    store.job_submitted(job("j1", 1));
+    store.job_submitted(job("j2", 2));
+    store.worker_blocklisted("j1", "liar-b");
+    store.worker_blocklisted("j1", "liar-a");
+    store.worker_blocklisted("j1", "liar-a");  // twice: stored once
+    ASSERT_EQ(store.barrier().get(), "");
+  }
+  {
+    JobStore store(dir);
+    JobStore::Loaded l = store.load();
+    ASSERT_EQ(l.jobs.size(), 2u);
+    EXPECT_EQ(l.jobs[0].blocklisted, (std::vector<std::string>{"liar-a", "liar-b"}));
+    EXPECT_TRUE(l.jobs[1].blocklisted.empty());
+    store.job_evicted("j1");
+    ASSERT_EQ(store.barrier().get(), "");
+    // An evicted job's status (read from SQLite) still names its blocklisted workers.
+    const auto s = store.read_job("j1");
+    ASSERT_TRUE(s.has_value());
+    EXPECT_EQ(s->blocklisted, (std::vector<std::string>{"liar-a", "liar-b"}));
+  }
 }
 
 TEST_F(JobStoreTest, RestoredJobRequeuesEverythingNotDone) {

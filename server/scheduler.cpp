@@ -419,6 +419,7 @@ void Scheduler::restore(JobRecord rec) {
   job.submitted = rec.submitted;
   job.ended = rec.ended;
   job.duplicates = rec.duplicates;
+  job.blocklisted.insert(rec.blocklisted.begin(), rec.blocklisted.end());
   job.tiles_x = (job.spec.width + job.spec.tile_size - 1) / job.spec.tile_size;
   job.tiles_y = (job.spec.height + job.spec.tile_size - 1) / job.spec.tile_size;
   const int frames = job.spec.last_frame - job.spec.first_frame + 1;

@@ -168,6 +168,7 @@ struct JobRecord {
   int64_t duplicates = 0;
   std::vector<RestoredTile> done;
   std::vector<int> acknowledged;  // absolute frame numbers
+  std::vector<std::string> blocklisted;  // worker names that get no more tiles of the job
 };
 
 struct SchedulerOptions {

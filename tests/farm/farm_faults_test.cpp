@@ -46,11 +46,12 @@ TEST(FarmFaults, BadResultsAreRefusedAndTheirWorkersBlocklisted) {
   }
   CliResult st = farm.cli({"status", job, "--json", "--coordinator", farm.address()});
   ASSERT_EQ(st.code, 0) << st.output;
-  // Evicted after the client acknowledged every frame: the status comes from SQLite and has no
-  // blocklist; the job is done with every tile exactly once.
+  // Evicted after the client acknowledged every frame: the status comes from SQLite, blocklist
+  // included; the job is done with every tile exactly once.
   auto j = nlohmann::json::parse(st.output);
   EXPECT_EQ(j.at("state"), "done");
   EXPECT_EQ(j.at("tiles_done"), 72);
+  EXPECT_EQ(j.at("blocklisted_workers").size(), faults.size()) << st.output;
   // Blocklisted workers rendered no accepted tile: all 72 came from the honest worker.
   CliResult w = farm.cli({"workers", "--json", "--coordinator", farm.address()});
   ASSERT_EQ(w.code, 0) << w.output;
@@ -61,6 +62,32 @@ TEST(FarmFaults, BadResultsAreRefusedAndTheirWorkersBlocklisted) {
       EXPECT_EQ(x.at("tiles_done").get<int>(), 0) << x.dump();
     }
   }
+}
+
+TEST(FarmFaults, BlocklistSurvivesACoordinatorRestart) {
+  Farm farm;
+  farm.start_server({"--max-faults", "2"});
+  farm.start_worker("liar", 1, 0, {"--test-fault", "nan"});
+  farm.start_worker("honest", 1, 150);  // slow: the job is still running at the restart
+  CliResult r = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--detach", "--tile", "16"});
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::string job = job_id_from(r.output);
+  const std::string blocked = "'liar' is blocklisted for job " + job;
+  for (int i = 0; i < 400 && farm.server().log().find(blocked) == std::string::npos; ++i) std::this_thread::sleep_for(25ms);
+  ASSERT_NE(farm.server().log().find(blocked), std::string::npos) << farm.server_logs();
+  farm.restart_server();
+  // Straight from the database: the restarted coordinator already refuses the liar this job.
+  CliResult st = farm.cli({"status", job, "--json", "--coordinator", farm.address()});
+  ASSERT_EQ(st.code, 0) << st.output;
+  auto j = nlohmann::json::parse(st.output);
+  ASSERT_NE(j.at("state"), "done") << "the job ended before the restart: nothing was tested";
+  EXPECT_EQ(j.at("blocklisted_workers"), nlohmann::json::array({"liar"})) << st.output;
+  ASSERT_TRUE(farm.wait_tiles_done(job, 72, 120s)) << farm.server_logs();
+  // The liar reconnected to the new coordinator and got no tile of the job: no refused result
+  // in the new log (without the stored blocklist it would fault twice more).
+  const std::string log = farm.server().log();
+  EXPECT_EQ(log.find("'liar': refused result for job " + job), std::string::npos) << log;
+  EXPECT_EQ(farm.tiles_done(job), 72);
 }
 
 TEST(FarmFaults, JobFailsClearlyWhenEveryWorkerIsBlocklisted) {
