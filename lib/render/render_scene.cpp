@@ -441,9 +441,7 @@ double RenderScene::nearest_plane(const Vec3d& o, const Vec3d& d, const PrimRef&
   return best;
 }
 
-double RenderScene::embree_ray(const Ray& ray, Ray* out) const {
-  *out = ray;
-  if (max_component(abs(ray.o)) <= 16.0f * bounds_radius_) return 0.0;
+double RenderScene::embree_ray_from_far(const Ray& ray, Ray* out) const {
   const double L = 2.0 * double(bounds_radius_);
   double t_in = 0.0, t_out = std::numeric_limits<double>::infinity();
   for (int k = 0; k < 3; ++k) {

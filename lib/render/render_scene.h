@@ -162,7 +162,11 @@ class RenderScene {
   // |x| <= 2 R, which holds all bounded geometry. Returns the distance skipped (0 for every
   // other ray) and sets *embree_ray (tmax shortened to match), or -1 when the ray never enters
   // the cube before tmax, so no bounded geometry can be met.
-  double embree_ray(const Ray& ray, Ray* embree_ray) const;
+  double embree_ray(const Ray& ray, Ray* embree_ray) const {
+    *embree_ray = ray;  // the common case, inline: every ray but those from far plane points
+    return max_component(abs(ray.o)) <= 16.0f * bounds_radius_ ? 0.0 : embree_ray_from_far(ray, embree_ray);
+  }
+  double embree_ray_from_far(const Ray& ray, Ray* embree_ray) const;
   Rgb glass_transmittance_walk(const Ray& ray, TraceContext* ctx, Rgb T) const;
   // The halves of intersect() and transmittance() around the Embree query, shared with the
   // packet versions (render_scene_packet.cpp).
