@@ -50,7 +50,8 @@ int run_render(const RenderArgs& a) {
   if (!parent.empty()) std::filesystem::create_directories(parent, ec);
 
   const auto t0 = std::chrono::steady_clock::now();
-  RenderScene rs(scene, a.frame);
+  const RenderOptions options;  // the defaults, as on every farm worker
+  RenderScene rs(scene, a.frame, options);
   const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const bool tty = !a.quiet && isatty(fileno(stderr));
   const FrameResult r = render_frame(rs, a.tile, a.threads, [&](int done, int total) {
@@ -66,6 +67,7 @@ int run_render(const RenderArgs& a) {
                       {"tessera:spp", int64_t(scene.image.spp)},
                       {"tessera:maxDepth", int64_t(scene.image.max_depth)},
                       {"tessera:sampler", std::string(sampler_name(scene.image.sampler))},
+                      {"tessera:triangleTest", std::string(triangle_test_name(options.triangles))},
                       {"tessera:seed", std::to_string(scene.image.seed)},
                       {"tessera:renderSeconds", r.seconds},
                       {"tessera:raysTraced", std::to_string(r.rays.total())},
