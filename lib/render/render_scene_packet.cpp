@@ -85,6 +85,7 @@ void RenderScene::transmittance_packet(const Ray* rays, const PrimRef* from, int
   alignas(32) RTCRay8 r;
   GlassHits glass[kPacket];
   const uint32_t mask = has_glass_ ? kOpaqueMask | kGlassMask : kOpaqueMask;
+  bool open[kPacket] = {};  // not blocked by an opaque plane: Embree (if in reach) decides
   int live = 0;
   for (int i = 0; i < kPacket; ++i) {
     valid[i] = 0;
@@ -93,35 +94,26 @@ void RenderScene::transmittance_packet(const Ray* rays, const PrimRef* from, int
       T[i] = Rgb(0.0f);
       continue;
     }
+    open[i] = true;
     Ray er;
     const double t0 = embree_ray(rays[i], &er);
-    if (RayLog* log = thread_ray_log()) {
-      set_lane(&r, i, er, er.tmax, mask);
-      log->rays.push_back({lane_ray(r, i), from[i], LoggedRay::Kind::kShadow});
-    }
-    if (t0 < 0.0) {  // no bounded geometry within reach: planes only
-      TraceContext one;
-      rtcInitIntersectContext(&one.rtc);
-      one.scene = this;
-      one.from = from[i];
-      GlassHits none;
-      T[i] = has_glass_ ? glass_product(rays[i], &one, &none) : Rgb(1.0f);
-      continue;
-    }
+    set_lane(&r, i, er, er.tmax, mask);
+    if (RayLog* log = thread_ray_log()) log->rays.push_back({lane_ray(r, i), from[i], LoggedRay::Kind::kShadow});
+    if (t0 < 0.0) continue;  // no bounded geometry within reach: planes only (no glass hits)
     valid[i] = -1;
     ++live;
-    set_lane(&r, i, er, er.tmax, mask);
   }
-  if (live == 0) return;
-  TraceContext ctx;
-  rtcInitIntersectContext(&ctx.rtc);
-  ctx.scene = this;
-  ctx.from_by_id = from;
-  if (has_glass_) ctx.glass = glass;
-  rtcOccluded8(valid, rtc_scene_.get(), &ctx.rtc, &r);
+  if (live > 0) {
+    TraceContext ctx;
+    rtcInitIntersectContext(&ctx.rtc);
+    ctx.scene = this;
+    ctx.from_by_id = from;
+    if (has_glass_) ctx.glass = glass;
+    rtcOccluded8(valid, rtc_scene_.get(), &ctx.rtc, &r);
+  }
   for (int i = 0; i < n; ++i) {
-    if (!valid[i]) continue;
-    if (r.tfar[i] < 0.0f) {
+    if (!open[i]) continue;
+    if (valid[i] && r.tfar[i] < 0.0f) {
       T[i] = Rgb(0.0f);
     } else if (!has_glass_) {
       T[i] = Rgb(1.0f);
