@@ -36,6 +36,7 @@ TEST(FarmFaults, BadResultsAreRefusedAndTheirWorkersBlocklisted) {
       {"no-scene", "worker cannot render: cannot load the scene"}};
   for (const auto& [mode, reason] : faults) farm.start_worker("bad-" + mode, 1, 0, {"--test-fault", mode});
   farm.start_worker("good", 1, 20);
+  wait_for_workers(farm, faults.size() + 1);  // the liars alone would fail the job
   const fs::path out = farm.dir() / "out";
   CliResult r = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "-o",
                           (out / "frame_####.exr").string(), "--tile", "16"});
