@@ -44,10 +44,11 @@ using TriangleGeomData = RenderScene::TriangleGeomData;
 // vertex-aimed rays miss an icosphere whose triangle test is exact). Its slab distances
 // fl(lower * rdir - fl(org * rdir)) use an approximate reciprocal rdir, so each is off by about
 // (2u + e_rcp)(|org| + |lower|) in distance along an axis, e_rcp <= 2^-22: at most
-// 2^-21 (|org| + |box|). Padding every box by 2^-16 (|box| + R), R = the radius of the bounded
-// geometry around the eye, covers that with a factor 32 for every ray starting within 32 R of
-// the eye: all camera rays (they start at the eye) and all rays leaving bounded geometry. A ray
-// leaving an infinite plane farther out is moved to start near the geometry first
+// 2^-21 (|org| + |box|). Padding every box by 2^-16 (|box| + R), R = the radius of the
+// triangles around the eye, covers that with a factor 32 for every ray starting within 32 R of
+// the eye: all camera rays (they start at the eye) and all rays leaving triangles or spheres
+// no bigger than the triangles' reach. A ray starting beyond 16 times the radius of all bounded
+// geometry (only a ray leaving an infinite plane can) is moved to start near the geometry first
 // (RenderScene::embree_ray). Padding only adds candidates; the primitive tests decide, so it
 // cannot change a pixel, only cost a little culling.
 void set_padded_bounds(RTCBounds* b, const Vec3f& lo, const Vec3f& hi, const RenderScene& scene) {
@@ -378,7 +379,8 @@ void RenderScene::build(const Scene& scene, int frame) {
   for (const Plane& p : planes_) has_glass_ = has_glass_ || is_glass(p.material);
 
   for (const TriangleBucket& b : triangles_) {
-    for (const Vec3f& p : b.positions) bounds_radius_ = std::max(bounds_radius_, max_component(abs(p)));
+    for (const Vec3f& p : b.positions) triangle_radius_ = std::max(triangle_radius_, max_component(abs(p)));
+    bounds_radius_ = triangle_radius_;
   }
   for (const Sphere& sp : spheres_) {
     bounds_radius_ = std::max(bounds_radius_, float(max_component(abs(sp.center)) + sp.radius));

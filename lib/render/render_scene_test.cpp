@@ -65,6 +65,28 @@ TEST_F(RenderSceneTest, RaysThroughSharedEdgesAndVerticesNeverLeak) {
   EXPECT_NEAR(h.t, float(std::sqrt(12.0)), 1e-5f);
 }
 
+// The box padding of the watertight mode scales with the triangles' reach, never with a huge
+// sphere's: a 1e6 ground sphere once widened every triangle's box by ~30 units and made a bunny
+// scene 1000x slower (the BVH could no longer cull). Mesh hits are unchanged by the sphere.
+TEST_F(RenderSceneTest, BoxPaddingIgnoresHugeSpheres) {
+  const std::string cube = R"({"type": "mesh", "file": "cube.obj", "material": "d"})";
+  const RenderScene alone(load(cube), 0);
+  const RenderScene with_ground(
+      load(cube + R"(, {"type": "sphere", "center": [0, -1000002, 0], "radius": 1e6, "material": "d"})"), 0);
+  EXPECT_EQ(with_ground.box_padding(1.0f), alone.box_padding(1.0f));
+  EXPECT_LT(alone.box_padding(1.0f), 1e-3f);
+  Hit a, b;
+  const Ray r = world_ray({0.25, 0.5, 5}, {0, 0, -1});
+  ASSERT_TRUE(alone.intersect(r, {}, &a));
+  ASSERT_TRUE(with_ground.intersect(r, {}, &b));
+  EXPECT_EQ(a.t, b.t);
+  EXPECT_EQ(a.prim.kind, PrimRef::Kind::kTriangle);
+  // The ground is still found below the cube.
+  ASSERT_TRUE(with_ground.intersect(world_ray({3, 0, 0}, {0, -1, 0}), {}, &b));
+  EXPECT_EQ(b.prim.kind, PrimRef::Kind::kSphere);
+  EXPECT_NEAR(b.t, 2.0f, 1e-3f);
+}
+
 TEST_F(RenderSceneTest, RayParallelToAFaceInItsPlaneDoesNotProduceGarbage) {
   RenderScene rs(load(R"({"type": "mesh", "file": "cube.obj", "material": "d"})"), 0);
   Hit h;
