@@ -108,6 +108,7 @@ MeshLoadResult load_mesh(const std::string& path, const std::vector<std::string>
   Assimp::Importer importer;
   auto* io = new TrackingIOSystem(confine_to);
   importer.SetIOHandler(io);  // the importer owns it
+  // Drop points and lines: only triangles are surfaces.
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
   const aiScene* ai = importer.ReadFile(
       path, aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_ValidateDataStructure);
