@@ -21,6 +21,7 @@
 #include "farm_frames.h"
 #include "image_options.h"
 #include "image/output_path.h"
+#include "sample_report.h"
 #include "scene/scene_parser.h"
 
 namespace tessera::cli {
@@ -106,7 +107,8 @@ class Progress {
   Progress(int64_t total, int64_t done_before) : total_(total), base_(done_before), tty_(isatty(fileno(stderr))) {
     start_ = now_s();
   }
-  void update(int64_t received, uint64_t rays, bool force = false) {
+  // `error`: the estimated error so far, e.g. "est. RMSE 0.0021 (target 0.002)"; may be empty.
+  void update(int64_t received, uint64_t rays, const std::string& error, bool force = false) {
     const double t = now_s();
     if (!force && t - last_ < (tty_ ? 0.2 : 5.0)) return;
     last_ = t;
@@ -118,13 +120,14 @@ class Progress {
     if (tty_) {
       const int width = 30;
       const int fill = total_ > 0 ? int(double(done) / double(total_) * width) : width;
-      std::fprintf(stderr, "\r[%s%s] %lld/%lld tiles  %.1f Mrays/s  ETA %s   ", std::string(size_t(fill), '#').c_str(),
-                   std::string(size_t(width - fill), '.').c_str(), (long long)done, (long long)total_, mrays,
+      std::fprintf(stderr, "\r[%s%s] %lld/%lld tiles  %.1f Mrays/s  %s%sETA %s   ",
+                   std::string(size_t(fill), '#').c_str(), std::string(size_t(width - fill), '.').c_str(),
+                   (long long)done, (long long)total_, mrays, error.c_str(), error.empty() ? "" : "  ",
                    fmt_duration(eta).c_str());
     } else {
-      std::fprintf(stderr, "progress: %lld/%lld tiles (%.0f%%), %.1f Mrays/s, ETA %s\n", (long long)done,
-                   (long long)total_, total_ ? 100.0 * double(done) / double(total_) : 100.0, mrays,
-                   fmt_duration(eta).c_str());
+      std::fprintf(stderr, "progress: %lld/%lld tiles (%.0f%%), %.1f Mrays/s, %s%sETA %s\n", (long long)done,
+                   (long long)total_, total_ ? 100.0 * double(done) / double(total_) : 100.0, mrays, error.c_str(),
+                   error.empty() ? "" : ", ", fmt_duration(eta).c_str());
     }
     std::fflush(stderr);
   }
@@ -146,7 +149,31 @@ struct WatchOptions {
   std::string scene_name;
   bool quiet = false;
   color::OutputOptions color;  // tone mapping / format when the output is not a float EXR
+  bool error_channels = false;  // error.Y and spp.Y layers in each EXR
+  double preview_every = 0;     // seconds between previews of frames in progress; 0: none
 };
+
+// The progress display's error: the estimate over the pixels received so far, and the target.
+std::string progress_error(const FrameAssembler& frames) {
+  if (frames.tiles_received() == 0) return {};
+  char buf[96];
+  if (frames.settings().adaptive()) {
+    std::snprintf(buf, sizeof buf, "est. RMSE %.3g (target %.3g)", frames.running_estimated_rmse(),
+                  frames.settings().target_rmse);
+  } else {
+    std::snprintf(buf, sizeof buf, "est. RMSE %.3g", frames.running_estimated_rmse());
+  }
+  return buf;
+}
+
+// "64 spp" for a uniform job, "target RMSE 0.002 (spp 16-1024)" for a target-error one.
+std::string describe_sampling(const v1::JobStatus& st) {
+  const ImageSettings s = job_image_settings(st);
+  if (!s.adaptive()) return std::to_string(st.spp()) + " spp";
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "target RMSE %.3g (spp %d-%d)", s.target_rmse, s.min_spp, s.max_spp);
+  return buf;
+}
 
 int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions& o) {
   std::optional<FrameAssembler> frames;
@@ -154,6 +181,7 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
   v1::JobStatus final_status;
   int reconnects = 0;
   double total_start = now_s();
+  double last_preview = now_s();
   while (true) {
     // Long-lived stream: no short deadline (a job may take days); keepalive pings on the
     // channel detect a dead coordinator, and a lost stream is re-attached below.
@@ -170,9 +198,9 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
         if (!frames) {
           frames.emplace(st);
           if (!o.quiet) {
-            std::printf("job %s: %s, frames %d-%d, %dx%d, %d spp, %lld tiles (%lld done)\n", st.job_id().c_str(),
-                        state_name(st.state()), st.first_frame(), st.last_frame(), st.width(), st.height(), st.spp(),
-                        (long long)st.tiles_total(), (long long)st.tiles_done());
+            std::printf("job %s: %s, frames %d-%d, %dx%d, %s, %lld tiles (%lld done)\n", st.job_id().c_str(),
+                        state_name(st.state()), st.first_frame(), st.last_frame(), st.width(), st.height(),
+                        describe_sampling(st).c_str(), (long long)st.tiles_total(), (long long)st.tiles_done());
             for (int f : st.frames_acknowledged()) {
               std::printf("frame %d was already delivered to an earlier client\n", f);
             }
@@ -191,7 +219,15 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
         std::string err;
         frames->add(ev.tile(), &err);
         if (!err.empty()) spdlog::warn("ignored a tile: {}", err);
-        if (!o.quiet) progress->update(frames->tiles_received(), frames->rays_received());
+        if (!o.quiet) progress->update(frames->tiles_received(), frames->rays_received(), progress_error(*frames));
+        if (o.preview_every > 0 && !o.output.empty() && now_s() - last_preview >= o.preview_every) {
+          last_preview = now_s();
+          try {
+            frames->write_previews(o.output, o.color);
+          } catch (const std::exception& e) {
+            spdlog::warn("cannot write a preview: {}", e.what());  // the frames themselves still come
+          }
+        }
       } else if (ev.event_case() == v1::WatchJobEvent::kFrameDone) {
         const int f = ev.frame_done();
         if (!o.output.empty() && frames->written(f)) {
@@ -208,15 +244,19 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
         if (o.output.empty() || !frames->complete(f)) continue;
         FrameReport rep;
         try {
-          rep = frames->write(f, o.output, o.scene_name, o.color);
+          rep = frames->write(f, o.output, o.scene_name, o.color, o.error_channels);
         } catch (const std::exception& e) {
           throw FarmError{kExitFailure, std::string("cannot write frame ") + std::to_string(f) + ": " + e.what()};
         }
         if (!o.quiet) progress->clear_line();
         const double secs = rep.wall_seconds > 0.05 ? rep.wall_seconds : rep.tile_seconds;
-        std::printf("%s: frame %d: %.3f s, %.2f Mrays/s, est. RMSE %.3g, %zu worker(s)\n", rep.path.c_str(), f, secs,
-                    secs > 0 ? double(rep.rays) / secs / 1e6 : 0.0, rep.estimated_rmse, rep.workers.size());
+        std::printf("%s: frame %d: %.3f s, %.2f Mrays/s, %s, %zu worker(s)\n", rep.path.c_str(), f, secs,
+                    secs > 0 ? double(rep.rays) / secs / 1e6 : 0.0,
+                    describe_samples(rep.samples, frames->settings()).c_str(), rep.workers.size());
         std::fflush(stdout);
+        if (const std::string w = target_warning(rep.samples, frames->settings()); !w.empty()) {
+          spdlog::warn("frame {}: {}", f, w);
+        }
         v1::AckFrameRequest ack;
         ack.set_job_id(job_id);
         ack.set_frame(f);
@@ -241,7 +281,7 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
     throw FarmError{kExitFailure, client.describe(s, "watching job " + job_id)};
   }
   if (!o.quiet) {
-    progress->update(frames->tiles_received(), frames->rays_received(), true);
+    progress->update(frames->tiles_received(), frames->rays_received(), progress_error(*frames), true);
     progress->clear_line();
   }
   const double total = now_s() - total_start;
@@ -268,6 +308,8 @@ struct SubmitArgs {
   int priority = 0;
   bool detach = false;
   bool quiet = false;
+  bool error_channels = false;
+  double preview_every = 0;
   color::OutputOptions color;
 };
 
@@ -348,22 +390,24 @@ int run_submit(const SubmitArgs& a) {
     throw FarmError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
                     client.describe(s, "submitting the job")};
   }
-  std::printf("job %s submitted to %s: frames %d-%d, %dx%d, %d spp, %lld tiles\n", st.job_id().c_str(),
-              client.address().c_str(), st.first_frame(), st.last_frame(), st.width(), st.height(), st.spp(),
-              (long long)st.tiles_total());
+  std::printf("job %s submitted to %s: frames %d-%d, %dx%d, %s, %lld tiles\n", st.job_id().c_str(),
+              client.address().c_str(), st.first_frame(), st.last_frame(), st.width(), st.height(),
+              describe_sampling(st).c_str(), (long long)st.tiles_total());
   std::fflush(stdout);
   if (a.detach) {
     std::printf("detached; get the frames with: tessera watch %s -o %s\n", st.job_id().c_str(),
                 a.output.empty() ? "OUT_####.exr" : a.output.c_str());
     return 0;
   }
-  return watch_job(client, st.job_id(), {a.output, req.name(), a.quiet, a.color});
+  return watch_job(client, st.job_id(), {a.output, req.name(), a.quiet, a.color, a.error_channels, a.preview_every});
 }
 
 struct JobArgs {
   std::string coordinator, job, output;
   SecurityFlags security;
   bool json = false, quiet = false;
+  bool error_channels = false;
+  double preview_every = 0;
   color::OutputOptions color;
 };
 
@@ -378,7 +422,7 @@ int run_watch(const JobArgs& a) {
     throw job_error(client, s, "looking up job " + a.job);
   }
   if (!a.output.empty()) check_output_writable(a.output, st.first_frame());
-  return watch_job(client, a.job, {a.output, st.name(), a.quiet, a.color});
+  return watch_job(client, a.job, {a.output, st.name(), a.quiet, a.color, a.error_channels, a.preview_every});
 }
 
 nlohmann::json job_json(const v1::JobStatus& j) {
@@ -391,6 +435,7 @@ nlohmann::json job_json(const v1::JobStatus& j) {
           {"width", j.width()},
           {"height", j.height()},
           {"spp", j.spp()},
+          {"target_rmse", j.overrides().has_target_rmse() ? nlohmann::json(j.overrides().target_rmse()) : nlohmann::json(nullptr)},
           {"tile_size", j.tile_size()},
           {"tiles_total", j.tiles_total()},
           {"tiles_done", j.tiles_done()},
@@ -524,6 +569,15 @@ void add_coordinator_option(CLI::App* cmd, std::string* target, SecurityFlags* s
   cmd->add_option("--tls-key", security->tls_key, "PEM private key of --tls-cert")->group("Security");
 }
 
+void add_frame_output_options(CLI::App* cmd, bool* error_channels, double* preview_every) {
+  cmd->add_flag("--error-channels", *error_channels,
+                "Add per-pixel layers to each EXR: error.Y (estimated RMSE of the pixel) and spp.Y (its samples)");
+  cmd->add_option("--preview-every", *preview_every,
+                  "Every this many seconds, write each frame in progress beside its output as NAME.preview.EXT "
+                  "(missing tiles black; removed when the frame is written)")
+      ->check(CLI::Range(0.1, 86400.0));
+}
+
 }  // namespace
 
 void register_farm_commands(CLI::App& app) {
@@ -540,6 +594,7 @@ void register_farm_commands(CLI::App& app) {
     cmd->add_option("--name", a->name, "Job name (default: the scene file name)");
     cmd->add_flag("--detach", a->detach, "Submit and return; fetch the frames later with `tessera watch`");
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
+    add_frame_output_options(cmd, &a->error_channels, &a->preview_every);
     color::add_output_options(*cmd, a->color);  // -o frame_####.png etc.: see `tessera convert`
     cmd->callback([a] {
       guarded("submit", [&] {
@@ -555,6 +610,7 @@ void register_farm_commands(CLI::App& app) {
     cmd->add_option("-o,--output", a->output, "Write frames here ('#' runs become the frame number)");
     add_coordinator_option(cmd, &a->coordinator, &a->security);
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
+    add_frame_output_options(cmd, &a->error_channels, &a->preview_every);
     color::add_output_options(*cmd, a->color);
     cmd->callback([a] { guarded("watch", [&] { return run_watch(*a); }); });
   }

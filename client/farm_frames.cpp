@@ -4,10 +4,12 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <sstream>
 
 #include "farm/codec.h"
 #include "image/output_path.h"
 #include "render/tile_renderer.h"
+#include "sample_report.h"
 
 namespace tessera::cli {
 
@@ -17,7 +19,25 @@ double now_s() {
 }
 }  // namespace
 
-FrameAssembler::FrameAssembler(const tessera::v1::JobStatus& job) : job_(job) {}
+ImageSettings job_image_settings(const tessera::v1::JobStatus& job) {
+  ImageSettings s;
+  s.width = job.width();
+  s.height = job.height();
+  s.spp = job.spp();
+  const auto& o = job.overrides();
+  if (o.has_target_rmse()) s.target_rmse = o.target_rmse();
+  if (o.has_min_spp()) s.min_spp = o.min_spp();
+  if (o.has_max_spp()) s.max_spp = o.max_spp();
+  if (o.has_sampler()) s.sampler = sampler_from_name(o.sampler()).value_or(s.sampler);
+  return s;
+}
+
+std::string preview_path(const std::string& frame_path) {
+  const std::filesystem::path p(frame_path);
+  return (p.parent_path() / (p.stem().string() + ".preview" + p.extension().string())).string();
+}
+
+FrameAssembler::FrameAssembler(const tessera::v1::JobStatus& job) : job_(job), settings_(job_image_settings(job)) {}
 
 bool FrameAssembler::add(const tessera::v1::TileData& tile, std::string* error) {
   if (tile.frame() < job_.first_frame() || tile.frame() > job_.last_frame() || tile.tile_index() < 0 ||
@@ -35,9 +55,14 @@ bool FrameAssembler::add(const tessera::v1::TileData& tile, std::string* error) 
   if (f.image.width == 0) {
     f.image = ImageRGB(job_.width(), job_.height());
     f.variance.assign(f.image.pixel_count(), 0.0f);
+    f.spp.assign(f.image.pixel_count(), 0);
     f.first = now_s();
   }
-  place_tile(r, &f.image, &f.variance);
+  // Tiles of workers that predate per-pixel sample counts: every pixel took the job's spp.
+  if (r.spp.empty()) r.spp.assign(r.variance.size(), uint32_t(job_.spp()));
+  place_tile(r, &f.image, &f.variance, &f.spp);
+  for (float v : r.variance) variance_sum_ += double(v);
+  pixels_ += int64_t(r.variance.size());
   f.tiles.insert(tile.tile_index());
   f.last = now_s();
   f.tile_seconds += r.seconds;
@@ -54,7 +79,7 @@ bool FrameAssembler::complete(int frame) const {
 }
 
 FrameReport FrameAssembler::write(int frame, const std::string& pattern, const std::string& scene_name,
-                                  const color::OutputOptions& color) {
+                                  const color::OutputOptions& color, bool error_channels) {
   Frame& f = frames_.at(frame);
   FrameReport rep;
   rep.frame = frame;
@@ -63,32 +88,57 @@ FrameReport FrameAssembler::write(int frame, const std::string& pattern, const s
   rep.tile_seconds = f.tile_seconds;
   rep.rays = f.rays;
   rep.workers = f.workers;
-  double sum = 0;
-  for (float v : f.variance) sum += v;
-  rep.estimated_rmse = f.variance.empty() ? 0.0 : std::sqrt(sum / double(f.variance.size()));
+  rep.samples = summarize_samples(f.variance, f.spp, f.image.width, f.image.height, settings_);
   std::string workers;
   for (const auto& w : f.workers) workers += (workers.empty() ? "" : ",") + w;
   ExrAttributes attrs{{"renderer", std::string("tessera 0.1.0 (farm)")},
                       {"tessera:scene", scene_name},
                       {"tessera:job", job_.job_id()},
                       {"tessera:frame", int64_t(frame)},
-                      {"tessera:spp", int64_t(job_.spp())},
                       {"tessera:renderSeconds", rep.wall_seconds},
                       {"tessera:tileSeconds", rep.tile_seconds},
                       {"tessera:raysTraced", std::to_string(rep.rays)},
-                      {"tessera:estimatedRmse", rep.estimated_rmse},
                       {"tessera:workers", workers}};
+  if (!settings_.adaptive()) attrs["tessera:spp"] = int64_t(job_.spp());
+  add_sample_attributes(rep.samples, settings_, &attrs);
   const auto parent = std::filesystem::path(rep.path).parent_path();
   std::error_code ec;
   if (!parent.empty()) std::filesystem::create_directories(parent, ec);
   if (color::is_float_exr_output(color, rep.path)) {
-    write_exr(rep.path, f.image, attrs);
+    const ErrorChannels channels = error_channels ? make_error_channels(f.variance, f.spp) : ErrorChannels{};
+    write_exr(rep.path, f.image, attrs, ExrPixelType::kFloat,
+              error_channels ? channels.channels() : std::vector<ExrChannel>{});
   } else {
     color::write_output(f.image, rep.path, color, std::cout);
   }
+  std::filesystem::remove(preview_path(rep.path), ec);  // the preview has served its purpose
   written_.insert(frame);
   frames_.erase(frame);  // free the pixels
   return rep;
+}
+
+int FrameAssembler::write_previews(const std::string& pattern, const color::OutputOptions& color) {
+  int written = 0;
+  for (const auto& [frame, f] : frames_) {
+    if (f.tiles.empty() || int(f.tiles.size()) == job_.tiles_per_frame()) continue;
+    const std::string path = preview_path(frame_output_path(pattern, frame));
+    // Written beside and renamed into place: a viewer never sees half a file.
+    const std::string tmp = path + ".tmp" + std::filesystem::path(path).extension().string();
+    if (color::is_float_exr_output(color, path)) {
+      write_exr(tmp, f.image,
+                {{"tessera:job", job_.job_id()},
+                 {"tessera:frame", int64_t(frame)},
+                 {"tessera:preview", std::string("missing tiles are black")},
+                 {"tessera:tilesDone", int64_t(f.tiles.size())},
+                 {"tessera:tilesTotal", int64_t(job_.tiles_per_frame())}});
+    } else {
+      std::ostringstream quiet;  // the conversion report of a preview is noise
+      color::write_output(f.image, tmp, color, quiet);
+    }
+    std::filesystem::rename(tmp, path);
+    ++written;
+  }
+  return written;
 }
 
 }  // namespace tessera::cli

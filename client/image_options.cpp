@@ -8,7 +8,12 @@ void add_image_options(CLI::App& cmd, ImageOptions& o) {
   cmd.add_option("--height", o.overrides.height, "Image height (overrides the scene)");
   cmd.add_option("--max-depth", o.overrides.max_depth, "Maximum reflection/refraction depth");
   cmd.add_option("--seed", o.overrides.seed, "Sampler seed");
-  cmd.add_option("--sampler", o.sampler, "stratified (default), independent or center");
+  cmd.add_option("--sampler", o.sampler,
+                 "sobol (default; also called stratified), cmj, independent or center");
+  cmd.add_option("--target-rmse", o.overrides.target_rmse,
+                 "Render to a target error: samples go where the estimated RMSE (linear light) is above this");
+  cmd.add_option("--min-spp", o.overrides.min_spp, "With --target-rmse: fewest samples per pixel (default 16)");
+  cmd.add_option("--max-spp", o.overrides.max_spp, "With --target-rmse: most samples per pixel (default 1024)");
 }
 
 Scene load_scene_with(const std::string& path, const ImageOptions& o, ImageOverrides* resolved) {
@@ -16,7 +21,9 @@ Scene load_scene_with(const std::string& path, const ImageOptions& o, ImageOverr
   ImageOverrides overrides = o.overrides;
   if (!o.sampler.empty()) {
     overrides.sampler = sampler_from_name(o.sampler);
-    if (!overrides.sampler) throw SceneError("--sampler: must be one of stratified, independent, center");
+    if (!overrides.sampler) {
+      throw SceneError("--sampler: must be one of " + std::string(sampler_names()) + ", got '" + o.sampler + "'");
+    }
   }
   apply_overrides(scene, overrides);
   if (resolved) *resolved = overrides;

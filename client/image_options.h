@@ -15,7 +15,7 @@ struct ImageOptions {
   std::string sampler;  // empty: the scene's
 };
 
-// Adds --spp, --width, --height, --max-depth, --seed and --sampler.
+// Adds --spp, --width, --height, --max-depth, --seed, --sampler, --target-rmse, --min-spp, --max-spp.
 void add_image_options(CLI::App& command, ImageOptions& options);
 
 // Loads the scene and applies the overrides; throws SceneError naming the file or flag.

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 
 #include "color/output_options.h"
@@ -14,6 +16,7 @@
 #include "image/output_path.h"
 #include "render/embree_device.h"
 #include "render/tile_renderer.h"
+#include "sample_report.h"
 #include "scene/scene_parser.h"
 
 namespace tessera::cli {
@@ -28,6 +31,7 @@ struct RenderArgs {
   int threads = 0;
   int tile = 32;
   bool quiet = false;
+  bool error_channels = false;  // error.Y and spp.Y layers in the EXR
   color::OutputOptions color;  // tone mapping / format when -o is not a float EXR
 };
 
@@ -61,23 +65,34 @@ int run_render(const RenderArgs& a) {
     }
   });
   const double mrays = double(r.rays.total()) / r.seconds / 1e6;
+  const SampleSummary samples = r.summary();
   ExrAttributes attrs{{"renderer", std::string("tessera 0.1.0 (") + embree_isa() + ")"},
                       {"tessera:scene", std::filesystem::path(a.scene).filename().string()},
                       {"tessera:frame", int64_t(a.frame)},
-                      {"tessera:spp", int64_t(scene.image.spp)},
                       {"tessera:maxDepth", int64_t(scene.image.max_depth)},
                       {"tessera:sampler", std::string(sampler_name(scene.image.sampler))},
                       {"tessera:triangleTest", std::string(triangle_test_name(options.triangles))},
                       {"tessera:seed", std::to_string(scene.image.seed)},
                       {"tessera:renderSeconds", r.seconds},
-                      {"tessera:raysTraced", std::to_string(r.rays.total())},
-                      {"tessera:estimatedRmse", r.estimated_rmse()}};
+                      {"tessera:raysTraced", std::to_string(r.rays.total())}};
+  if (!scene.image.adaptive()) attrs["tessera:spp"] = int64_t(scene.image.spp);
+  add_sample_attributes(samples, scene.image, &attrs);
   const bool float_exr = color::is_float_exr_output(a.color, out);
+  std::ostringstream conversion;
+  if (a.error_channels && !float_exr) {
+    std::cerr << "tessera render: --error-channels needs a float EXR output (-o ending in .exr, no --format)\n";
+    return 2;
+  }
   try {
     if (float_exr) {
-      write_exr(out, r.image, attrs);  // keeps the render's attributes
+      const ErrorChannels channels =
+          a.error_channels ? make_error_channels(r.variance, r.spp) : ErrorChannels{};
+      // Keeps the render's attributes; the error layers on request.
+      write_exr(out, r.image, attrs, ExrPixelType::kFloat,
+                a.error_channels ? channels.channels() : std::vector<ExrChannel>{});
     } else {
-      color::write_output(r.image, out, a.color, std::cout);  // tone map + quantize + report
+      // Tone map + quantize + its report: a line before the render's own, or a member of the JSON.
+      color::write_output(r.image, out, a.color, a.color.report == "json" ? conversion : std::cout);
     }
   } catch (const std::exception& e) {
     std::cerr << "tessera render: " << e.what() << "\n";
@@ -86,11 +101,33 @@ int run_render(const RenderArgs& a) {
   if (r.rays.nonfinite_samples > 0) {
     spdlog::warn("{} samples had non-finite radiance and were replaced by 0", r.rays.nonfinite_samples);
   }
-  std::printf("%s: %dx%d, %d spp, frame %d: %.3f s (+%.3f s scene build), %.2f Mrays/s "
-              "(%llu camera, %llu shadow, %llu secondary), est. RMSE %.3g\n",
-              out.c_str(), scene.image.width, scene.image.height, scene.image.spp, a.frame, r.seconds, build_s, mrays,
+  if (const std::string w = target_warning(samples, scene.image); !w.empty()) spdlog::warn("{}", w);
+  // --report json (shared with the color options): the whole result as one JSON object.
+  if (a.color.report == "json") {
+    nlohmann::json j{{"output", out},
+                     {"scene", a.scene},
+                     {"frame", a.frame},
+                     {"width", scene.image.width},
+                     {"height", scene.image.height},
+                     {"sampler", sampler_name(scene.image.sampler)},
+                     {"seconds", r.seconds},
+                     {"build_seconds", build_s},
+                     {"mrays_per_s", mrays},
+                     {"rays", {{"camera", r.rays.camera}, {"shadow", r.rays.shadow}, {"secondary", r.rays.secondary},
+                               {"nonfinite_samples", r.rays.nonfinite_samples}}},
+                     {"renderer", embree_isa()}};
+    if (!scene.image.adaptive()) j["spp"] = scene.image.spp;
+    j.update(samples_json(samples, scene.image));
+    if (!conversion.str().empty()) j["conversion"] = nlohmann::json::parse(conversion.str());
+    std::printf("%s\n", j.dump(2).c_str());
+    return 0;
+  }
+  const std::string spp = scene.image.adaptive() ? "adaptive" : std::to_string(scene.image.spp) + " spp";
+  std::printf("%s: %dx%d, %s, frame %d: %.3f s (+%.3f s scene build), %.2f Mrays/s "
+              "(%llu camera, %llu shadow, %llu secondary), %s\n",
+              out.c_str(), scene.image.width, scene.image.height, spp.c_str(), a.frame, r.seconds, build_s, mrays,
               (unsigned long long)r.rays.camera, (unsigned long long)r.rays.shadow,
-              (unsigned long long)r.rays.secondary, r.estimated_rmse());
+              (unsigned long long)r.rays.secondary, describe_samples(samples, scene.image).c_str());
   return 0;
 }
 
@@ -106,6 +143,8 @@ void register_render_command(CLI::App& app) {
   cmd->add_option("--threads", args->threads, "Render threads (default: all cores)")->check(CLI::Range(0, 4096));
   cmd->add_option("--tile", args->tile, "Tile size in pixels (does not change the image)")->check(CLI::Range(1, 4096));
   cmd->add_flag("-q,--quiet", args->quiet, "No progress display");
+  cmd->add_flag("--error-channels", args->error_channels,
+                "Add per-pixel layers to the EXR: error.Y (estimated RMSE of the pixel) and spp.Y (its samples)");
   // -o with another extension (or --format) writes that format directly: see `tessera convert`.
   color::add_output_options(*cmd, args->color);
   cmd->callback([args] {

@@ -210,7 +210,8 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out, 
   }
   spec.width = scene.image.width;
   spec.height = scene.image.height;
-  spec.spp = scene.image.spp;
+  // An adaptive job's spp is its most samples per pixel (what limits and estimates go by).
+  spec.spp = scene.image.adaptive() ? scene.image.max_spp : scene.image.spp;
   const int frame_count = scene.frame_count();
   spec.first_frame = req.has_first_frame() ? req.first_frame() : 0;
   spec.last_frame = req.has_last_frame() ? req.last_frame() : frame_count - 1;
@@ -225,7 +226,16 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out, 
   spec.owner = admission.owner;
   spec.name = req.name();
   spec.bundle_sha256 = req.bundle_sha256();
-  spec.overrides = req.overrides().SerializeAsString();
+  // The overrides as stored, sent to workers and shown to clients carry the target-error settings
+  // in effect, also where they came from the scene file: `tessera watch` then knows the target
+  // without the scene, and workers apply exactly the same settings.
+  v1::ImageOverrides resolved = req.overrides();
+  if (scene.image.adaptive()) {
+    resolved.set_target_rmse(scene.image.target_rmse);
+    resolved.set_min_spp(scene.image.min_spp);
+    resolved.set_max_spp(scene.image.max_spp);
+  }
+  spec.overrides = resolved.SerializeAsString();
   spec.tile_size = tile;
   spec.priority = req.priority();
   const JobId id = locked([&] {

@@ -35,7 +35,11 @@ grpc::Status Limits::check_job(const Scene& scene, int first_frame, int last_fra
                           " (width*height)",
                       pixels, "--max-pixels", max_pixels);
   }
-  if (scene.image.spp > max_spp) {
+  if (scene.image.adaptive() && scene.image.max_spp > max_spp) {
+    return over_limit(grpc::StatusCode::INVALID_ARGUMENT, "max_spp (of a target-error render)", scene.image.max_spp,
+                      "--max-spp", max_spp);
+  }
+  if (!scene.image.adaptive() && scene.image.spp > max_spp) {
     return over_limit(grpc::StatusCode::INVALID_ARGUMENT, "spp", scene.image.spp, "--max-spp", max_spp);
   }
   const int64_t frames = int64_t(last_frame) - first_frame + 1;

@@ -1,13 +1,19 @@
-// Speed against error (issue 6, part 1): renders a scene at spp = 1, 2, 4, ... for each sampler
-// and measures render time, Mrays/s, RMSE and relMSE against a high-spp reference, next to the
-// RMSE the renderer itself estimates from the per-pixel sample variance. Prints JSON on stdout;
-// writes a markdown table and a gnuplot data file when asked. Asserts nothing about time.
+// Speed against error: renders a scene at spp = 1, 2, 4, ... for each sampler and measures render
+// time, Mrays/s, RMSE and relMSE against a high-spp reference, next to the RMSE the renderer
+// itself estimates (from each pixel's two independent sample streams). Then renders to a ladder
+// of target errors (--target-rmse) and compares each with the uniform-spp render of the default
+// sampler at the same measured error (interpolated in log-log on the uniform ladder). Prints JSON
+// on stdout; writes markdown tables and gnuplot data files when asked. Asserts nothing about time.
 //
 //   speed_error --scene scenes/whitted.json --width 320 --height 180 --max-spp 1024
-//               --ref-spp 4096 --cache DIR [--samplers stratified,independent,center]
-//               [--center-max-spp 16] [--threads 0] [--target-rmse 0.01]
-//               [--markdown OUT.md] [--data OUT.dat]
+//               --ref-spp 4096 --cache DIR [--samplers sobol,cmj,independent,center]
+//               [--center-max-spp 16] [--threads 0] [--targets auto|0.01,0.005]
+//               [--markdown OUT.md] [--data OUT.dat] [--target-data OUT.dat]
+//
+// Times are CPU-seconds of the process (all render threads), which a shared machine disturbs less
+// than wall time; wall time is reported too.
 #include <spdlog/spdlog.h>
+#include <sys/resource.h>
 
 #include <algorithm>
 #include <cmath>
@@ -33,12 +39,67 @@ using namespace tessera;
 
 namespace {
 
+double rmse(const ImageRGB& a, const ImageRGB& ref);
+double relmse(const ImageRGB& a, const ImageRGB& ref);
+
 struct Point {
   std::string sampler;
   int spp = 0;
-  double seconds = 0, mrays = 0, rmse = 0, relmse = 0, est_rmse = 0;
+  double seconds = 0, cpu_seconds = 0, mrays = 0, rmse = 0, relmse = 0, est_rmse = 0;
   uint64_t rays = 0;
+  // Target-error renders only.
+  double target = 0, mean_spp = 0;
+  uint32_t min_spp = 0, max_spp = 0;
+  int64_t unconverged_pixels = 0;
+  double uniform_cpu_seconds = 0, uniform_spp = 0;  // the default sampler's uniform render at equal RMSE
+  bool extrapolated = false;
 };
+
+double cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+// Renders and measures one point.
+Point measure(const Scene& s, int threads, const ImageRGB& ref) {
+  RenderScene rs(s, 0);
+  const double c0 = cpu_seconds();
+  const FrameResult r = render_frame(rs, 32, threads);
+  Point p;
+  p.cpu_seconds = cpu_seconds() - c0;
+  p.sampler = sampler_name(s.image.sampler);
+  p.spp = s.image.spp;
+  p.seconds = r.seconds;
+  p.rays = r.rays.total();
+  p.mrays = double(p.rays) / r.seconds / 1e6;
+  p.rmse = rmse(r.image, ref);
+  p.relmse = relmse(r.image, ref);
+  const SampleSummary sum = r.summary();
+  p.est_rmse = sum.estimated_rmse;
+  p.mean_spp = sum.mean_spp;
+  p.min_spp = sum.min_spp;
+  p.max_spp = sum.max_spp;
+  p.unconverged_pixels = sum.unconverged_pixels;
+  return p;
+}
+
+// log-log interpolation of `y` at the RMSE `e` along a ladder of points (RMSE falling); beyond
+// its ends, the nearest segment's line (flagged).
+double at_rmse(const std::vector<Point>& ladder, double e, double Point::*y, bool* extrapolated) {
+  std::vector<const Point*> pts;
+  for (const Point& p : ladder) {
+    if (p.rmse > 0 && p.*y > 0) pts.push_back(&p);
+  }
+  if (pts.size() < 2) return 0;
+  size_t k = 0;
+  while (k + 2 < pts.size() && pts[k + 1]->rmse > e) ++k;
+  const Point& a = *pts[k];
+  const Point& b = *pts[k + 1];
+  *extrapolated = e > pts.front()->rmse || e < pts.back()->rmse;
+  const double t = (std::log(e) - std::log(a.rmse)) / (std::log(b.rmse) - std::log(a.rmse));
+  return std::exp(std::log(a.*y) + t * (std::log(b.*y) - std::log(a.*y)));
+}
 
 // RMSE over all pixels and channels, in linear light.
 double rmse(const ImageRGB& a, const ImageRGB& ref) {
@@ -60,12 +121,12 @@ double relmse(const ImageRGB& a, const ImageRGB& ref) {
   return s / double(a.rgb.size());
 }
 
-// Least-squares fit of log(rmse) = a + b log(seconds); returns {a, b}.
+// Least-squares fit of log(rmse) = a + b log(CPU seconds); returns {a, b}.
 std::pair<double, double> fit_loglog(const std::vector<Point>& pts) {
   double n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
   for (const Point& p : pts) {
-    if (!(p.seconds > 0) || !(p.rmse > 0)) continue;
-    const double x = std::log(p.seconds), y = std::log(p.rmse);
+    if (!(p.cpu_seconds > 0) || !(p.rmse > 0)) continue;
+    const double x = std::log(p.cpu_seconds), y = std::log(p.rmse);
     n += 1;
     sx += x;
     sy += y;
@@ -83,7 +144,9 @@ int main(int argc, char** argv) {
   CLI::App app{"Speed against error: time, Mrays/s and RMSE against a reference, per sampler and spp"};
   std::string scene_path, cache_dir = "bench-cache", markdown, data;
   int width = 320, height = 180, max_spp = 1024, ref_spp = 4096, threads = 0, center_max_spp = 16;
-  std::string samplers_arg = "stratified,independent,center";
+  std::string samplers_arg = "sobol,cmj,independent,center";
+  std::string targets_arg = "auto", target_data;
+  int min_spp = 16;
   double target_rmse = 0.01;
   app.add_option("--scene", scene_path, "Scene JSON")->required()->check(CLI::ExistingFile);
   app.add_option("--width", width)->check(CLI::Range(1, 16384));
@@ -93,8 +156,13 @@ int main(int argc, char** argv) {
   app.add_option("--center-max-spp", center_max_spp,
                  "The center sampler repeats one position: stop it early")->check(CLI::Range(1, 65536));
   app.add_option("--threads", threads, "Render threads (0 = all cores)")->check(CLI::Range(0, 4096));
-  app.add_option("--samplers", samplers_arg, "Comma-separated: stratified, independent, center");
+  app.add_option("--samplers", samplers_arg, "Comma-separated: sobol, cmj, independent, center");
   app.add_option("--target-rmse", target_rmse, "Error for the fitted time-to-error column");
+  app.add_option("--targets", targets_arg,
+                 "Target errors for the target-error renders: comma-separated, 'auto' (a ladder between the "
+                 "default sampler's uniform errors at 8 spp and at --max-spp/4) or 'none'");
+  app.add_option("--min-spp", min_spp, "Target-error renders: fewest samples per pixel")->check(CLI::Range(2, 65536));
+  app.add_option("--target-data", target_data, "Write gnuplot data of the target-error renders to this file");
   app.add_option("--cache", cache_dir, "Directory for cached reference images");
   app.add_option("--markdown", markdown, "Append a markdown table to this file");
   app.add_option("--data", data, "Write gnuplot data (one block per sampler) to this file");
@@ -125,11 +193,11 @@ int main(int argc, char** argv) {
   scene.image.width = width;
   scene.image.height = height;
 
-  // The reference: stratified at ref_spp, a different seed than the runs measured against it
+  // The reference: the default sampler at ref_spp, a different seed than the runs measured against it
   // (so its own noise is independent of theirs), cached because it is by far the slowest part.
   fs::create_directories(cache_dir);
   const std::string ref_path = cache_dir + "/" + name + "_" + std::to_string(width) + "x" +
-                               std::to_string(height) + "_ref" + std::to_string(ref_spp) + ".exr";
+                               std::to_string(height) + "_ref" + std::to_string(ref_spp) + "_sobol.exr";
   ImageRGB ref;
   double ref_est_rmse = 0;
   if (fs::exists(ref_path)) {
@@ -139,7 +207,7 @@ int main(int argc, char** argv) {
   } else {
     Scene rs_scene = scene;
     rs_scene.image.spp = ref_spp;
-    rs_scene.image.sampler = SamplerKind::kStratified;
+    rs_scene.image.sampler = SamplerKind::kSobol;
     rs_scene.image.seed = scene.image.seed + 1000;
     RenderScene rs(rs_scene, 0);
     const FrameResult r = render_frame(rs, 32, threads);
@@ -157,17 +225,8 @@ int main(int argc, char** argv) {
       Scene s = scene;
       s.image.spp = spp;
       s.image.sampler = k;
-      RenderScene rs(s, 0);
-      const FrameResult r = render_frame(rs, 32, threads);
-      Point p;
-      p.sampler = sampler_name(k);
-      p.spp = spp;
-      p.seconds = r.seconds;
-      p.rays = r.rays.total();
-      p.mrays = double(p.rays) / r.seconds / 1e6;
-      p.rmse = rmse(r.image, ref);
-      p.relmse = relmse(r.image, ref);
-      p.est_rmse = r.estimated_rmse();
+      s.image.target_rmse = 0;
+      const Point p = measure(s, threads, ref);
       points.push_back(p);
       std::cerr << "  " << name << " " << p.sampler << " " << spp << " spp: " << p.seconds << " s, rmse " << p.rmse
                 << "\n";
@@ -191,20 +250,82 @@ int main(int argc, char** argv) {
     fits[sampler_name(k)] = {{"log_rmse_intercept", a}, {"slope", b}, {"seconds_to_target", t}};
   }
 
+  // Honesty of the estimate: est/RMSE over every uniform render at spp >= 8, per sampler.
+  nlohmann::json honesty = nlohmann::json::object();
+  for (SamplerKind k : samplers) {
+    if (k == SamplerKind::kCenter) continue;  // biased: its error is aliasing, which no estimate sees
+    double lo = 1e30, hi = 0;
+    for (const Point& p : points) {
+      if (p.sampler != sampler_name(k) || p.spp < 8 || !(p.rmse > 0)) continue;
+      lo = std::min(lo, p.est_rmse / p.rmse);
+      hi = std::max(hi, p.est_rmse / p.rmse);
+    }
+    if (hi > 0) honesty[sampler_name(k)] = {{"min_ratio", lo}, {"max_ratio", hi}, {"within_0.8_1.25", lo >= 0.8 && hi <= 1.25}};
+  }
+
+  // Target-error renders against the default sampler's uniform ladder.
+  std::vector<Point> uniform;
+  for (const Point& p : points) {
+    if (p.sampler == sampler_name(SamplerKind::kSobol) && p.spp >= 4) uniform.push_back(p);
+  }
+  std::vector<double> targets;
+  if (targets_arg == "auto" && uniform.size() >= 2) {
+    double hi = 0, lo = 0;
+    for (const Point& p : uniform) {
+      if (p.spp == 8) hi = p.rmse;
+      if (p.spp <= std::max(8, max_spp / 4)) lo = p.rmse;
+    }
+    for (int i = 0; i < 5 && hi > 0 && lo > 0; ++i) targets.push_back(hi * std::pow(lo / hi, i / 4.0));
+  } else if (targets_arg != "auto" && targets_arg != "none") {
+    std::stringstream ss(targets_arg);
+    std::string t;
+    while (std::getline(ss, t, ',')) targets.push_back(std::stod(t));
+  }
+  std::vector<Point> adaptive;
+  for (double t : targets) {
+    Scene s = scene;
+    s.image.sampler = SamplerKind::kSobol;
+    s.image.target_rmse = t;
+    s.image.min_spp = min_spp;
+    s.image.max_spp = max_spp;
+    Point p = measure(s, threads, ref);
+    p.target = t;
+    p.spp = 0;
+    p.uniform_cpu_seconds = at_rmse(uniform, p.rmse, &Point::cpu_seconds, &p.extrapolated);
+    bool ex2 = false;
+    std::vector<Point> with_spp = uniform;
+    for (Point& u : with_spp) u.mean_spp = u.spp;
+    p.uniform_spp = at_rmse(with_spp, p.rmse, &Point::mean_spp, &ex2);
+    adaptive.push_back(p);
+    std::cerr << "  " << name << " target " << t << ": " << p.cpu_seconds << " cpu-s, mean spp " << p.mean_spp
+              << ", rmse " << p.rmse << ", uniform at equal rmse " << p.uniform_cpu_seconds << " cpu-s\n";
+  }
+
   nlohmann::json out;
   out["scene"] = name;
   out["width"] = width;
   out["height"] = height;
   out["max_depth"] = scene.image.max_depth;
   out["threads"] = threads;
-  out["reference"] = {{"spp", ref_spp}, {"sampler", "stratified"}, {"estimated_rmse", ref_est_rmse}};
+  out["reference"] = {{"spp", ref_spp}, {"sampler", "sobol"}, {"estimated_rmse", ref_est_rmse}};
+  out["honesty"] = honesty;
   out["renderer"] = embree_isa();
   out["target_rmse"] = target_rmse;
   out["fits"] = fits;
   for (const Point& p : points) {
-    out["runs"].push_back({{"sampler", p.sampler}, {"spp", p.spp}, {"seconds", p.seconds}, {"rays", p.rays},
-                           {"mrays_per_s", p.mrays}, {"rmse", p.rmse}, {"relmse", p.relmse},
-                           {"estimated_rmse", p.est_rmse}});
+    out["runs"].push_back({{"sampler", p.sampler}, {"spp", p.spp}, {"seconds", p.seconds},
+                           {"cpu_seconds", p.cpu_seconds}, {"rays", p.rays}, {"mrays_per_s", p.mrays},
+                           {"rmse", p.rmse}, {"relmse", p.relmse}, {"estimated_rmse", p.est_rmse}});
+  }
+  out["target_runs"] = nlohmann::json::array();
+  for (const Point& p : adaptive) {
+    out["target_runs"].push_back(
+        {{"target_rmse", p.target}, {"min_spp", min_spp}, {"max_spp", max_spp}, {"seconds", p.seconds},
+         {"cpu_seconds", p.cpu_seconds}, {"mean_spp", p.mean_spp}, {"spp_min", p.min_spp}, {"spp_max", p.max_spp},
+         {"rmse", p.rmse}, {"estimated_rmse", p.est_rmse}, {"unconverged_pixels", p.unconverged_pixels},
+         {"uniform_cpu_seconds_at_equal_rmse", p.uniform_cpu_seconds}, {"uniform_spp_at_equal_rmse", p.uniform_spp},
+         {"speedup", p.uniform_cpu_seconds > 0 ? p.uniform_cpu_seconds / p.cpu_seconds : 0.0},
+         {"extrapolated", p.extrapolated}});
   }
   std::cout << out.dump(2) << "\n";
 
@@ -213,12 +334,33 @@ int main(int argc, char** argv) {
     char buf[512];
     md << "\n#### " << name << " (" << width << "x" << height << ", max_depth " << scene.image.max_depth
        << ", reference " << ref_spp << " spp stratified, its estimated RMSE " << ref_est_rmse << ")\n\n";
-    md << "| sampler | spp | time (s) | Mrays/s | RMSE | relMSE | estimated RMSE | est/RMSE |\n";
-    md << "|---|---:|---:|---:|---:|---:|---:|---:|\n";
+    md << "| sampler | spp | time (s) | CPU (s) | Mrays/s | RMSE | relMSE | estimated RMSE | est/RMSE |\n";
+    md << "|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for (const Point& p : points) {
-      std::snprintf(buf, sizeof buf, "| %s | %d | %.3f | %.2f | %.4g | %.4g | %.4g | %.2f |\n", p.sampler.c_str(), p.spp,
-                    p.seconds, p.mrays, p.rmse, p.relmse, p.est_rmse, p.rmse > 0 ? p.est_rmse / p.rmse : 0.0);
+      std::snprintf(buf, sizeof buf, "| %s | %d | %.3f | %.3f | %.2f | %.4g | %.4g | %.4g | %.2f |\n", p.sampler.c_str(),
+                    p.spp, p.seconds, p.cpu_seconds, p.mrays, p.rmse, p.relmse, p.est_rmse,
+                    p.rmse > 0 ? p.est_rmse / p.rmse : 0.0);
       md << buf;
+    }
+    md << "\nestimated/measured RMSE at spp >= 8:";
+    for (auto& [k, v] : honesty.items()) {
+      std::snprintf(buf, sizeof buf, " %s %.2f-%.2f%s;", k.c_str(), v["min_ratio"].get<double>(),
+                    v["max_ratio"].get<double>(), v["within_0.8_1.25"].get<bool>() ? "" : " (OUTSIDE 0.8-1.25)");
+      md << buf;
+    }
+    md << "\n";
+    if (!adaptive.empty()) {
+      md << "\nTarget-error renders (sobol, min_spp " << min_spp << ", max_spp " << max_spp
+         << ") against uniform sobol at the same measured RMSE:\n\n";
+      md << "| target | CPU (s) | mean spp | spp range | RMSE | est. RMSE | est/RMSE | uniform CPU (s) at that RMSE | uniform spp | speed-up |\n";
+      md << "|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|\n";
+      for (const Point& p : adaptive) {
+        std::snprintf(buf, sizeof buf, "| %.3g | %.3f | %.1f | %u-%u | %.4g | %.4g | %.2f | %.3f%s | %.0f | %.2fx |\n",
+                      p.target, p.cpu_seconds, p.mean_spp, p.min_spp, p.max_spp, p.rmse, p.est_rmse,
+                      p.rmse > 0 ? p.est_rmse / p.rmse : 0.0, p.uniform_cpu_seconds, p.extrapolated ? " (extrap.)" : "",
+                      p.uniform_spp, p.uniform_cpu_seconds > 0 ? p.uniform_cpu_seconds / p.cpu_seconds : 0.0);
+        md << buf;
+      }
     }
     md << "\nFitted log-log slope of RMSE against time, and time to reach RMSE " << target_rmse << ":";
     for (SamplerKind k : samplers) {
@@ -233,11 +375,18 @@ int main(int argc, char** argv) {
   if (!data.empty()) {
     std::ofstream dat(data);
     for (SamplerKind k : samplers) {
-      dat << "# " << sampler_name(k) << "\n# seconds rmse estimated_rmse spp\n";
+      dat << "# " << sampler_name(k) << "\n# cpu_seconds rmse estimated_rmse spp\n";
       for (const Point& p : points) {
-        if (p.sampler == sampler_name(k)) dat << p.seconds << " " << p.rmse << " " << p.est_rmse << " " << p.spp << "\n";
+        if (p.sampler == sampler_name(k)) dat << p.cpu_seconds << " " << p.rmse << " " << p.est_rmse << " " << p.spp << "\n";
       }
       dat << "\n\n";
+    }
+  }
+  if (!target_data.empty()) {
+    std::ofstream dat(target_data);
+    dat << "# target-error renders (sobol)\n# cpu_seconds rmse estimated_rmse mean_spp target\n";
+    for (const Point& p : adaptive) {
+      dat << p.cpu_seconds << " " << p.rmse << " " << p.est_rmse << " " << p.mean_spp << " " << p.target << "\n";
     }
   }
   return 0;

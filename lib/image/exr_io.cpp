@@ -29,7 +29,7 @@ half to_half_clamped(float v) {
 }  // namespace
 
 void write_exr(const std::string& path, const ImageRGB& image, const ExrAttributes& attributes,
-               ExrPixelType type) {
+               ExrPixelType type, const std::vector<ExrChannel>& extra) {
   if (image.width <= 0 || image.height <= 0) {
     throw ExrError("cannot write " + path + ": empty image");
   }
@@ -38,6 +38,14 @@ void write_exr(const std::string& path, const ImageRGB& image, const ExrAttribut
     header.compression() = Imf::ZIP_COMPRESSION;
     const Imf::PixelType pt = type == ExrPixelType::kFloat ? Imf::FLOAT : Imf::HALF;
     for (const char* c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(pt));
+    for (const ExrChannel& c : extra) {
+      if (c.values->size() != image.pixel_count()) {
+        throw ExrError("cannot write " + path + ": channel " + c.name + " has " + std::to_string(c.values->size()) +
+                       " values for " + std::to_string(image.pixel_count()) + " pixels");
+      }
+      if (header.channels().findChannel(c.name)) throw ExrError("cannot write " + path + ": two channels named " + c.name);
+      header.channels().insert(c.name, Imf::Channel(Imf::FLOAT));
+    }
     for (const auto& [name, value] : attributes) {
       if (const auto* s = std::get_if<std::string>(&value)) {
         header.insert(name, Imf::StringAttribute(*s));
@@ -76,9 +84,15 @@ void write_exr(const std::string& path, const ImageRGB& image, const ExrAttribut
                   Imf::Slice(Imf::HALF, base + c * sizeof(half), hxs, hys));
       }
     }
+    for (const ExrChannel& c : extra) {
+      fb.insert(c.name, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(c.values->data())),
+                                   sizeof(float), sizeof(float) * size_t(image.width)));
+    }
     Imf::OutputFile file(path.c_str(), header);
     file.setFrameBuffer(fb);
     file.writePixels(image.height);
+  } catch (const ExrError&) {
+    throw;
   } catch (const std::exception& e) {
     throw ExrError("cannot write EXR " + path + ": " + e.what());
   }
@@ -114,6 +128,28 @@ ImageRGB read_exr(const std::string& path, ExrAttributes* attributes) {
       }
     }
     return image;
+  } catch (const std::exception& e) {
+    throw ExrError("cannot read EXR " + path + ": " + e.what());
+  }
+}
+
+std::vector<float> read_exr_channel(const std::string& path, const std::string& name) {
+  try {
+    Imf::InputFile file(path.c_str());
+    if (!file.header().channels().findChannel(name)) throw ExrError(path + " has no channel " + name);
+    const Imath::Box2i dw = file.header().dataWindow();
+    const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+    std::vector<float> values(size_t(w) * size_t(h));
+    const size_t xs = sizeof(float), ys = xs * size_t(w);
+    char* base = reinterpret_cast<char*>(values.data()) - ptrdiff_t(dw.min.x) * ptrdiff_t(xs) -
+                 ptrdiff_t(dw.min.y) * ptrdiff_t(ys);
+    Imf::FrameBuffer fb;
+    fb.insert(name, Imf::Slice(Imf::FLOAT, base, xs, ys));
+    file.setFrameBuffer(fb);
+    file.readPixels(dw.min.y, dw.max.y);
+    return values;
+  } catch (const ExrError&) {
+    throw;
   } catch (const std::exception& e) {
     throw ExrError("cannot read EXR " + path + ": " + e.what());
   }

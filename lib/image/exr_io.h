@@ -21,13 +21,25 @@ class ExrError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// Writes R, G, B channels (ZIP compressed, lossless). kHalf converts to 16-bit half floats;
-// values beyond half's range (65504) are clamped to it and NaN is written as 0, so no Inf or
-// NaN is ever produced by the conversion itself. Throws ExrError naming the path on failure.
+// A channel written beside R, G, B, always as 32-bit float (sample counts up to 65536 are exact
+// there, not in half): one value per pixel, row-major. Named as compositing tools expect a layer,
+// e.g. "error.Y" (layer "error", luminance-like single channel).
+struct ExrChannel {
+  std::string name;
+  const std::vector<float>* values;
+};
+
+// Writes R, G, B channels (ZIP compressed, lossless), and `extra` channels. kHalf converts R, G, B
+// to 16-bit half floats; values beyond half's range (65504) are clamped to it and NaN is written
+// as 0, so no Inf or NaN is ever produced by the conversion itself. Throws ExrError naming the
+// path on failure (also for an extra channel of the wrong size or a name that is taken).
 void write_exr(const std::string& path, const ImageRGB& image, const ExrAttributes& attributes = {},
-               ExrPixelType type = ExrPixelType::kFloat);
+               ExrPixelType type = ExrPixelType::kFloat, const std::vector<ExrChannel>& extra = {});
 
 // Reads an EXR with R, G, B channels (missing channels read as 0) into float.
 ImageRGB read_exr(const std::string& path, ExrAttributes* attributes = nullptr);
+
+// Reads one channel of an EXR as float, row-major; throws ExrError if the file has no such channel.
+std::vector<float> read_exr_channel(const std::string& path, const std::string& name);
 
 }  // namespace tessera

@@ -2,6 +2,63 @@
 
 namespace tessera {
 
+namespace {
+
+uint32_t reverse_bits(uint32_t x) {
+  x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
+  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
+  x = ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
+  x = ((x >> 8) & 0x00ff00ffu) | ((x & 0x00ff00ffu) << 8);
+  return (x >> 16) | (x << 16);
+}
+
+// A bijection of 32-bit words in which output bit b depends only on input bits <= b (products
+// and sums carry upwards only): applied to bit-reversed words, that is a nested uniform scramble.
+// Constants from Vegdahl, "Building a Better LK Hash" (2021), which fixes the weak low-order
+// mixing of Burley's original.
+uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
+  x ^= x * 0x3d20adeau;
+  x += seed;
+  x *= (seed >> 16) | 1u;
+  x ^= x * 0x05526c56u;
+  x ^= x * 0x53a22864u;
+  return x;
+}
+
+// Direction numbers of Sobol's second dimension (primitive polynomial x + 1): the Pascal matrix
+// mod 2, column k = bit 31-k and every bit below it that C(k, j) is odd for.
+struct SobolDim1 {
+  uint32_t v[32];
+  constexpr SobolDim1() : v() {
+    v[0] = 1u << 31;
+    for (int k = 1; k < 32; ++k) v[k] = v[k - 1] ^ (v[k - 1] >> 1);
+  }
+};
+constexpr SobolDim1 kSobolDim1;
+
+}  // namespace
+
+uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed) {
+  return reverse_bits(laine_karras_permutation(reverse_bits(x), seed));
+}
+
+void sobol_2d(uint32_t index, uint32_t* x, uint32_t* y) {
+  *x = reverse_bits(index);  // van der Corput: the first dimension's matrix is the identity
+  uint32_t v = 0;
+  for (int k = 0; index != 0; ++k, index >>= 1) {
+    if (index & 1u) v ^= kSobolDim1.v[k];
+  }
+  *y = v;
+}
+
+void owen_sobol_2d(uint32_t index, uint64_t seed, float* u, float* v) {
+  const uint64_t h = mix64(seed);
+  uint32_t x, y;
+  sobol_2d(nested_uniform_scramble(index, uint32_t(seed)), &x, &y);
+  *u = to_unit_float(nested_uniform_scramble(x, uint32_t(h)));
+  *v = to_unit_float(nested_uniform_scramble(y, uint32_t(h >> 32)));
+}
+
 uint32_t cmj_permute(uint32_t i, uint32_t l, uint32_t p) {
   uint32_t w = l - 1;
   w |= w >> 1;

@@ -1,6 +1,13 @@
 // Counter-based sample generation: every number is a pure function of
 // (seed, frame, pixel, sample index, dimension), so a pixel's value does not depend on tile
 // size, tile order, thread count or how many times a tile is rendered.
+//
+// Every sampler splits a pixel's samples into two interleaved, independent streams (even sample
+// indices form stream 0, odd ones stream 1), each stratified on its own. The difference of the
+// two streams' means is what makes the error estimate honest for stratified samples (see
+// docs/renderer.md, "Error estimate"): the samples within one stratified set are negatively
+// correlated, so their sample variance overstates the error, while two independently scrambled
+// sets are independent by construction.
 #pragma once
 
 #include <cmath>
@@ -25,6 +32,26 @@ constexpr uint64_t hash_combine(uint64_t h, uint64_t v) { return mix64(h ^ (v + 
 // Uniform float in [0, 1) from the top 24 bits: exactly representable, never 1.0.
 constexpr float to_unit_float(uint32_t bits) { return float(bits >> 8) * 0x1p-24f; }
 
+// The stream (0 or 1) a pixel sample belongs to, its index within that stream, and how many of
+// a pixel's first n samples each stream holds.
+constexpr uint32_t sample_stream(uint32_t sample) { return sample & 1u; }
+constexpr uint32_t stream_index(uint32_t sample) { return sample >> 1; }
+constexpr uint32_t stream_count(uint32_t stream, uint32_t n) { return stream == 0 ? (n + 1) / 2 : n / 2; }
+
+// Owen-scrambled Sobol (0,2)-sequence, Burley, "Practical Hash-based Owen Scrambling" (JCGT 9(4),
+// 2020), with the Laine-Karras-style hash improved by N. Vegdahl (2021).
+//  - nested_uniform_scramble: a base-2 Owen scramble of a 32-bit fixed-point number. Bit b is
+//    flipped by a hash of the bits above it, so every elementary interval maps onto one of the
+//    same size: a (0,m,2)-net stays a (0,m,2)-net.
+//  - sobol_2d: the first two Sobol dimensions (van der Corput and the Pascal-matrix dimension);
+//    any 2^m consecutive indices starting at a multiple of 2^m form a (0,m,2)-net.
+//  - owen_sobol_2d: index shuffled by nested_uniform_scramble (it maps the indices [0, 2^m) onto
+//    one aligned block of 2^m indices, so every power-of-two prefix stays a net), then both
+//    coordinates scrambled with independent seeds.
+uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed);
+void sobol_2d(uint32_t index, uint32_t* x, uint32_t* y);
+void owen_sobol_2d(uint32_t index, uint64_t seed, float* u, float* v);
+
 // Kensler, "Correlated Multi-Jittered Sampling" (Pixar Tech Memo 13-01, 2013): sample s of
 // n stratified 2D samples, for any n, under the random pattern p. permute() is his
 // cycle-walking hash permutation of [0, l).
@@ -39,6 +66,9 @@ uint32_t cmj_columns(uint32_t n);
 // (pixel position, area-light sample for light L at path node K, ...).
 class PixelSampler {
  public:
+  // `spp` is used by the CMJ sampler only (its pattern depends on the sample count); the others
+  // are progressive: sample s is the same whatever the pixel's final sample count.
+  PixelSampler() = default;
   PixelSampler(SamplerKind kind, uint64_t seed, int frame, int px, int py, uint32_t sample, uint32_t spp)
       : kind_(kind), sample_(sample), spp_(spp) {
     pixel_key_ = hash_combine(hash_combine(hash_combine(mix64(seed), uint64_t(uint32_t(frame))),
@@ -48,15 +78,24 @@ class PixelSampler {
 
   // A 2D point in [0,1)^2 for the decision named by `dim`.
   void get_2d(uint64_t dim, float* u, float* v) const {
-    const uint64_t key = hash_combine(pixel_key_, dim);
-    if (kind_ == SamplerKind::kIndependent) {
-      const uint64_t bits = hash_combine(key, sample_);
-      *u = to_unit_float(uint32_t(bits));
-      *v = to_unit_float(uint32_t(bits >> 32));
-    } else {
-      // The pattern is shared by all samples of the pixel (that is what stratifies them),
-      // different per pixel and per dimension (decorrelating dimensions, "padding").
-      cmj_sample(sample_, spp_, uint32_t(key), u, v);
+    const uint32_t stream = sample_stream(sample_);
+    // One key per (pixel, dimension, stream): independent patterns per stream, and different
+    // ones per dimension (decorrelating dimensions, "padding").
+    const uint64_t key = hash_combine(hash_combine(pixel_key_, dim), stream);
+    switch (kind_) {
+      case SamplerKind::kSobol:
+        owen_sobol_2d(stream_index(sample_), key, u, v);
+        return;
+      case SamplerKind::kCmj:
+        cmj_sample(stream_index(sample_), stream_count(stream, spp_), uint32_t(key), u, v);
+        return;
+      case SamplerKind::kIndependent:
+      case SamplerKind::kCenter: {
+        const uint64_t bits = hash_combine(key, sample_);
+        *u = to_unit_float(uint32_t(bits));
+        *v = to_unit_float(uint32_t(bits >> 32));
+        return;
+      }
     }
   }
 
@@ -71,10 +110,10 @@ class PixelSampler {
   }
 
  private:
-  SamplerKind kind_;
-  uint32_t sample_;
-  uint32_t spp_;
-  uint64_t pixel_key_;
+  SamplerKind kind_ = SamplerKind::kSobol;
+  uint32_t sample_ = 0;
+  uint32_t spp_ = 0;
+  uint64_t pixel_key_ = 0;
 };
 
 }  // namespace tessera

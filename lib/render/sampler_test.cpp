@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <set>
 #include <vector>
 
@@ -57,19 +58,113 @@ TEST(Sampler, PermuteIsABijection) {
 }
 
 TEST(Sampler, SamplesArePureFunctionsOfTheirKey) {
-  const PixelSampler a(SamplerKind::kStratified, 7, 3, 10, 20, 5, 16);
-  const PixelSampler b(SamplerKind::kStratified, 7, 3, 10, 20, 5, 16);
+  const PixelSampler a(SamplerKind::kSobol, 7, 3, 10, 20, 5, 16);
+  const PixelSampler b(SamplerKind::kSobol, 7, 3, 10, 20, 5, 16);
   float u1, v1, u2, v2;
   a.get_2d(42, &u1, &v1);
   b.get_2d(42, &u2, &v2);
   EXPECT_EQ(u1, u2);
   EXPECT_EQ(v1, v2);
   // A different pixel, frame, seed or dimension gives a different sample.
-  const PixelSampler c(SamplerKind::kStratified, 7, 4, 10, 20, 5, 16);
+  const PixelSampler c(SamplerKind::kSobol, 7, 4, 10, 20, 5, 16);
   c.get_2d(42, &u2, &v2);
   EXPECT_NE(u1, u2);
   a.get_2d(43, &u2, &v2);
   EXPECT_NE(u1, u2);
+}
+
+// Whether points are a (0,m,2)-net: every elementary interval of area 2^-m (2^a x 2^(m-a) cells,
+// for every a) holds exactly one of the 2^m points.
+bool is_02_net(const std::vector<std::pair<float, float>>& pts, int m) {
+  for (int a = 0; a <= m; ++a) {
+    const uint32_t nx = 1u << a, ny = 1u << (m - a);
+    std::vector<int> count(size_t(nx) * ny, 0);
+    for (const auto& [x, y] : pts) ++count[size_t(uint32_t(x * float(nx))) * ny + uint32_t(y * float(ny))];
+    for (int c : count) {
+      if (c != 1) return false;
+    }
+  }
+  return true;
+}
+
+TEST(Sampler, OwenSobolEveryPowerOfTwoPrefixOfEachStreamIsA02Net) {
+  // The progressive property the adaptive renderer relies on: whatever count a pixel stops at,
+  // its first 2^m samples of each stream are as stratified as a net can be.
+  for (uint64_t key : {0ull, 1ull, 0xdeadbeefull, 123456789ull}) {
+    std::vector<std::pair<float, float>> pts;
+    for (uint32_t i = 0; i < 1024; ++i) {
+      float u, v;
+      owen_sobol_2d(i, key, &u, &v);
+      ASSERT_GE(u, 0.0f);
+      ASSERT_LT(u, 1.0f);
+      ASSERT_GE(v, 0.0f);
+      ASSERT_LT(v, 1.0f);
+      pts.emplace_back(u, v);
+      const uint32_t n = i + 1;
+      if ((n & (n - 1)) == 0) {
+        EXPECT_TRUE(is_02_net(pts, std::countr_zero(n))) << "key " << key << " prefix " << n;
+      }
+    }
+  }
+}
+
+TEST(Sampler, OwenSobolWithoutScramblingIsTheSobolSequence) {
+  // Unscrambled reference values: the first Sobol points in index (not Gray-code) order,
+  // (0,0), (.5,.5), (.25,.75), (.75,.25), (.125,.625), (.625,.125); and an index shuffle maps
+  // [0, 2^m) onto one aligned block.
+  const float want[6][2] = {{0, 0}, {.5f, .5f}, {.25f, .75f}, {.75f, .25f}, {.125f, .625f}, {.625f, .125f}};
+  for (uint32_t i = 0; i < 6; ++i) {
+    uint32_t x, y;
+    sobol_2d(i, &x, &y);
+    EXPECT_EQ(to_unit_float(x), want[i][0]) << i;
+    EXPECT_EQ(to_unit_float(y), want[i][1]) << i;
+  }
+  for (uint32_t seed : {1u, 77u, 0xabcdef01u}) {
+    std::set<uint32_t> blocks, all;
+    for (uint32_t i = 0; i < 256; ++i) {
+      const uint32_t j = nested_uniform_scramble(i, seed);
+      blocks.insert(j >> 8);
+      all.insert(j);
+    }
+    EXPECT_EQ(blocks.size(), 1u) << seed;  // one aligned block of 256 indices
+    EXPECT_EQ(all.size(), 256u) << seed;   // a permutation of it
+  }
+}
+
+TEST(Sampler, StreamsAreIndependentPatternsAndSamplesDoNotDependOnSpp) {
+  // Even samples form stream 0, odd ones stream 1, each its own scrambled net; a progressive
+  // sampler gives sample s the same value whatever the final spp (an adaptive pixel that stops at
+  // n samples took the same samples as a uniform n-spp render).
+  std::vector<std::pair<float, float>> s0, s1;
+  for (uint32_t s = 0; s < 64; ++s) {
+    const PixelSampler a(SamplerKind::kSobol, 5, 0, 3, 4, s, 64), b(SamplerKind::kSobol, 5, 0, 3, 4, s, 1000);
+    float u, v, u2, v2;
+    a.get_2d(0, &u, &v);
+    b.get_2d(0, &u2, &v2);
+    EXPECT_EQ(u, u2);
+    EXPECT_EQ(v, v2);
+    (s % 2 == 0 ? s0 : s1).emplace_back(u, v);
+  }
+  EXPECT_TRUE(is_02_net(s0, 5));
+  EXPECT_TRUE(is_02_net(s1, 5));
+  EXPECT_NE(s0, s1);
+  EXPECT_EQ(stream_count(0, 7), 4u);
+  EXPECT_EQ(stream_count(1, 7), 3u);
+}
+
+TEST(Sampler, CmjStreamsAreEachStratifiedOverTheirOwnCount) {
+  for (uint32_t spp : {16u, 17u}) {
+    std::multiset<uint32_t> rows[2];
+    for (uint32_t s = 0; s < spp; ++s) {
+      const PixelSampler ps(SamplerKind::kCmj, 1, 0, 7, 7, s, spp);
+      float u, v;
+      ps.get_2d(0, &u, &v);
+      rows[sample_stream(s)].insert(uint32_t(v * float(stream_count(sample_stream(s), spp))));
+    }
+    for (uint32_t k = 0; k < 2; ++k) {
+      for (uint32_t i = 0; i < stream_count(k, spp); ++i) EXPECT_EQ(rows[k].count(i), 1u) << spp << " " << k << " " << i;
+    }
+  }
 }
 
 TEST(Sampler, StratifiedBeatsIndependentOnASmoothIntegrand) {
@@ -89,7 +184,8 @@ TEST(Sampler, StratifiedBeatsIndependentOnASmoothIntegrand) {
     }
     return std::sqrt(se / 200);
   };
-  EXPECT_LT(rms_error(SamplerKind::kStratified) * 4, rms_error(SamplerKind::kIndependent));
+  EXPECT_LT(rms_error(SamplerKind::kSobol) * 4, rms_error(SamplerKind::kIndependent));
+  EXPECT_LT(rms_error(SamplerKind::kCmj) * 4, rms_error(SamplerKind::kIndependent));
 }
 
 }  // namespace

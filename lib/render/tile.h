@@ -1,5 +1,5 @@
 // The unit of work of the farm: a rectangle of one frame, rendered to float HDR RGB with the
-// per-pixel variance of the estimate and the counts of rays traced.
+// per-pixel estimated variance, the samples each pixel took, and the counts of rays traced.
 #pragma once
 
 #include <cstdint>
@@ -30,9 +30,10 @@ struct RayCounts {
 
 struct TileResult {
   TileRect rect;
-  std::vector<float> rgb;       // 3 * width * height, row-major, the mean of spp samples
-  std::vector<float> variance;  // width * height: variance of the pixel's mean estimate
-                                // (sample variance / spp, averaged over R, G, B)
+  std::vector<float> rgb;       // 3 * width * height, row-major, the mean of the pixel's samples
+  std::vector<float> variance;  // width * height: estimated variance of the pixel's value (mean
+                                // over R, G, B), from its two independent sample streams
+  std::vector<uint32_t> spp;    // width * height: samples the pixel took
   RayCounts rays;
   double seconds = 0;           // wall time spent rendering the tile
 };

@@ -10,6 +10,7 @@
 #include <mutex>
 
 #include "render/integrator.h"
+#include "render/pixel_estimate.h"
 
 namespace tessera {
 
@@ -23,62 +24,109 @@ std::vector<TileRect> split_into_tiles(int width, int height, int tile) {
   return tiles;
 }
 
+namespace {
+
+// Renders samples [from, to) of pixel (x, y) into `est`. Samples s0 .. s0+7 form one packet
+// (s0 a multiple of 8): which rays share a packet depends on the pixel and sample index only,
+// never on the tile, thread or stopping point (see RenderScene::intersect_packet).
+void render_samples(const RenderScene& scene, int x, int y, uint32_t from, uint32_t to, PixelEstimate* est,
+                    RayCounts* rays) {
+  const ImageSettings& img = scene.image();
+  const auto& cam = scene.camera();
+  PixelSampler samplers[RenderScene::kPacket];
+  for (uint32_t s0 = from; s0 < to;) {
+    const uint32_t packet_end = std::min<uint32_t>(to, (s0 / RenderScene::kPacket + 1) * RenderScene::kPacket);
+    const int n = int(packet_end - s0);
+    Ray r[RenderScene::kPacket];
+    Rgb Ls[RenderScene::kPacket];
+    for (int i = 0; i < n; ++i) {
+      samplers[i] = PixelSampler(img.sampler, img.seed, scene.frame(), x, y, s0 + uint32_t(i), uint32_t(img.spp));
+      float su, sv;
+      samplers[i].pixel_offset(&su, &sv);
+      const float u = (float(x) + su) / float(img.width);
+      const float v = (float(y) + sv) / float(img.height);
+      r[i] = {Vec3f(0.0f), normalize(cam.p0 + cam.du * u + cam.dv * v)};
+    }
+    rays->camera += uint64_t(n);
+    trace_radiance_packet(scene, r, samplers, n, rays, Ls);
+    for (int i = 0; i < n; ++i) {
+      Rgb L = Ls[i];
+      if (!is_finite(L)) {
+        ++rays->nonfinite_samples;  // never let NaN/Inf reach a pixel; counted, not hidden
+        L = Rgb(0.0f);
+      }
+      est->add(s0 + uint32_t(i), L);
+    }
+    s0 = packet_end;
+  }
+}
+
+void store_pixel(const PixelEstimate& est, SamplerKind kind, size_t i, TileResult* out) {
+  for (int c = 0; c < 3; ++c) out->rgb[3 * i + size_t(c)] = est.mean(c);
+  out->variance[i] = float(est.variance(kind));
+  out->spp[i] = est.samples();
+}
+
+// A render to a target error: every block of kAdaptiveBlock^2 pixels (aligned to the image) that
+// meets the tile is rendered whole, its pixels checked together (adaptive.h); the pixels inside
+// the tile are kept. Tiles whose edges are multiples of the block size render nothing twice.
+void render_tile_adaptive(const RenderScene& scene, const TileRect& rect, TileResult* out) {
+  const ImageSettings& img = scene.image();
+  const double target_mse = img.target_rmse * img.target_rmse;
+  const uint32_t min_spp = uint32_t(img.min_spp), max_spp = uint32_t(img.max_spp);
+  constexpr int B = kAdaptiveBlock;
+  std::vector<PixelEstimate> block(size_t(B) * size_t(B));
+  for (int by = rect.y0 / B * B; by < rect.y0 + rect.height; by += B) {
+    for (int bx = rect.x0 / B * B; bx < rect.x0 + rect.width; bx += B) {
+      const int w = std::min(B, img.width - bx), h = std::min(B, img.height - by);
+      std::fill(block.begin(), block.end(), PixelEstimate{});
+      uint32_t done = 0, n = min_spp;
+      while (true) {
+        for (int y = 0; y < h; ++y) {
+          for (int x = 0; x < w; ++x) render_samples(scene, bx + x, by + y, done, n, &block[size_t(y * B + x)], &out->rays);
+        }
+        done = n;
+        if (n >= max_spp) break;
+        // The mean of the variances as they are stored (float), summed in row order: the test
+        // summarize_samples() repeats on the assembled frame.
+        double sum = 0;
+        for (int y = 0; y < h; ++y) {
+          for (int x = 0; x < w; ++x) sum += double(float(block[size_t(y * B + x)].variance(img.sampler)));
+        }
+        const double mse = sum / double(w * h);
+        if (!(mse > target_mse)) break;
+        n = next_sample_count(n, mse, target_mse, max_spp);
+      }
+      for (int y = std::max(by, rect.y0); y < std::min(by + h, rect.y0 + rect.height); ++y) {
+        for (int x = std::max(bx, rect.x0); x < std::min(bx + w, rect.x0 + rect.width); ++x) {
+          store_pixel(block[size_t((y - by) * B + (x - bx))], img.sampler,
+                      size_t(y - rect.y0) * size_t(rect.width) + size_t(x - rect.x0), out);
+        }
+      }
+    }
+  }
+}
+
+}  // namespace
+
 TileResult render_tile(const RenderScene& scene, const TileRect& rect) {
   const auto start = std::chrono::steady_clock::now();
   TileResult out;
   out.rect = rect;
-  out.rgb.assign(size_t(rect.width) * size_t(rect.height) * 3, 0.0f);
-  out.variance.assign(size_t(rect.width) * size_t(rect.height), 0.0f);
+  const size_t pixels = size_t(rect.width) * size_t(rect.height);
+  out.rgb.assign(pixels * 3, 0.0f);
+  out.variance.assign(pixels, 0.0f);
+  out.spp.assign(pixels, 0);
   const ImageSettings& img = scene.image();
-  const auto& cam = scene.camera();
-  const uint32_t spp = uint32_t(img.spp);
-  std::vector<PixelSampler> samplers;
-  samplers.reserve(RenderScene::kPacket);
-  for (int y = rect.y0; y < rect.y0 + rect.height; ++y) {
-    for (int x = rect.x0; x < rect.x0 + rect.width; ++x) {
-      // Welford's running mean and variance, in double, in sample order: exact same sequence of
-      // operations for this pixel wherever and however often it is rendered.
-      double mean[3] = {0, 0, 0}, m2[3] = {0, 0, 0};
-      // Samples s0 .. s0+7 of this pixel form one packet: which rays share a packet depends on
-      // the pixel and spp only, never on the tile or thread (see RenderScene::intersect_packet).
-      for (uint32_t s0 = 0; s0 < spp; s0 += RenderScene::kPacket) {
-        const int n = int(std::min<uint32_t>(RenderScene::kPacket, spp - s0));
-        samplers.clear();
-        Ray rays[RenderScene::kPacket];
-        Rgb Ls[RenderScene::kPacket];
-        for (int i = 0; i < n; ++i) {
-          const PixelSampler& sampler =
-              samplers.emplace_back(img.sampler, img.seed, scene.frame(), x, y, s0 + uint32_t(i), spp);
-          float su, sv;
-          sampler.pixel_offset(&su, &sv);
-          const float u = (float(x) + su) / float(img.width);
-          const float v = (float(y) + sv) / float(img.height);
-          rays[i] = {Vec3f(0.0f), normalize(cam.p0 + cam.du * u + cam.dv * v)};
-        }
-        out.rays.camera += uint64_t(n);
-        trace_radiance_packet(scene, rays, samplers.data(), n, &out.rays, Ls);
-        for (int i = 0; i < n; ++i) {
-          const uint32_t s = s0 + uint32_t(i);
-          Rgb L = Ls[i];
-          if (!is_finite(L)) {
-            ++out.rays.nonfinite_samples;  // never let NaN/Inf reach a pixel; counted, not hidden
-            L = Rgb(0.0f);
-          }
-          for (int c = 0; c < 3; ++c) {
-            const double xv = double(L[c]);
-            const double delta = xv - mean[c];
-            mean[c] += delta / double(s + 1);
-            m2[c] += delta * (xv - mean[c]);
-          }
-        }
+  if (img.adaptive()) {
+    render_tile_adaptive(scene, rect, &out);
+  } else {
+    for (int y = rect.y0; y < rect.y0 + rect.height; ++y) {
+      for (int x = rect.x0; x < rect.x0 + rect.width; ++x) {
+        PixelEstimate est;
+        render_samples(scene, x, y, 0, uint32_t(img.spp), &est, &out.rays);
+        store_pixel(est, img.sampler, size_t(y - rect.y0) * size_t(rect.width) + size_t(x - rect.x0), &out);
       }
-      const size_t i = size_t(y - rect.y0) * size_t(rect.width) + size_t(x - rect.x0);
-      double var = 0;
-      for (int c = 0; c < 3; ++c) {
-        out.rgb[3 * i + size_t(c)] = float(mean[c]);
-        if (spp > 1) var += m2[c] / double(spp - 1) / double(spp);
-      }
-      out.variance[i] = float(var / 3.0);
     }
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -92,15 +140,14 @@ double FrameResult::estimated_rmse() const {
   return std::sqrt(sum / double(variance.size()));
 }
 
-void place_tile(const TileResult& tile, ImageRGB* image, std::vector<float>* variance) {
+void place_tile(const TileResult& tile, ImageRGB* image, std::vector<float>* variance, std::vector<uint32_t>* spp) {
   const TileRect& r = tile.rect;
   for (int y = 0; y < r.height; ++y) {
     const size_t src = size_t(y) * size_t(r.width);
+    const size_t dst = size_t(r.y0 + y) * size_t(image->width) + size_t(r.x0);
     std::copy_n(&tile.rgb[3 * src], 3 * size_t(r.width), image->at(r.x0, r.y0 + y));
-    if (variance) {
-      std::copy_n(&tile.variance[src], size_t(r.width),
-                  &(*variance)[size_t(r.y0 + y) * size_t(image->width) + size_t(r.x0)]);
-    }
+    if (variance) std::copy_n(&tile.variance[src], size_t(r.width), &(*variance)[dst]);
+    if (spp && !tile.spp.empty()) std::copy_n(&tile.spp[src], size_t(r.width), &(*spp)[dst]);
   }
 }
 
@@ -111,6 +158,7 @@ FrameResult render_frame(const RenderScene& scene, int tile_size, int threads,
   FrameResult out;
   out.image = ImageRGB(img.width, img.height);
   out.variance.assign(out.image.pixel_count(), 0.0f);
+  out.spp.assign(out.image.pixel_count(), 0);
   const std::vector<TileRect> tiles = split_into_tiles(img.width, img.height, tile_size);
   std::mutex mutex;
   std::atomic<int> done{0};
@@ -119,13 +167,18 @@ FrameResult render_frame(const RenderScene& scene, int tile_size, int threads,
     tbb::parallel_for(size_t(0), tiles.size(), [&](size_t i) {
       const TileResult t = render_tile(scene, tiles[i]);
       std::lock_guard lock(mutex);
-      place_tile(t, &out.image, &out.variance);
+      place_tile(t, &out.image, &out.variance, &out.spp);
       out.rays += t.rays;
       if (progress) progress(++done, int(tiles.size()));
     });
   });
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  out.settings = img;
   return out;
+}
+
+SampleSummary FrameResult::summary() const {
+  return summarize_samples(variance, spp, image.width, image.height, settings);
 }
 
 }  // namespace tessera

@@ -4,6 +4,7 @@
 #include <functional>
 
 #include "image/image.h"
+#include "render/adaptive.h"
 #include "render/render_scene.h"
 #include "render/tile.h"
 
@@ -16,14 +17,20 @@ TileResult render_tile(const RenderScene& scene, const TileRect& rect);
 struct FrameResult {
   ImageRGB image;
   std::vector<float> variance;  // per pixel, as in TileResult
+  std::vector<uint32_t> spp;    // per pixel, as in TileResult
   RayCounts rays;
   double seconds = 0;
+  ImageSettings settings;       // what it was rendered with (the target error, if any)
   // Estimated RMSE of the image against the converged one: sqrt(mean pixel variance).
   double estimated_rmse() const;
+  // The estimate with the spp range and, for a target-error render, the blocks left above it.
+  SampleSummary summary() const;
 };
 
-// Copies a finished tile into a frame (the client assembles farm tiles the same way).
-void place_tile(const TileResult& tile, ImageRGB* image, std::vector<float>* variance);
+// Copies a finished tile into a frame (the client assembles farm tiles the same way). `spp` is
+// left as it is where the tile carries no sample counts (tiles of older workers).
+void place_tile(const TileResult& tile, ImageRGB* image, std::vector<float>* variance,
+                std::vector<uint32_t>* spp = nullptr);
 
 // Renders a whole frame in-process with `threads` threads (0 = all cores), tile by tile.
 // `progress` (optional) is called after each tile with (tiles done, tiles total).

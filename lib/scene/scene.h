@@ -34,18 +34,26 @@ struct ScreenPlane {
 ScreenPlane screen_plane(const CameraDesc& camera, int width, int height);
 
 enum class SamplerKind {
-  kStratified,   // correlated multi-jittered (Kensler 2013): stratified for any spp; the default
-  kIndependent,  // independent uniform random samples (for comparison)
+  kSobol,        // Owen-scrambled Sobol (0,2)-sequence, progressive: every 2^k prefix is stratified; the default
+  kCmj,          // correlated multi-jittered (Kensler 2013): stratified for a fixed spp only (comparison)
+  kIndependent,  // independent uniform random samples (comparison)
   kCenter,       // every sample at the pixel center: no anti-aliasing (analytic tests)
 };
 
 struct ImageSettings {
   int width = 640;
   int height = 480;
-  int spp = 16;
+  int spp = 16;       // samples per pixel of a uniform render (target_rmse == 0)
   int max_depth = 8;  // secondary bounces (reflection/refraction) after the camera ray's hit
   uint64_t seed = 0;
-  SamplerKind sampler = SamplerKind::kStratified;
+  SamplerKind sampler = SamplerKind::kSobol;
+  // Rendering to a target error (docs/renderer.md, "Rendering to a target error"): when > 0,
+  // each block of pixels takes samples until its estimated RMSE (linear light) is at most this,
+  // between min_spp and max_spp samples per pixel; spp is then unused.
+  double target_rmse = 0;
+  int min_spp = 16;
+  int max_spp = 1024;
+  bool adaptive() const { return target_rmse > 0; }
 };
 
 struct Material {

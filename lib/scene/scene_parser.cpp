@@ -8,6 +8,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <functional>
 #include <sstream>
 
 #include "scene/json_reader.h"
@@ -179,7 +180,10 @@ std::string line_col(const std::string& text, size_t byte) {
 }  // namespace
 
 std::optional<SamplerKind> sampler_from_name(const std::string& name) {
-  if (name == "stratified") return SamplerKind::kStratified;
+  // "stratified" was the name of the default sampler before it became progressive; it keeps
+  // naming the default so existing scene files and scripts mean what they meant.
+  if (name == "sobol" || name == "stratified") return SamplerKind::kSobol;
+  if (name == "cmj") return SamplerKind::kCmj;
   if (name == "independent") return SamplerKind::kIndependent;
   if (name == "center") return SamplerKind::kCenter;
   return std::nullopt;
@@ -187,12 +191,34 @@ std::optional<SamplerKind> sampler_from_name(const std::string& name) {
 
 const char* sampler_name(SamplerKind kind) {
   switch (kind) {
-    case SamplerKind::kStratified: return "stratified";
+    case SamplerKind::kSobol: return "sobol";
+    case SamplerKind::kCmj: return "cmj";
     case SamplerKind::kIndependent: return "independent";
     case SamplerKind::kCenter: return "center";
   }
   return "?";
 }
+
+const char* sampler_names() { return "sobol, stratified, cmj, independent, center"; }
+
+namespace {
+
+// The adaptive settings' rules, shared by the scene file and the overrides; `name` spells each
+// field as the caller's user knows it (a JSON path or a command-line flag).
+void check_adaptive(const ImageSettings& s, const std::function<std::string(const char*)>& name) {
+  if (!s.adaptive()) return;
+  if (s.min_spp > s.max_spp) {
+    throw SceneError(name("min_spp") + " (" + std::to_string(s.min_spp) + ") must not exceed " + name("max_spp") +
+                     " (" + std::to_string(s.max_spp) + ")");
+  }
+  if (s.sampler == SamplerKind::kCmj || s.sampler == SamplerKind::kCenter) {
+    throw SceneError(name("target_rmse") + " needs a progressive sampler with an error estimate (sobol or "
+                     "independent), not " + sampler_name(s.sampler) +
+                     (s.sampler == SamplerKind::kCmj ? " (its pattern depends on the final spp)" : " (no error estimate)"));
+  }
+}
+
+}  // namespace
 
 uint64_t primitive_count(const Scene& scene) {
   uint64_t n = 0;
@@ -236,7 +262,18 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
     if (auto v = img->find("max_depth")) s.max_depth = int(v->integer_in(0, SceneLimits::kMaxDepth));
     if (auto v = img->find("seed")) s.seed = uint64_t(v->integer_in(0, int64_t(1) << 53));
     if (auto v = img->find("sampler")) {
-      s.sampler = *sampler_from_name(v->one_of({"stratified", "independent", "center"}));
+      s.sampler = *sampler_from_name(v->one_of({"sobol", "stratified", "cmj", "independent", "center"}));
+    }
+    if (auto v = img->find("target_rmse")) {
+      s.target_rmse = v->number_in(0, 1e30, true);
+      if (img->find("spp")) v->fail("conflicts with image.spp: an adaptive render takes min_spp and max_spp instead");
+    }
+    if (auto v = img->find("min_spp")) s.min_spp = int(v->integer_in(2, SceneLimits::kMaxSpp));
+    if (auto v = img->find("max_spp")) s.max_spp = int(v->integer_in(2, SceneLimits::kMaxSpp));
+    try {
+      check_adaptive(s, [](const char* f) { return std::string("image.") + f; });
+    } catch (const SceneError& e) {
+      throw SceneError(path + ": " + e.what());
     }
     img->reject_unknown();
   }
@@ -410,6 +447,30 @@ void apply_overrides(Scene& scene, const ImageOverrides& o) {
   if (o.max_depth) { check("max-depth", *o.max_depth, 0, SceneLimits::kMaxDepth); scene.image.max_depth = *o.max_depth; }
   if (o.seed) scene.image.seed = *o.seed;
   if (o.sampler) scene.image.sampler = *o.sampler;
+  if (o.target_rmse) {
+    if (!std::isfinite(*o.target_rmse) || !(*o.target_rmse > 0)) {
+      throw SceneError("--target-rmse: must be a finite number > 0 (RMSE in linear light), got " +
+                       std::to_string(*o.target_rmse));
+    }
+    if (o.spp) {
+      throw SceneError("--spp and --target-rmse conflict: a render to a target error takes --min-spp and --max-spp "
+                       "as its bounds instead of --spp");
+    }
+    scene.image.target_rmse = *o.target_rmse;
+  } else if (o.spp) {
+    scene.image.target_rmse = 0;  // an explicit spp asks for a uniform render
+  }
+  if (o.min_spp) { check("min-spp", *o.min_spp, 2, SceneLimits::kMaxSpp); scene.image.min_spp = *o.min_spp; }
+  if (o.max_spp) { check("max-spp", *o.max_spp, 2, SceneLimits::kMaxSpp); scene.image.max_spp = *o.max_spp; }
+  if ((o.min_spp || o.max_spp) && !scene.image.adaptive()) {
+    throw SceneError(std::string(o.min_spp ? "--min-spp" : "--max-spp") +
+                     " bounds a render to a target error: give --target-rmse too (or --spp for a uniform render)");
+  }
+  check_adaptive(scene.image, [](const char* f) {
+    std::string flag = std::string("--") + f;
+    for (char& c : flag) c = c == '_' ? '-' : c;
+    return flag;
+  });
 }
 
 }  // namespace tessera

@@ -10,10 +10,15 @@
 namespace tessera {
 
 // Command-line overrides of the file's `image` block; validated with the same ranges.
+// A target error turns the render adaptive: --spp conflicts with it (one error names both
+// flags); --min-spp/--max-spp bound it; an --spp without a target makes a scene's adaptive
+// settings a uniform render again.
 struct ImageOverrides {
   std::optional<int> width, height, spp, max_depth;
   std::optional<uint64_t> seed;
   std::optional<SamplerKind> sampler;
+  std::optional<double> target_rmse;
+  std::optional<int> min_spp, max_spp;
 };
 
 // Limits for scenes from untrusted peers (the coordinator and workers load scenes from bundles).
@@ -43,7 +48,10 @@ struct SceneLimits {
   static constexpr int kMaxFrames = 100000;
 };
 
+// "sobol" (the default), "cmj", "independent", "center"; "stratified" names the default.
 std::optional<SamplerKind> sampler_from_name(const std::string& name);
+// The accepted names, for messages: "sobol, stratified, cmj, independent, center".
+const char* sampler_names();
 const char* sampler_name(SamplerKind kind);
 
 }  // namespace tessera

@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
+#include <limits>
 #include <fstream>
 #include <sstream>
 
@@ -37,7 +39,69 @@ TEST(SceneParser, MinimalSceneParsesWithDefaults) {
   EXPECT_EQ(s.objects.size(), 1u);
   EXPECT_EQ(s.image.spp, 16);
   EXPECT_EQ(s.frame_count(), 1);
-  EXPECT_EQ(s.image.sampler, SamplerKind::kStratified);
+  EXPECT_EQ(s.image.sampler, SamplerKind::kSobol);
+  EXPECT_FALSE(s.image.adaptive());
+}
+
+TEST(SceneParser, TargetErrorSettingsAndTheirErrors) {
+  const Scene s = parse_scene(
+      with("\"materials\"", "\"image\": {\"target_rmse\": 0.01, \"min_spp\": 8, \"max_spp\": 256}, \"materials\""),
+      "ok.json");
+  EXPECT_TRUE(s.image.adaptive());
+  EXPECT_EQ(s.image.target_rmse, 0.01);
+  EXPECT_EQ(s.image.min_spp, 8);
+  EXPECT_EQ(s.image.max_spp, 256);
+  expect_error(with("\"materials\"", "\"image\": {\"target_rmse\": 0}, \"materials\""), {"image.target_rmse"});
+  expect_error(with("\"materials\"", "\"image\": {\"target_rmse\": 0.1, \"spp\": 4}, \"materials\""),
+               {"image.target_rmse", "conflicts with image.spp"});
+  expect_error(with("\"materials\"", "\"image\": {\"target_rmse\": 0.1, \"min_spp\": 64, \"max_spp\": 32}, \"materials\""),
+               {"image.min_spp (64) must not exceed image.max_spp (32)"});
+  expect_error(with("\"materials\"", "\"image\": {\"target_rmse\": 0.1, \"sampler\": \"cmj\"}, \"materials\""),
+               {"image.target_rmse needs a progressive sampler"});
+  expect_error(with("\"materials\"", "\"image\": {\"min_spp\": 1}, \"materials\""), {"image.min_spp", "[2, 65536]"});
+}
+
+TEST(SceneParser, TargetErrorOverridesAreCheckedWithTheFlagsNames) {
+  auto apply = [](ImageOverrides o) {
+    Scene s = parse_scene(kMinimal, "ok.json");
+    apply_overrides(s, o);
+    return s;
+  };
+  auto expect_flag_error = [&](ImageOverrides o, const std::string& fragment) {
+    try {
+      apply(o);
+      FAIL() << "expected an error containing " << fragment;
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+    }
+  };
+  ImageOverrides o;
+  o.target_rmse = 0.02;
+  o.max_spp = 64;
+  const Scene s = apply(o);
+  EXPECT_TRUE(s.image.adaptive());
+  EXPECT_EQ(s.image.max_spp, 64);
+  for (double bad : {0.0, -1.0, std::nan(""), std::numeric_limits<double>::infinity()}) {
+    ImageOverrides b;
+    b.target_rmse = bad;
+    expect_flag_error(b, "--target-rmse: must be a finite number > 0");
+  }
+  ImageOverrides both = o;
+  both.spp = 16;
+  expect_flag_error(both, "--spp and --target-rmse conflict");
+  ImageOverrides inverted = o;
+  inverted.min_spp = 128;
+  expect_flag_error(inverted, "--min-spp (128) must not exceed --max-spp (64)");
+  ImageOverrides bounds_only;
+  bounds_only.max_spp = 64;
+  expect_flag_error(bounds_only, "--max-spp bounds a render to a target error");
+  ImageOverrides cmj = o;
+  cmj.sampler = SamplerKind::kCmj;
+  expect_flag_error(cmj, "--target-rmse needs a progressive sampler");
+  ImageOverrides low = o;
+  low.min_spp = 1;
+  expect_flag_error(low, "--min-spp: must be in [2, 65536], got 1");
+  EXPECT_EQ(sampler_from_name("stratified"), SamplerKind::kSobol);  // the old name of the default
 }
 
 TEST(SceneParser, SyntaxErrorsGiveLineAndColumn) {

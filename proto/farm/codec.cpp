@@ -9,7 +9,10 @@ namespace {
 
 static_assert(sizeof(float) == 4);
 
-void floats_to_le(const std::vector<float>& v, std::string* out) {
+// 32-bit words (float32 or uint32) to and from little-endian bytes.
+template <typename T>
+void words_to_le(const std::vector<T>& v, std::string* out) {
+  static_assert(sizeof(T) == 4);
   out->resize(v.size() * 4);
   if constexpr (std::endian::native == std::endian::little) {
     std::memcpy(out->data(), v.data(), out->size());
@@ -21,7 +24,9 @@ void floats_to_le(const std::vector<float>& v, std::string* out) {
   }
 }
 
-void le_to_floats(const std::string& s, std::vector<float>* v) {
+template <typename T>
+void le_to_words(const std::string& s, std::vector<T>* v) {
+  static_assert(sizeof(T) == 4);
   v->resize(s.size() / 4);
   if constexpr (std::endian::native == std::endian::little) {
     std::memcpy(v->data(), s.data(), v->size() * 4);
@@ -29,7 +34,7 @@ void le_to_floats(const std::string& s, std::vector<float>* v) {
     for (size_t i = 0; i < v->size(); ++i) {
       uint32_t u = 0;
       for (int b = 0; b < 4; ++b) u |= uint32_t(uint8_t(s[i * 4 + size_t(b)])) << (8 * b);
-      (*v)[i] = std::bit_cast<float>(u);
+      (*v)[i] = std::bit_cast<T>(u);
     }
   }
 }
@@ -42,8 +47,9 @@ void encode_tile(const TileResult& tile, tessera::v1::TileData* out) {
   r->set_y0(tile.rect.y0);
   r->set_width(tile.rect.width);
   r->set_height(tile.rect.height);
-  floats_to_le(tile.rgb, out->mutable_rgb());
-  floats_to_le(tile.variance, out->mutable_variance());
+  words_to_le(tile.rgb, out->mutable_rgb());
+  words_to_le(tile.variance, out->mutable_variance());
+  words_to_le(tile.spp, out->mutable_spp());
   auto* rays = out->mutable_rays();
   rays->set_camera(tile.rays.camera);
   rays->set_shadow(tile.rays.shadow);
@@ -66,6 +72,9 @@ std::string check_tile(const tessera::v1::TileData& in, int w, int h) {
   if (in.variance().size() != px * 4) {
     return "tile variance has " + std::to_string(in.variance().size()) + " bytes, expected " + std::to_string(px * 4);
   }
+  if (!in.spp().empty() && in.spp().size() != px * 4) {
+    return "tile spp has " + std::to_string(in.spp().size()) + " bytes, expected " + std::to_string(px * 4) + " or none";
+  }
   return {};
 }
 
@@ -74,8 +83,9 @@ std::string decode_tile(const tessera::v1::TileData& in, TileResult* out) {
   std::string err = check_tile(in, in.rect().width(), in.rect().height());
   if (!err.empty()) return err;
   out->rect = {in.rect().x0(), in.rect().y0(), in.rect().width(), in.rect().height()};
-  le_to_floats(in.rgb(), &out->rgb);
-  le_to_floats(in.variance(), &out->variance);
+  le_to_words(in.rgb(), &out->rgb);
+  le_to_words(in.variance(), &out->variance);
+  le_to_words(in.spp(), &out->spp);
   out->rays.camera = in.rays().camera();
   out->rays.shadow = in.rays().shadow();
   out->rays.secondary = in.rays().secondary();
@@ -102,6 +112,9 @@ void to_proto(const ImageOverrides& o, tessera::v1::ImageOverrides* out) {
   if (o.max_depth) out->set_max_depth(*o.max_depth);
   if (o.seed) out->set_seed(*o.seed);
   if (o.sampler) out->set_sampler(sampler_name(*o.sampler));
+  if (o.target_rmse) out->set_target_rmse(*o.target_rmse);
+  if (o.min_spp) out->set_min_spp(*o.min_spp);
+  if (o.max_spp) out->set_max_spp(*o.max_spp);
 }
 
 ImageOverrides from_proto(const tessera::v1::ImageOverrides& o) {
@@ -114,9 +127,13 @@ ImageOverrides from_proto(const tessera::v1::ImageOverrides& o) {
   if (o.has_sampler()) {
     out.sampler = sampler_from_name(o.sampler());
     if (!out.sampler) {
-      throw SceneError("overrides.sampler: must be one of stratified, independent, center, got '" + o.sampler() + "'");
+      throw SceneError(std::string("overrides.sampler: must be one of ") + sampler_names() + ", got '" +
+                       o.sampler() + "'");
     }
   }
+  if (o.has_target_rmse()) out.target_rmse = o.target_rmse();
+  if (o.has_min_spp()) out.min_spp = o.min_spp();
+  if (o.has_max_spp()) out.max_spp = o.max_spp();
   return out;
 }
 

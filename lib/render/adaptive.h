@@ -1,0 +1,44 @@
+// Rendering to a target error: the block rule that decides when pixels have enough samples, and
+// the summary of how a frame's samples were spent.
+//
+// Decisions are made per block of kAdaptiveBlock x kAdaptiveBlock pixels aligned to the image
+// (clipped at its right and bottom edges), at sample counts that depend only on the block's own
+// samples: a pixel is then a pure function of (scene, frame, settings), whatever the tiling,
+// thread count or worker. Why blocks and not single pixels: a pixel's own error estimate has one
+// degree of freedom per channel, so a pixel whose true error is 3x the target has a one-in-four
+// chance per check of estimating itself below it and stopping; a block's mean over 64 pixels is
+// stable enough to stop on (docs/renderer.md, "Rendering to a target error", has the
+// measurements).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "scene/scene.h"
+
+namespace tessera {
+
+constexpr int kAdaptiveBlock = 8;
+
+// The sample count a block goes on to after a check at n samples found its mean estimated
+// variance `block_mse` above `target_mse`: the count at which the estimate would meet the target
+// if the error fell as 1/sqrt(spp) (it falls at least that fast, so this seldom overshoots),
+// at least n + 8 and at most 2n (a noisy estimate cannot send a block far past what it needs),
+// a multiple of 8 (whole packets), and at most max_spp.
+uint32_t next_sample_count(uint32_t n, double block_mse, double target_mse, uint32_t max_spp);
+
+// How a frame's samples were spent, from its per-pixel estimated variance and sample counts.
+struct SampleSummary {
+  double estimated_rmse = 0;  // sqrt(mean estimated variance): the frame's estimated RMSE
+  uint32_t min_spp = 0, max_spp = 0;
+  double mean_spp = 0;
+  int64_t pixels = 0;
+  // Adaptive renders: blocks whose estimated RMSE is still above the target (they stopped at
+  // max_spp), and the pixels they hold.
+  int64_t blocks = 0, unconverged_blocks = 0, unconverged_pixels = 0;
+};
+
+SampleSummary summarize_samples(const std::vector<float>& variance, const std::vector<uint32_t>& spp, int width,
+                                int height, const ImageSettings& settings);
+
+}  // namespace tessera
