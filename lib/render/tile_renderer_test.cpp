@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
+
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -230,6 +232,104 @@ TEST(Render, EstimatedErrorTracksTheTrueErrorAndFallsWithSpp) {
     EXPECT_LT(true_rmse, prev_true);
     prev_true = true_rmse;
   }
+}
+
+// A target-error render of the Whitted-like scene: easy background blocks stop at min_spp, edges
+// and glass take more.
+Scene adaptive_scene(int w, int h, double target, int min_spp, int max_spp) {
+  Scene s = scene_from(whitted_like(w, h, 16));
+  s.image.target_rmse = target;
+  s.image.min_spp = min_spp;
+  s.image.max_spp = max_spp;
+  return s;
+}
+
+TEST(AdaptiveRender, BitIdenticalForAnyTileSizeThreadCountAndRepetition) {
+  // Odd sizes: blocks clipped at the image's edges; tile sizes that are not multiples of the
+  // block size render blocks shared by several tiles.
+  RenderScene rs(adaptive_scene(75, 53, 0.02, 8, 128), 0);
+  const FrameResult ref = render_frame(rs, 16, 1);
+  uint32_t lo = ~0u, hi = 0;
+  for (uint32_t n : ref.spp) {
+    lo = std::min(lo, n);
+    hi = std::max(hi, n);
+  }
+  ASSERT_EQ(lo, 8u);  // some blocks stop at once...
+  ASSERT_GT(hi, 8u);  // ...and others do not: the test exercises the decisions
+  for (int tile : {8, 13, 64, 5}) {
+    for (int threads : {1, 2}) {
+      const FrameResult r = render_frame(rs, tile, threads);
+      ASSERT_EQ(r.image.rgb, ref.image.rgb) << "tile " << tile << " threads " << threads;
+      ASSERT_EQ(r.variance, ref.variance) << "tile " << tile << " threads " << threads;
+      ASSERT_EQ(r.spp, ref.spp) << "tile " << tile << " threads " << threads;
+    }
+  }
+  RenderScene again(adaptive_scene(75, 53, 0.02, 8, 128), 0);  // another Embree scene, as on another worker
+  const TileResult t = render_tile(again, {13, 7, 29, 31});
+  for (int y = 0; y < 31; ++y) {
+    for (int x = 0; x < 29; ++x) {
+      ASSERT_EQ(t.spp[size_t(y * 29 + x)], ref.spp[size_t((7 + y) * 75 + 13 + x)]);
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(t.rgb[3 * size_t(y * 29 + x) + size_t(c)], ref.image.at(13 + x, 7 + y)[c]);
+    }
+  }
+}
+
+TEST(AdaptiveRender, APixelThatStoppedAtNSamplesEqualsTheUniformNSppRender) {
+  // The sampler is progressive and the sums run in sample order, so an adaptive pixel is the
+  // uniform render at its own sample count, bit for bit.
+  RenderScene rs(adaptive_scene(48, 32, 0.008, 8, 64), 0);
+  const FrameResult a = render_frame(rs, 32, 2);
+  std::map<uint32_t, FrameResult> uniform;
+  size_t checked = 0;
+  for (size_t i = 0; i < a.spp.size(); ++i) {
+    const uint32_t n = a.spp[i];
+    if (!uniform.count(n)) {
+      Scene s = scene_from(whitted_like(48, 32, int(n)));
+      RenderScene u(s, 0);
+      uniform.emplace(n, render_frame(u, 32, 2));
+    }
+    const FrameResult& u = uniform.at(n);
+    for (int c = 0; c < 3; ++c) ASSERT_EQ(a.image.rgb[3 * i + size_t(c)], u.image.rgb[3 * i + size_t(c)]) << i;
+    ASSERT_EQ(a.variance[i], u.variance[i]) << i;
+    ++checked;
+  }
+  EXPECT_GE(uniform.size(), 2u);  // several stopping points were compared
+  EXPECT_EQ(checked, a.spp.size());
+}
+
+TEST(AdaptiveRender, EveryBlockMeetsTheTargetOrStopsAtMaxSpp) {
+  const double target = 0.004;
+  Scene s = adaptive_scene(64, 40, target, 8, 32);  // max_spp low: some blocks cannot make it
+  RenderScene rs(s, 0);
+  const FrameResult r = render_frame(rs, 32, 2);
+  const SampleSummary sum = r.summary();
+  int64_t at_max_above = 0, below_max_above = 0;
+  for (int by = 0; by < 40; by += kAdaptiveBlock) {
+    for (int bx = 0; bx < 64; bx += kAdaptiveBlock) {
+      double mse = 0;
+      const uint32_t n = r.spp[size_t(by * 64 + bx)];
+      for (int y = by; y < by + kAdaptiveBlock; ++y) {
+        for (int x = bx; x < bx + kAdaptiveBlock; ++x) {
+          mse += r.variance[size_t(y * 64 + x)] / double(kAdaptiveBlock * kAdaptiveBlock);
+          ASSERT_EQ(r.spp[size_t(y * 64 + x)], n) << "a block's pixels share their sample count";
+        }
+      }
+      if (mse > target * target) (n == 32 ? at_max_above : below_max_above)++;
+    }
+  }
+  EXPECT_EQ(below_max_above, 0) << "a block stopped above the target before max_spp";
+  EXPECT_GT(at_max_above, 0) << "max_spp 32 was expected to stop some blocks above the target";
+  EXPECT_EQ(sum.unconverged_blocks, at_max_above);
+  EXPECT_EQ(sum.max_spp, 32u);
+  EXPECT_EQ(sum.min_spp, 8u);
+}
+
+TEST(AdaptiveRender, NextSampleCountIsBoundedAndWholePackets) {
+  EXPECT_EQ(next_sample_count(16, 4.0, 1.0, 1024), 32u);    // far off: at most doubling
+  EXPECT_EQ(next_sample_count(16, 1.1, 1.0, 1024), 24u);    // close: one more packet
+  EXPECT_EQ(next_sample_count(64, 1.5, 1.0, 1024), 96u);    // 1/spp prediction
+  EXPECT_EQ(next_sample_count(600, 4.0, 1.0, 1000), 1000u); // capped at max_spp
+  EXPECT_EQ(next_sample_count(20, 1.5, 1.0, 1024) % 8, 0u);
 }
 
 }  // namespace

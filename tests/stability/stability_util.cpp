@@ -73,4 +73,29 @@ void write_text(const std::string& path, const std::string& text) {
   if (!f) throw std::runtime_error("cannot write " + path);
 }
 
+std::string edge_rich_scene(int w, int h) {
+  return R"({"camera": {"position": [0, 1.6, 6.5], "look_at": [0, 0.9, 0], "vfov_deg": 40},
+    "image": {"width": )" + std::to_string(w) + R"(, "height": )" + std::to_string(h) + R"(, "max_depth": 6},
+    "background": [0.25, 0.45, 0.8],
+    "lights": [{"type": "point", "position": [-4, 6, 5], "intensity": 160}],
+    "materials": {
+      "c": {"type": "diffuse", "albedo": [0.85, 0.1, 0.08], "checker": {"albedo2": [0.9, 0.85, 0.15], "scale": 0.5}},
+      "mi": {"type": "mirror", "reflectance": 0.9}, "g": {"type": "glass", "ior": 1.5},
+      "d": {"type": "diffuse", "albedo": [0.2, 0.5, 0.25]}},
+    "objects": [
+      {"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "c"},
+      {"type": "sphere", "center": [-1.5, 1, -0.8], "radius": 1, "material": "mi"},
+      {"type": "sphere", "center": [0.55, 0.8, 1.4], "radius": 0.8, "material": "g"},
+      {"type": "sphere", "center": [2, 0.7, -0.6], "radius": 0.7, "material": "d"}]})";
+}
+
+// A plane filling the view under a point light: the radiance varies smoothly inside every pixel.
+std::string smooth_scene(int w, int h) {
+  return R"({"camera": {"position": [0, 2, 0.01], "look_at": [0, 0, 0], "vfov_deg": 60},
+    "image": {"width": )" + std::to_string(w) + R"(, "height": )" + std::to_string(h) + R"(, "max_depth": 1},
+    "lights": [{"type": "point", "position": [0.4, 0.6, 0.2], "intensity": 5}],
+    "materials": {"m": {"type": "diffuse", "albedo": 0.8}},
+    "objects": [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m"}]})";
+}
+
 }  // namespace tessera::stability

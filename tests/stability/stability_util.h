@@ -33,4 +33,9 @@ Scene scene_from(const std::string& json, const std::string& path = "stability.j
 std::string make_temp_dir(const std::string& tag);
 void write_text(const std::string& path, const std::string& text);
 
+// Scenes shared by the convergence (case 10) and error-estimate (case 11) cases: a Whitted-like
+// scene full of edges, mirrors and glass, and a plane whose radiance varies smoothly in every pixel.
+std::string edge_rich_scene(int w, int h);
+std::string smooth_scene(int w, int h);
+
 }  // namespace tessera::stability
