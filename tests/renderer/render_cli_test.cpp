@@ -2,10 +2,13 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
+
+#include <nlohmann/json.hpp>
 
 #include "image/exr_io.h"
 
@@ -93,6 +96,79 @@ TEST_F(RenderCli, BadInputFailsWithAMessageNamingTheProblem) {
   r = run(kTessera + " render " + kScenes + "/whitted.json --width 8 --height 8 -q -o /proc/nope/x.exr");
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.output.find("/proc/nope/x.exr"), std::string::npos) << r.output;
+}
+
+TEST_F(RenderCli, TargetErrorRenderReportsItsErrorAndSamplesAndWritesErrorLayers) {
+  const fs::path file = dir_ / "adaptive.exr";
+  const std::string base = kTessera + " render " + kScenes + "/cornell.json --width 48 --height 48 -q ";
+  CmdResult r = run(base + "--target-rmse 0.02 --min-spp 8 --max-spp 1024 --error-channels --report json -o " +
+                    file.string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto json_start = r.output.find('{');
+  ASSERT_NE(json_start, std::string::npos) << r.output;
+  const auto report = nlohmann::json::parse(r.output.substr(json_start));
+  const double est = report.at("estimated_rmse").get<double>();
+  EXPECT_GT(est, 0.0);
+  EXPECT_LE(est, 0.02);
+  EXPECT_EQ(report.at("target_rmse").get<double>(), 0.02);
+  EXPECT_EQ(report.at("spp_min").get<int>(), 8);
+  EXPECT_GT(report.at("spp_max").get<int>(), 8);
+  EXPECT_TRUE(report.at("target_reached").get<bool>());
+  const double mean_spp = report.at("spp_mean").get<double>();
+
+  // The layers, through the library's reader and through an independent one (oiiotool).
+  tessera::ExrAttributes attrs;
+  tessera::read_exr(file.string(), &attrs);
+  EXPECT_EQ(std::get<double>(attrs.at("tessera:estimatedRmse")), est);
+  EXPECT_EQ(std::get<double>(attrs.at("tessera:targetRmse")), 0.02);
+  const std::vector<float> err = tessera::read_exr_channel(file.string(), "error.Y");
+  const std::vector<float> spp = tessera::read_exr_channel(file.string(), "spp.Y");
+  ASSERT_EQ(err.size(), 48u * 48u);
+  double mse = 0, spp_sum = 0;
+  for (size_t i = 0; i < err.size(); ++i) {
+    mse += double(err[i]) * double(err[i]) / double(err.size());
+    spp_sum += spp[i] / double(spp.size());
+  }
+  EXPECT_NEAR(std::sqrt(mse), est, 1e-6 * est);  // the layer is the per-pixel form of the estimate
+  EXPECT_NEAR(spp_sum, mean_spp, 1e-9 * mean_spp);
+  if (run("command -v oiiotool").status == 0) {
+    const CmdResult info = run("oiiotool --info -v " + file.string());
+    ASSERT_EQ(info.status, 0) << info.output;
+    EXPECT_NE(info.output.find("5 channel"), std::string::npos) << info.output;
+    EXPECT_NE(info.output.find("error.Y"), std::string::npos) << info.output;
+    EXPECT_NE(info.output.find("spp.Y"), std::string::npos) << info.output;
+    const CmdResult stats = run("oiiotool " + file.string() + " --ch spp.Y --printstats");
+    EXPECT_NE(stats.output.find("Min: 8.000000"), std::string::npos) << stats.output;
+  }
+
+  // max_spp too low for the target: done, exit 0, with a warning that says so.
+  r = run(base + "--target-rmse 0.0005 --max-spp 16 -o " + (dir_ / "capped.exr").string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("target RMSE 0.0005 not reached everywhere"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--max-spp 16"), std::string::npos) << r.output;
+}
+
+TEST_F(RenderCli, BadTargetErrorSettingsNameTheFlagAndTheAllowedValues) {
+  const std::string base = kTessera + " render " + kScenes + "/whitted.json --width 8 --height 8 -q -o " +
+                           (dir_ / "x.exr").string() + " ";
+  const std::pair<std::string, std::string> cases[] = {
+      {"--target-rmse 0", "--target-rmse: must be a finite number > 0"},
+      {"--target-rmse -0.1", "--target-rmse: must be a finite number > 0"},
+      {"--target-rmse nan", "--target-rmse: must be a finite number > 0"},
+      {"--target-rmse inf", "--target-rmse: must be a finite number > 0"},
+      {"--target-rmse 0.01 --min-spp 64 --max-spp 32", "--min-spp (64) must not exceed --max-spp (32)"},
+      {"--target-rmse 0.01 --spp 64", "--spp and --target-rmse conflict"},
+      {"--max-spp 64", "--max-spp bounds a render to a target error: give --target-rmse too"},
+      {"--target-rmse 0.01 --sampler cmj", "--target-rmse needs a progressive sampler"},
+      {"--target-rmse 0.01 --max-spp 100000", "--max-spp: must be in [2, 65536], got 100000"},
+      {"--sampler sobel", "--sampler: must be one of sobol, stratified, cmj, independent, center"},
+  };
+  for (const auto& [args, message] : cases) {
+    const CmdResult r = run(base + args);
+    EXPECT_EQ(r.status, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos) << args << "\n" << r.output;
+    EXPECT_FALSE(fs::exists(dir_ / "x.exr")) << args;
+  }
 }
 
 TEST_F(RenderCli, EveryEdgeCaseMeshRendersOrFailsCleanly) {
