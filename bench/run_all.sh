@@ -4,7 +4,8 @@
 #   bench/run_all.sh [--build DIR] [--out DIR] [--smoke] [--only LIST] [--no-farm] [--threads N]
 #
 #   speed_error   time, Mrays/s, RMSE, relMSE and the renderer's estimated RMSE against spp, per
-#                 sampler, for the three showcase scenes, plus a log-log PNG (gnuplot)
+#                 sampler, for the three showcase scenes; target-error renders against uniform spp
+#                 at equal measured error; a log-log PNG per scene (gnuplot)
 #   ray_ceiling   the renderer's Mrays/s against bare Embree on its own rays (single, 8-, 16-wide)
 #   povray        POV-Ray 3.7 on the same Whitted scene: error and samples/s of both
 #   farm          bench/farm/run.sh (farm overhead, coordinator at scale), when it exists
@@ -49,11 +50,11 @@ CACHE=$BUILD/bench-cache
 mkdir -p "$CACHE"
 SUMMARY=$OUT/summary.md
 if [ $SMOKE = 1 ]; then
-  W=32 H=18 MAXSPP=4 REFSPP=16 CENTER=2          # speed_error
+  W=32 H=18 MAXSPP=4 REFSPP=16 CENTER=2 TARGETS=0.05   # speed_error
   CW=32 CH=18 CSPP=1 REPS=1                      # ray_ceiling
   PW=32 PH=18 PR=2                               # povray: +R2 = 4 samples per pixel
 else
-  W=192 H=108 MAXSPP=1024 REFSPP=4096 CENTER=16
+  W=192 H=108 MAXSPP=1024 REFSPP=4096 CENTER=16 TARGETS=auto
   CW=480 CH=270 CSPP=4 REPS=3
   PW=192 PH=108 PR=4
 fi
@@ -73,15 +74,18 @@ set terminal pngcairo size 800,560 noenhanced
 set output "$OUT/speed_error_$scene.png"
 set title "$scene, ${W}x${H}, max_depth 8: RMSE against render time"
 set logscale xy
-set xlabel "render time (s, wall), $THREADS threads"
 set ylabel "RMSE against a $REFSPP-spp reference (linear)"
 set key bottom left
 set grid
-plot "$OUT/speed_error_$scene.dat" index 0 using 1:2 with linespoints lw 2 lc 1 title "stratified (CMJ)", \
-     "" index 0 using 1:3 with lines dt 2 lc 1 title "stratified: renderer's estimated RMSE", \
-     "" index 1 using 1:2 with linespoints lw 2 lc 2 title "independent", \
-     "" index 1 using 1:3 with lines dt 2 lc 2 title "independent: renderer's estimated RMSE", \
-     "" index 2 using 1:2 with linespoints lw 2 lc 3 title "center"
+set xlabel "render time (CPU-seconds, all threads), $THREADS threads"
+plot "$OUT/speed_error_$scene.dat" index 0 using 1:2 with linespoints lw 2 lc 1 title "sobol (default), uniform spp", \
+     "" index 0 using 1:3 with lines dt 2 lc 1 title "sobol: renderer's estimated RMSE", \
+     "" index 1 using 1:2 with linespoints lw 2 lc 4 title "cmj, uniform spp", \
+     "" index 2 using 1:2 with linespoints lw 2 lc 2 title "independent", \
+     "" index 2 using 1:3 with lines dt 2 lc 2 title "independent: renderer's estimated RMSE", \
+     "" index 3 using 1:2 with linespoints lw 2 lc 3 title "center", \
+     "$OUT/speed_error_${scene}_target.dat" using 1:2 with linespoints lw 3 pt 7 lc 7 title "sobol, --target-rmse (adaptive)", \
+     "" using 1:3 with lines dt 2 lc 7 title "adaptive: renderer's estimated RMSE"
 EOF
 }
 
@@ -91,7 +95,8 @@ if want speed_error; then
   for scene in whitted cornell bunny; do
     "$BUILD/bench/speed_error/speed_error" --scene "scenes/$scene.json" --width $W --height $H \
       --max-spp $MAXSPP --ref-spp $REFSPP --center-max-spp $CENTER --threads "$THREADS" --cache "$CACHE" \
-      --markdown "$SUMMARY" --data "$OUT/speed_error_$scene.dat" >"$OUT/speed_error_$scene.json"
+      --targets "$TARGETS" --markdown "$SUMMARY" --data "$OUT/speed_error_$scene.dat" \
+      --target-data "$OUT/speed_error_${scene}_target.dat" >"$OUT/speed_error_$scene.json"
     plot_speed_error "$scene"
   done
 fi
@@ -121,10 +126,10 @@ if want povray; then
     echo "POV-Ray not installed: skipped." >>"$SUMMARY"
   else
     # The reference is the speed_error one when its size matches; otherwise render one.
-    REF=$CACHE/whitted_${PW}x${PH}_ref${REFSPP}.exr
+    REF=$CACHE/whitted_${PW}x${PH}_ref${REFSPP}_sobol.exr
     if [ ! -f "$REF" ]; then
       "$BUILD/bench/speed_error/speed_error" --scene scenes/whitted.json --width $PW --height $PH --max-spp 1 \
-        --ref-spp $REFSPP --samplers stratified --threads "$THREADS" --cache "$CACHE" >/dev/null
+        --ref-spp $REFSPP --samplers sobol --targets none --threads "$THREADS" --cache "$CACHE" >/dev/null
     fi
     # +A0.0 +AM1 +R n: every pixel supersampled on an n x n grid (non-adaptive in effect), no
     # jitter; linear EXR output (assumed_gamma 1.0 in the scene); same thread count as ours.
