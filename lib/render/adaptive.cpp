@@ -5,8 +5,13 @@
 
 namespace tessera {
 
-uint32_t next_sample_count(uint32_t n, double block_mse, double target_mse, uint32_t max_spp) {
-  const double want = std::ceil(double(n) * block_mse / target_mse);
+uint32_t next_sample_count(uint32_t n, double block_mse, double target_mse, uint32_t max_spp, uint32_t prev_n,
+                           double prev_mse) {
+  double a = 1.0;
+  if (prev_n > 0 && prev_n < n && prev_mse > 0 && block_mse > 0) {
+    a = std::clamp(std::log(prev_mse / block_mse) / std::log(double(n) / double(prev_n)), 1.0, 2.5);
+  }
+  const double want = std::ceil(double(n) * std::pow(block_mse / target_mse, 1.0 / a));
   uint64_t next = uint64_t(std::clamp(want, double(n) + 8.0, 2.0 * double(n)));
   next = (next + 7) / 8 * 8;
   return uint32_t(std::min<uint64_t>(next, max_spp));

@@ -22,10 +22,13 @@ constexpr int kAdaptiveBlock = 8;
 
 // The sample count a block goes on to after a check at n samples found its mean estimated
 // variance `block_mse` above `target_mse`: the count at which the estimate would meet the target
-// if the error fell as 1/sqrt(spp) (it falls at least that fast, so this seldom overshoots),
-// at least n + 8 and at most 2n (a noisy estimate cannot send a block far past what it needs),
-// a multiple of 8 (whole packets), and at most max_spp.
-uint32_t next_sample_count(uint32_t n, double block_mse, double target_mse, uint32_t max_spp);
+// if it kept falling as spp^-a, with a measured from the block's previous check (`prev_n`,
+// `prev_mse`; 0 when there is none) and clamped to [1, 2.5] (a = 1, independent samples, when
+// there is no previous check: stratified blocks fall faster, so this overshoots at most once);
+// at least n + 8 and at most 2n (a noisy estimate cannot send a block far past what it needs), a
+// multiple of 8 (whole packets), and at most max_spp.
+uint32_t next_sample_count(uint32_t n, double block_mse, double target_mse, uint32_t max_spp, uint32_t prev_n = 0,
+                           double prev_mse = 0);
 
 // How a frame's samples were spent, from its per-pixel estimated variance and sample counts.
 struct SampleSummary {

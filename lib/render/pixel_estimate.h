@@ -56,6 +56,19 @@ class PixelEstimate {
     return v / 3.0;
   }
 
+  // The stopping rule's floor for a stratified pixel (render/adaptive.h): its sample variance
+  // s^2 falling as spp^-1.5, the rate of a (0,2)-net on a pixel crossed by an edge. The
+  // two-stream estimate is unbiased but, for an edge pixel, often exactly 0: stratification makes
+  // both streams count the same number of samples on each side of the edge, so they agree until
+  // the count of one of them moves by one. Over a frame that averages out; over a block with a
+  // few edge pixels it would stop the block with a large error. The reported estimate stays the
+  // unbiased one.
+  double stratified_floor() const {
+    if (n_[1] == 0) return 0.0;
+    const double n = double(samples());
+    return sample_variance() / std::sqrt(n);
+  }
+
  private:
   double sample_variance() const {
     const double n = double(samples());

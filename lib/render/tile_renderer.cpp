@@ -80,22 +80,31 @@ void render_tile_adaptive(const RenderScene& scene, const TileRect& rect, TileRe
     for (int bx = rect.x0 / B * B; bx < rect.x0 + rect.width; bx += B) {
       const int w = std::min(B, img.width - bx), h = std::min(B, img.height - by);
       std::fill(block.begin(), block.end(), PixelEstimate{});
-      uint32_t done = 0, n = min_spp;
+      uint32_t done = 0, n = min_spp, prev_n = 0;
+      double prev_mse = 0;
       while (true) {
         for (int y = 0; y < h; ++y) {
           for (int x = 0; x < w; ++x) render_samples(scene, bx + x, by + y, done, n, &block[size_t(y * B + x)], &out->rays);
         }
         done = n;
         if (n >= max_spp) break;
-        // The mean of the variances as they are stored (float), summed in row order: the test
-        // summarize_samples() repeats on the assembled frame.
+        // The block's estimated variance: per pixel the estimate as stored (float), or for
+        // stratified samplers the floor below which an edge pixel's estimate is not trusted
+        // (PixelEstimate::stratified_floor), whichever is larger; summed in row order.
         double sum = 0;
         for (int y = 0; y < h; ++y) {
-          for (int x = 0; x < w; ++x) sum += double(float(block[size_t(y * B + x)].variance(img.sampler)));
+          for (int x = 0; x < w; ++x) {
+            const PixelEstimate& e = block[size_t(y * B + x)];
+            const double v = double(float(e.variance(img.sampler)));
+            sum += img.sampler == SamplerKind::kSobol ? std::max(v, e.stratified_floor()) : v;
+          }
         }
         const double mse = sum / double(w * h);
         if (!(mse > target_mse)) break;
-        n = next_sample_count(n, mse, target_mse, max_spp);
+        const uint32_t next = next_sample_count(n, mse, target_mse, max_spp, prev_n, prev_mse);
+        prev_n = n;
+        prev_mse = mse;
+        n = next;
       }
       for (int y = std::max(by, rect.y0); y < std::min(by + h, rect.y0 + rect.height); ++y) {
         for (int x = std::max(bx, rect.x0); x < std::min(bx + w, rect.x0 + rect.width); ++x) {
