@@ -50,11 +50,11 @@ CACHE=$BUILD/bench-cache
 mkdir -p "$CACHE"
 SUMMARY=$OUT/summary.md
 if [ $SMOKE = 1 ]; then
-  W=32 H=18 MAXSPP=4 REFSPP=16 CENTER=2 TARGETS=0.05   # speed_error
+  W=32 H=18 MAXSPP=4 REFSPP=16 CENTER=2 TARGETS=0.05 SEEDS=1   # speed_error
   CW=32 CH=18 CSPP=1 REPS=1                      # ray_ceiling
   PW=32 PH=18 PR=2                               # povray: +R2 = 4 samples per pixel
 else
-  W=192 H=108 MAXSPP=1024 REFSPP=4096 CENTER=16 TARGETS=auto
+  W=192 H=108 MAXSPP=1024 REFSPP=4096 CENTER=16 TARGETS=auto SEEDS=3
   CW=480 CH=270 CSPP=4 REPS=3
   PW=192 PH=108 PR=4
 fi
@@ -95,7 +95,7 @@ if want speed_error; then
   for scene in whitted cornell bunny; do
     "$BUILD/bench/speed_error/speed_error" --scene "scenes/$scene.json" --width $W --height $H \
       --max-spp $MAXSPP --ref-spp $REFSPP --center-max-spp $CENTER --threads "$THREADS" --cache "$CACHE" \
-      --targets "$TARGETS" --markdown "$SUMMARY" --data "$OUT/speed_error_$scene.dat" \
+      --targets "$TARGETS" --seeds $SEEDS --markdown "$SUMMARY" --data "$OUT/speed_error_$scene.dat" \
       --target-data "$OUT/speed_error_${scene}_target.dat" >"$OUT/speed_error_$scene.json"
     plot_speed_error "$scene"
   done

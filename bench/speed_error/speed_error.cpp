@@ -61,26 +61,40 @@ double cpu_seconds() {
   return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
 
-// Renders and measures one point.
-Point measure(const Scene& s, int threads, const ImageRGB& ref) {
-  RenderScene rs(s, 0);
-  const double c0 = cpu_seconds();
-  const FrameResult r = render_frame(rs, 32, threads);
+// Renders and measures one point: the mean over `seeds` renders with seeds 1..N of the times, the
+// sample counts, the squared error and the squared estimate. One render's error is a heavy-tailed
+// number where a few pixels (a bright edge seen through glass) hold most of it, while the
+// estimate is a statement about the expected error: comparing means over seeds compares like
+// with like.
+Point measure(const Scene& base, int threads, const ImageRGB& ref, int seeds) {
   Point p;
-  p.cpu_seconds = cpu_seconds() - c0;
-  p.sampler = sampler_name(s.image.sampler);
-  p.spp = s.image.spp;
-  p.seconds = r.seconds;
-  p.rays = r.rays.total();
-  p.mrays = double(p.rays) / r.seconds / 1e6;
-  p.rmse = rmse(r.image, ref);
-  p.relmse = relmse(r.image, ref);
-  const SampleSummary sum = r.summary();
-  p.est_rmse = sum.estimated_rmse;
-  p.mean_spp = sum.mean_spp;
-  p.min_spp = sum.min_spp;
-  p.max_spp = sum.max_spp;
-  p.unconverged_pixels = sum.unconverged_pixels;
+  p.sampler = sampler_name(base.image.sampler);
+  p.spp = base.image.spp;
+  double mse = 0, est = 0, rel = 0;
+  p.min_spp = ~0u;
+  for (int k = 0; k < seeds; ++k) {
+    Scene s = base;
+    s.image.seed = base.image.seed + uint64_t(k);
+    RenderScene rs(s, 0);
+    const double c0 = cpu_seconds();
+    const FrameResult r = render_frame(rs, 32, threads);
+    p.cpu_seconds += (cpu_seconds() - c0) / seeds;
+    p.seconds += r.seconds / seeds;
+    p.rays += r.rays.total() / uint64_t(seeds);
+    const double e = rmse(r.image, ref);
+    mse += e * e / seeds;
+    rel += relmse(r.image, ref) / seeds;
+    const SampleSummary sum = r.summary();
+    est += sum.estimated_rmse * sum.estimated_rmse / seeds;
+    p.mean_spp += sum.mean_spp / seeds;
+    p.min_spp = std::min(p.min_spp, sum.min_spp);
+    p.max_spp = std::max(p.max_spp, sum.max_spp);
+    p.unconverged_pixels += sum.unconverged_pixels;
+  }
+  p.mrays = double(p.rays) / p.seconds / 1e6;
+  p.rmse = std::sqrt(mse);
+  p.relmse = rel;
+  p.est_rmse = std::sqrt(est);
   return p;
 }
 
@@ -146,7 +160,7 @@ int main(int argc, char** argv) {
   int width = 320, height = 180, max_spp = 1024, ref_spp = 4096, threads = 0, center_max_spp = 16;
   std::string samplers_arg = "sobol,cmj,independent,center";
   std::string targets_arg = "auto", target_data;
-  int min_spp = 16;
+  int min_spp = 16, seeds = 3;
   double target_rmse = 0.01;
   app.add_option("--scene", scene_path, "Scene JSON")->required()->check(CLI::ExistingFile);
   app.add_option("--width", width)->check(CLI::Range(1, 16384));
@@ -161,6 +175,8 @@ int main(int argc, char** argv) {
   app.add_option("--targets", targets_arg,
                  "Target errors for the target-error renders: comma-separated, 'auto' (a ladder between the "
                  "default sampler's uniform errors at 8 spp and at --max-spp/4) or 'none'");
+  app.add_option("--seeds", seeds, "Renders per point (seeds 1..N): times, errors and estimates are their means")
+      ->check(CLI::Range(1, 64));
   app.add_option("--min-spp", min_spp, "Target-error renders: fewest samples per pixel")->check(CLI::Range(2, 65536));
   app.add_option("--target-data", target_data, "Write gnuplot data of the target-error renders to this file");
   app.add_option("--cache", cache_dir, "Directory for cached reference images");
@@ -226,7 +242,7 @@ int main(int argc, char** argv) {
       s.image.spp = spp;
       s.image.sampler = k;
       s.image.target_rmse = 0;
-      const Point p = measure(s, threads, ref);
+      const Point p = measure(s, threads, ref, seeds);
       points.push_back(p);
       std::cerr << "  " << name << " " << p.sampler << " " << spp << " spp: " << p.seconds << " s, rmse " << p.rmse
                 << "\n";
@@ -288,7 +304,7 @@ int main(int argc, char** argv) {
     s.image.target_rmse = t;
     s.image.min_spp = min_spp;
     s.image.max_spp = max_spp;
-    Point p = measure(s, threads, ref);
+    Point p = measure(s, threads, ref, seeds);
     p.target = t;
     p.spp = 0;
     p.uniform_cpu_seconds = at_rmse(uniform, p.rmse, &Point::cpu_seconds, &p.extrapolated);
@@ -311,6 +327,7 @@ int main(int argc, char** argv) {
   out["honesty"] = honesty;
   out["renderer"] = embree_isa();
   out["target_rmse"] = target_rmse;
+  out["seeds"] = seeds;
   out["fits"] = fits;
   for (const Point& p : points) {
     out["runs"].push_back({{"sampler", p.sampler}, {"spp", p.spp}, {"seconds", p.seconds},
@@ -333,7 +350,8 @@ int main(int argc, char** argv) {
     std::ofstream md(markdown, std::ios::app);
     char buf[512];
     md << "\n#### " << name << " (" << width << "x" << height << ", max_depth " << scene.image.max_depth
-       << ", reference " << ref_spp << " spp stratified, its estimated RMSE " << ref_est_rmse << ")\n\n";
+       << ", reference " << ref_spp << " spp sobol, its estimated RMSE " << ref_est_rmse << "; every row the mean of "
+       << seeds << " seeds: RMSE and estimate as root mean squares)\n\n";
     md << "| sampler | spp | time (s) | CPU (s) | Mrays/s | RMSE | relMSE | estimated RMSE | est/RMSE |\n";
     md << "|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for (const Point& p : points) {
