@@ -57,18 +57,19 @@ class PixelEstimate {
   }
 
   // The stopping rule's floor for a stratified pixel (render/adaptive.h): its sample variance
-  // s^2 falling as spp^-2. The two-stream estimate is unbiased but, for a pixel crossed by an
-  // edge, often exactly 0: stratification makes both streams count the same number of samples on
-  // each side of the edge, so they agree until the count of one of them moves by one. Over a
-  // frame that averages out; over a block with a few bright edge pixels it stopped the block at
-  // min_spp with most of the frame's error (measured on the Cornell box: one such block held 88%
-  // of it). An edge pixel's true variance falls as spp^-1.5, above this floor, so the floor never
-  // stops a block early by itself; it only keeps a zero from stopping it. The reported estimate
-  // stays the unbiased one.
+  // s^2 falling as spp^-1.5, the rate of a (0,2)-net on a pixel crossed by an edge. The
+  // two-stream estimate is unbiased but, for an edge pixel, often exactly 0: stratification makes
+  // both streams count the same number of samples on each side of the edge, so they agree until
+  // the count of one of them moves by one. Over a frame that averages out; over a block with a
+  // few bright edge pixels it stopped the block at min_spp with most of the frame's error
+  // (measured on the Cornell box: one such block held 88% of it). The reported estimate stays the
+  // unbiased one. A floor falling as spp^-2 was tried: slightly faster on Cornell at high
+  // targets, but target-error renders then estimated their own error 0.75-0.90x of the measured
+  // one, against 0.81-0.98x with this floor (docs/performance.md).
   double stratified_floor() const {
     if (n_[1] == 0) return 0.0;
     const double n = double(samples());
-    return sample_variance() / n;
+    return sample_variance() / std::sqrt(n);
   }
 
  private:
