@@ -36,6 +36,23 @@ struct SobolDim1 {
 };
 constexpr SobolDim1 kSobolDim1;
 
+// The same dimension for a 16-bit index, one table per byte: y = lo[i & 255] ^ hi[i >> 8]
+// (the matrix is linear over GF(2), so the bytes' contributions XOR).
+struct SobolDim1Bytes {
+  uint32_t lo[256], hi[256];
+  constexpr SobolDim1Bytes() : lo(), hi() {
+    for (uint32_t b = 0; b < 256; ++b) {
+      for (int k = 0; k < 8; ++k) {
+        if (b & (1u << k)) {
+          lo[b] ^= kSobolDim1.v[k];
+          hi[b] ^= kSobolDim1.v[k + 8];
+        }
+      }
+    }
+  }
+};
+constexpr SobolDim1Bytes kSobolDim1Bytes;
+
 }  // namespace
 
 uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed) {
@@ -53,8 +70,16 @@ void sobol_2d(uint32_t index, uint32_t* x, uint32_t* y) {
 
 void owen_sobol_2d(uint32_t index, uint64_t seed, float* u, float* v) {
   const uint64_t h = mix64(seed);
-  uint32_t x, y;
-  sobol_2d(nested_uniform_scramble(index, uint32_t(seed)), &x, &y);
+  // Only the low 16 bits of the shuffled index are used: the bits above them are the same for
+  // every index of a stream below 2^16 (the shuffle flips a bit by the bits above it), and by
+  // linearity they only XOR a constant into the point, a digital shift, which the Owen scramble
+  // that follows absorbs (a nested uniform scramble of a shifted net is a nested uniform scramble
+  // of the net). 16 bits cover 2^16 samples per stream, twice what SceneLimits::kMaxSpp allows
+  // a stream (its half of 65536); two table
+  // lookups replace a loop over 32 bits.
+  const uint32_t i = nested_uniform_scramble(index, uint32_t(seed)) & 0xffffu;
+  const uint32_t x = reverse_bits(i);
+  const uint32_t y = kSobolDim1Bytes.lo[i & 0xffu] ^ kSobolDim1Bytes.hi[i >> 8];
   *u = to_unit_float(nested_uniform_scramble(x, uint32_t(h)));
   *v = to_unit_float(nested_uniform_scramble(y, uint32_t(h >> 32)));
 }
