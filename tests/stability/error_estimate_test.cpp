@@ -44,7 +44,7 @@ void run(const std::string& name, Scene scene) {
   // bench/speed_error carries the ladder on to 1024 spp on the showcase scenes (one seed).
   const std::vector<int> spps = full_mode() ? std::vector<int>{8, 16, 32, 64, 128, 256, 512}
                                             : std::vector<int>{8, 32, 128};
-  const int seeds = pick(3, 2);
+  const int seeds = pick(8, 3);
   const std::string id = "11 error estimate " + name;
   for (SamplerKind k : {SamplerKind::kSobol, SamplerKind::kIndependent}) {
     double lo = 1e30, hi = 0;
