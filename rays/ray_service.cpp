@@ -1,0 +1,108 @@
+#include "ray_service.h"
+
+#include <tbb/parallel_for.h>
+
+#include "ray_codec.h"
+#include "render/embree_device.h"
+#include "request_limits.h"
+
+namespace tessera::rays {
+
+namespace v1 = tessera::v1;
+using grpc::Status;
+using grpc::StatusCode;
+
+namespace {
+
+// Rays per parallel task: large enough that scheduling costs nothing next to ~1 µs per ray.
+constexpr size_t kChunk = 1024;
+
+}  // namespace
+
+RayServiceImpl::RayServiceImpl(SceneSource scenes, server::Authenticator auth, RayServiceOptions options)
+    : scenes_(std::move(scenes)), auth_(std::move(auth)), options_(options), arena_(std::max(1, options.threads)) {}
+
+Status RayServiceImpl::trace_batch(const RayTracer& tracer, const v1::TraceRequest& req, v1::TraceResponse* resp) {
+  const int64_t n = req.directions_size() / 3;
+  if (n > options_.max_batch_rays) {
+    // Counted before anything is decoded: a huge batch costs its parse only.
+    return server::over_limit(StatusCode::INVALID_ARGUMENT, "batch of rays (directions / 3)", n,
+                              "--max-batch-rays", options_.max_batch_rays);
+  }
+  std::vector<WorldRay> rays;
+  if (auto p = decode_rays(req, &rays)) {
+    return Status(StatusCode::INVALID_ARGUMENT, p->message + " (field " + p->field + ")");
+  }
+  std::vector<WorldHit> hits(rays.size());
+  auto run = [&](size_t begin, size_t end) {
+    if (req.occlusion()) tracer.occluded(rays.data() + begin, end - begin, hits.data() + begin);
+    else tracer.nearest(rays.data() + begin, end - begin, hits.data() + begin);
+  };
+  // A ray's answer depends on that ray alone (RayTracer), so splitting cannot change a bit.
+  if (options_.threads > 1 && rays.size() > 2 * kChunk) {
+    arena_.execute([&] {
+      tbb::parallel_for(size_t(0), (rays.size() + kChunk - 1) / kChunk, [&](size_t c) {
+        run(c * kChunk, std::min(rays.size(), (c + 1) * kChunk));
+      });
+    });
+  } else {
+    run(0, rays.size());
+  }
+  encode_hits(hits, req.occlusion(), resp);
+  *resp->mutable_ids() = req.ids();
+  return Status::OK;
+}
+
+Status RayServiceImpl::Trace(grpc::ServerContext* ctx, const v1::TraceRequest* req, v1::TraceResponse* resp) {
+  if (Status s = auth_.check(*ctx, server::PeerRole::kClient); !s.ok()) return s;
+  if (!req->has_scene()) return Status(StatusCode::INVALID_ARGUMENT, "scene: required (bundle_sha256 and frame)");
+  std::shared_ptr<const RayTracer> tracer;
+  if (Status s = scenes_(req->scene().bundle_sha256(), req->scene().frame(), &tracer); !s.ok()) return s;
+  return trace_batch(*tracer, *req, resp);
+}
+
+Status RayServiceImpl::TraceStream(grpc::ServerContext* ctx,
+                                   grpc::ServerReaderWriter<v1::TraceResponse, v1::TraceRequest>* stream) {
+  if (Status s = auth_.check(*ctx, server::PeerRole::kClient); !s.ok()) return s;
+  std::shared_ptr<const RayTracer> tracer;
+  v1::SceneRef current;
+  v1::TraceRequest req;
+  for (int64_t batch = 0; stream->Read(&req); ++batch) {
+    // The scene is looked up when it changes, not per batch.
+    if (req.has_scene() && (!tracer || req.scene().bundle_sha256() != current.bundle_sha256() ||
+                            req.scene().frame() != current.frame())) {
+      if (Status s = scenes_(req.scene().bundle_sha256(), req.scene().frame(), &tracer); !s.ok()) return s;
+      current = req.scene();
+    }
+    if (!tracer) {
+      return Status(StatusCode::INVALID_ARGUMENT, "batch 0: scene required on a stream's first request");
+    }
+    v1::TraceResponse resp;
+    if (Status s = trace_batch(*tracer, req, &resp); !s.ok()) {
+      return Status(s.error_code(), "batch " + std::to_string(batch) + ": " + s.error_message());
+    }
+    if (!stream->Write(resp)) break;  // the client went away
+  }
+  return Status::OK;
+}
+
+Status RayServiceImpl::DescribeScene(grpc::ServerContext* ctx, const v1::SceneRef* req, v1::SceneDescription* resp) {
+  if (Status s = auth_.check(*ctx, server::PeerRole::kClient); !s.ok()) return s;
+  std::shared_ptr<const RayTracer> tracer;
+  if (Status s = scenes_(req->bundle_sha256(), req->frame(), &tracer); !s.ok()) return s;
+  const Scene& scene = tracer->scene();
+  for (const SceneObject& o : scene.objects) {
+    resp->add_objects(o.name);
+    resp->add_object_kinds(o.type == SceneObject::Type::kMesh     ? "mesh"
+                           : o.type == SceneObject::Type::kSphere ? "sphere"
+                                                                  : "plane");
+  }
+  for (const Material& m : scene.materials) resp->add_materials(m.name);
+  resp->set_frame_count(scene.frame_count());
+  resp->set_triangles(tracer->frame().triangle_count());
+  resp->set_embree_isa(embree_isa());
+  resp->set_max_batch_rays(options_.max_batch_rays);
+  return Status::OK;
+}
+
+}  // namespace tessera::rays
