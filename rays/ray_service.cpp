@@ -1,8 +1,7 @@
 #include "ray_service.h"
 
-#include <tbb/parallel_for.h>
-
 #include "ray_codec.h"
+#include "rays/parallel_trace.h"
 #include "render/embree_device.h"
 #include "request_limits.h"
 
@@ -12,17 +11,10 @@ namespace v1 = tessera::v1;
 using grpc::Status;
 using grpc::StatusCode;
 
-namespace {
-
-// Rays per parallel task: large enough that scheduling costs nothing next to ~1 µs per ray.
-constexpr size_t kChunk = 1024;
-
-}  // namespace
-
 RayServiceImpl::RayServiceImpl(SceneSource scenes, server::Authenticator auth, RayServiceOptions options)
     : scenes_(std::move(scenes)), auth_(std::move(auth)), options_(options), arena_(std::max(1, options.threads)) {}
 
-Status RayServiceImpl::trace_batch(const RayTracer& tracer, const v1::TraceRequest& req, v1::TraceResponse* resp) {
+Status RayServiceImpl::answer(const RayTracer& tracer, const v1::TraceRequest& req, v1::TraceResponse* resp) {
   const int64_t n = req.directions_size() / 3;
   if (n > options_.max_batch_rays) {
     // Counted before anything is decoded: a huge batch costs its parse only.
@@ -33,21 +25,9 @@ Status RayServiceImpl::trace_batch(const RayTracer& tracer, const v1::TraceReque
   if (auto p = decode_rays(req, &rays)) {
     return Status(StatusCode::INVALID_ARGUMENT, p->message + " (field " + p->field + ")");
   }
-  std::vector<WorldHit> hits(rays.size());
-  auto run = [&](size_t begin, size_t end) {
-    if (req.occlusion()) tracer.occluded(rays.data() + begin, end - begin, hits.data() + begin);
-    else tracer.nearest(rays.data() + begin, end - begin, hits.data() + begin);
-  };
-  // A ray's answer depends on that ray alone (RayTracer), so splitting cannot change a bit.
-  if (options_.threads > 1 && rays.size() > 2 * kChunk) {
-    arena_.execute([&] {
-      tbb::parallel_for(size_t(0), (rays.size() + kChunk - 1) / kChunk, [&](size_t c) {
-        run(c * kChunk, std::min(rays.size(), (c + 1) * kChunk));
-      });
-    });
-  } else {
-    run(0, rays.size());
-  }
+  std::vector<WorldHit> hits;
+  // On the service's arena: --threads bounds how many cores one batch takes.
+  arena_.execute([&] { trace_batch(tracer, rays, req.occlusion(), &hits); });
   encode_hits(hits, req.occlusion(), resp);
   *resp->mutable_ids() = req.ids();
   return Status::OK;
@@ -58,7 +38,7 @@ Status RayServiceImpl::Trace(grpc::ServerContext* ctx, const v1::TraceRequest* r
   if (!req->has_scene()) return Status(StatusCode::INVALID_ARGUMENT, "scene: required (bundle_sha256 and frame)");
   std::shared_ptr<const RayTracer> tracer;
   if (Status s = scenes_(req->scene().bundle_sha256(), req->scene().frame(), &tracer); !s.ok()) return s;
-  return trace_batch(*tracer, *req, resp);
+  return answer(*tracer, *req, resp);
 }
 
 Status RayServiceImpl::TraceStream(grpc::ServerContext* ctx,
@@ -78,7 +58,7 @@ Status RayServiceImpl::TraceStream(grpc::ServerContext* ctx,
       return Status(StatusCode::INVALID_ARGUMENT, "batch 0: scene required on a stream's first request");
     }
     v1::TraceResponse resp;
-    if (Status s = trace_batch(*tracer, req, &resp); !s.ok()) {
+    if (Status s = answer(*tracer, req, &resp); !s.ok()) {
       return Status(s.error_code(), "batch " + std::to_string(batch) + ": " + s.error_message());
     }
     if (!stream->Write(resp)) break;  // the client went away

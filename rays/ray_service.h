@@ -34,7 +34,7 @@ class RayServiceImpl final : public tessera::v1::RayService::Service {
 
  private:
   // One batch on a tracer: INVALID_ARGUMENT naming the ray and field for bad input.
-  grpc::Status trace_batch(const RayTracer& tracer, const tessera::v1::TraceRequest& req,
+  grpc::Status answer(const RayTracer& tracer, const tessera::v1::TraceRequest& req,
                            tessera::v1::TraceResponse* resp);
 
   SceneSource scenes_;
