@@ -3,7 +3,6 @@
 #include "ray_codec.h"
 #include "rays/parallel_trace.h"
 #include "render/embree_device.h"
-#include "request_limits.h"
 
 namespace tessera::rays {
 
@@ -18,8 +17,10 @@ Status RayServiceImpl::answer(const RayTracer& tracer, const v1::TraceRequest& r
   const int64_t n = req.directions_size() / 3;
   if (n > options_.max_batch_rays) {
     // Counted before anything is decoded: a huge batch costs its parse only.
-    return server::over_limit(StatusCode::INVALID_ARGUMENT, "batch of rays (directions / 3)", n,
-                              "--max-batch-rays", options_.max_batch_rays);
+    return Status(StatusCode::INVALID_ARGUMENT, "batch of " + std::to_string(n) +
+                                                    " rays (directions / 3) is over this server's limit " +
+                                                    std::to_string(options_.max_batch_rays) +
+                                                    " (tessera-rays --max-batch-rays): send smaller batches");
   }
   std::vector<WorldRay> rays;
   if (auto p = decode_rays(req, &rays)) {

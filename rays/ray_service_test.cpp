@@ -198,7 +198,7 @@ TEST_F(RayServiceTest, BadInputIsInvalidArgumentNamingTheRayAndField) {
   req = request(fan(10));
   req.add_t_max(1.0f);  // one t_max for ten rays
   expect_refused(req, "t_max has 1 values");
-  expect_refused(request(fan(101)), "batch of rays (directions / 3) is 101, over this coordinator's limit 100");
+  expect_refused(request(fan(101)), "batch of 101 rays (directions / 3) is over this server's limit 100 (tessera-rays --max-batch-rays)");
   req = request(fan(2));
   req.mutable_scene()->set_bundle_sha256(std::string(64, 'b'));
   expect_refused(req, "scene.bundle_sha256: unknown bundle bbbb");
