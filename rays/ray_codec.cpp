@@ -25,12 +25,14 @@ std::optional<RayProblem> decode_rays(const v1::TraceRequest& req, std::vector<W
   rays->resize(n);
   const double* o = req.origins().data();
   const double* d = req.directions().data();
+  const float* tmin = req.t_min_size() ? req.t_min().data() : nullptr;
+  const float* tmax = req.t_max_size() ? req.t_max().data() : nullptr;
   for (size_t i = 0; i < n; ++i) {
     WorldRay& r = (*rays)[i];
     r.o = Vec3d(o[3 * i], o[3 * i + 1], o[3 * i + 2]);
     r.d = Vec3d(d[3 * i], d[3 * i + 1], d[3 * i + 2]);
-    r.tmin = req.t_min_size() ? req.t_min(int(i)) : 0.0f;
-    r.tmax = req.t_max_size() ? req.t_max(int(i)) : std::numeric_limits<float>::infinity();
+    r.tmin = tmin ? tmin[i] : 0.0f;
+    r.tmax = tmax ? tmax[i] : std::numeric_limits<float>::infinity();
     if (auto p = check_ray(r, i)) return p;
   }
   return std::nullopt;
@@ -38,12 +40,18 @@ std::optional<RayProblem> decode_rays(const v1::TraceRequest& req, std::vector<W
 
 void encode_rays(const std::vector<WorldRay>& rays, const std::vector<uint64_t>& ids, v1::TraceRequest* req) {
   const int n = int(rays.size());
-  req->mutable_origins()->Reserve(3 * n);
-  req->mutable_directions()->Reserve(3 * n);
+  // Resize then fill through the raw arrays: no per-element capacity checks.
+  req->mutable_origins()->Resize(3 * n, 0.0);
+  req->mutable_directions()->Resize(3 * n, 0.0);
+  double* o = req->mutable_origins()->mutable_data();
+  double* d = req->mutable_directions()->mutable_data();
   bool tmin = false, tmax = false;
-  for (const WorldRay& r : rays) {
-    for (int k = 0; k < 3; ++k) req->add_origins(r.o[k]);
-    for (int k = 0; k < 3; ++k) req->add_directions(r.d[k]);
+  for (int i = 0; i < n; ++i) {
+    const WorldRay& r = rays[size_t(i)];
+    for (int k = 0; k < 3; ++k) {
+      o[3 * i + k] = r.o[k];
+      d[3 * i + k] = r.d[k];
+    }
     tmin = tmin || r.tmin != 0.0f;
     tmax = tmax || r.tmax != std::numeric_limits<float>::infinity();
   }
@@ -110,18 +118,20 @@ std::vector<WorldHit> decode_hits(const v1::TraceResponse& r, size_t n, bool occ
   need("objects", size_t(r.objects_size()), 1);
   need("primitives", size_t(r.primitives_size()), 1);
   need("materials", size_t(r.materials_size()), 1);
+  const float *t = r.t().data(), *nn = r.normals().data(), *ns = r.shading_normals().data(),
+              *uv = r.barycentrics().data();
+  const double* p = r.points().data();
   for (size_t i = 0; i < n; ++i) {
     WorldHit& h = hits[i];
-    const int j = int(i);
-    h.t = r.t(j);
-    h.p = Vec3d(r.points(3 * j), r.points(3 * j + 1), r.points(3 * j + 2));
-    h.n = Vec3f(r.normals(3 * j), r.normals(3 * j + 1), r.normals(3 * j + 2));
-    h.ns = Vec3f(r.shading_normals(3 * j), r.shading_normals(3 * j + 1), r.shading_normals(3 * j + 2));
-    h.u = r.barycentrics(2 * j);
-    h.v = r.barycentrics(2 * j + 1);
-    h.object = r.objects(j);
-    h.primitive = r.primitives(j);
-    h.material = r.materials(j);
+    h.t = t[i];
+    h.p = Vec3d(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
+    h.n = Vec3f(nn[3 * i], nn[3 * i + 1], nn[3 * i + 2]);
+    h.ns = Vec3f(ns[3 * i], ns[3 * i + 1], ns[3 * i + 2]);
+    h.u = uv[2 * i];
+    h.v = uv[2 * i + 1];
+    h.object = r.objects()[int(i)];
+    h.primitive = r.primitives()[int(i)];
+    h.material = r.materials()[int(i)];
   }
   return hits;
 }
