@@ -36,7 +36,8 @@ int main(int argc, char** argv) {
   app.add_option("--listen", listen, "HOST:PORT to serve on (port 0 picks a free one)")->capture_default_str();
   app.add_option("--coordinator", coordinator, "Coordinator HOST:PORT the scene bundles come from (env TESSERA_COORDINATOR)")
       ->capture_default_str();
-  app.add_option("--threads", options.threads, "Threads one large batch is traced on")
+  app.add_option("--threads", options.threads, "Threads large batches (over 2048 rays) are split across, all requests together (smaller ones "
+                 "run on the thread that received them)")
       ->check(CLI::Range(1, 4096))->capture_default_str();
   app.add_option("--cache-dir", cache, "Where fetched scene bundles are kept")->capture_default_str();
   app.add_option("--max-frames", max_frames, "Built frames (Embree scenes) kept in memory")

@@ -27,8 +27,10 @@ Status RayServiceImpl::answer(const RayTracer& tracer, const v1::TraceRequest& r
     return Status(StatusCode::INVALID_ARGUMENT, p->message + " (field " + p->field + ")");
   }
   std::vector<WorldHit> hits;
-  // On the service's arena: --threads bounds how many cores one batch takes.
-  arena_.execute([&] { trace_batch(tracer, rays, req.occlusion(), &hits); });
+  // Small batches run on the gRPC thread that received them (concurrent clients in parallel);
+  // large ones are split on the service's arena, so --threads bounds the cores they take.
+  if (rays.size() <= kParallelBatch) trace_batch(tracer, rays, req.occlusion(), &hits);
+  else arena_.execute([&] { trace_batch(tracer, rays, req.occlusion(), &hits); });
   encode_hits(hits, req.occlusion(), resp);
   *resp->mutable_ids() = req.ids();
   return Status::OK;

@@ -17,7 +17,8 @@ struct RayServiceOptions {
   // Rays per request. A request of 2^18 rays is ~16 MiB and its answer ~21 MiB, inside the
   // farm's 64 MiB message limit with room to spare.
   int64_t max_batch_rays = int64_t(1) << 18;
-  int threads = 1;  // per batch: rays of one request traced in parallel
+  // Threads that large batches (> kParallelBatch rays) are split across, all requests together.
+  int threads = 1;
 };
 
 class RayServiceImpl final : public tessera::v1::RayService::Service {

@@ -175,7 +175,7 @@ double best_of(int reps, F f) {
 
 int main(int argc, char** argv) {
   bool smoke = false;
-  int reps = 3;
+  int reps = 7;  // best of: filters out preemption on a shared machine
   std::string markdown;
   std::vector<std::string> scenes = {"bunny", "armadillo"};
   CLI::App app{"rays_bench: the ray service against in-process tracing and bare Embree"};
@@ -199,7 +199,7 @@ int main(int argc, char** argv) {
   out["embree_isa"] = embree_isa();
   out["tracing_threads"] = 1;
   std::string md = "\n| scene | rays | bare Embree | in-process b=1 | 64 | 4096 | 65536 | gRPC unary b=1 | 64 | 4096 | "
-                   "65536 | stream 4096 | 65536 | in-proc/Embree | gRPC(≥4096)/in-proc | p50 µs | p99 µs |\n"
+                   "65536 | stream 4096 | 65536 | in-proc/Embree | gRPC/in-proc (worst, b≥4096) | p50 µs | p99 µs |\n"
                    "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const std::string& name : scenes) {
     if (!files.count(name)) {
@@ -247,7 +247,7 @@ int main(int argc, char** argv) {
                           double(rays.size());
       const double bare = best_of(reps, [&] { return bare_embree(*scene, *rs, rays); });
       r["bare_embree_rays_per_s"] = bare;
-      double in_best = 0, grpc_best = 0;
+      double worst_ratio = 1e30;  // the goal's ratio: the smallest over batches >= 4096
       for (size_t b : batches) {
         const std::string k = std::to_string(b);
         const double ip = best_of(reps, [&] { return in_process(*tracer, rays, b); });
@@ -259,14 +259,17 @@ int main(int argc, char** argv) {
         if (b >= 4096) {
           const double gs = best_of(reps, [&] { return grpc_stream(*stub, rays, b); });
           r["grpc_stream_rays_per_s"][k] = gs;
-          in_best = std::max(in_best, ip);
-          grpc_best = std::max(grpc_best, std::max(gu, gs));
+          // The service's best way to deliver batches of b (one call each, or a stream of them)
+          // against tracing the same batches in-process.
+          r["ratio_grpc_to_in_process"][k] = std::max(gu, gs) / ip;
+          worst_ratio = std::min(worst_ratio, std::max(gu, gs) / ip);
         }
       }
       const auto [p50, p99] = latency_us(*stub, rays, smoke ? 300 : 3000);
       r["single_ray_latency_us"] = {{"p50", p50}, {"p99", p99}};
-      r["ratio_in_process_to_bare_embree"] = r["in_process_rays_per_s"]["4096"].get<double>() / bare;
-      r["ratio_grpc_to_in_process_batch_ge_4096"] = grpc_best / in_best;
+      // All the rays in one call against bare Embree on the same rays.
+      r["ratio_in_process_to_bare_embree"] = r["in_process_rays_per_s"][std::to_string(batches.back())].get<double>() / bare;
+      r["ratio_grpc_to_in_process_batch_ge_4096"] = worst_ratio;
       js[coherent ? "coherent" : "incoherent"] = r;
       auto m = [](double x) {
         char b[32];

@@ -8,8 +8,8 @@ namespace tessera::rays {
 
 namespace {
 
-// Rays per task: ~1 ms of work, so scheduling costs nothing and small batches stay serial.
-constexpr size_t kChunk = 1024;
+// Rays per task: ~0.2-1 ms of work, so scheduling costs nothing.
+constexpr size_t kChunk = kParallelBatch / 2;
 
 }  // namespace
 
@@ -20,7 +20,7 @@ void trace_batch(const RayTracer& tracer, const std::vector<WorldRay>& rays, boo
     if (occlusion) tracer.occluded(rays.data() + begin, end - begin, hits->data() + begin);
     else tracer.nearest(rays.data() + begin, end - begin, hits->data() + begin);
   };
-  if (rays.size() <= 2 * kChunk) {
+  if (rays.size() <= kParallelBatch) {
     run(0, rays.size());
     return;
   }

@@ -9,6 +9,9 @@
 
 namespace tessera::rays {
 
+// Batches up to this size are traced serially on the calling thread.
+inline constexpr size_t kParallelBatch = 2048;
+
 // hits->size() becomes rays.size(). `occlusion`: RayTracer::occluded, else nearest.
 void trace_batch(const RayTracer& tracer, const std::vector<WorldRay>& rays, bool occlusion,
                  std::vector<WorldHit>* hits);
