@@ -9,6 +9,8 @@ std::optional<RayProblem> check_ray(const WorldRay& r, size_t index) {
     return RayProblem{index, field, "ray " + std::to_string(index) + ": " + field + " " + what};
   };
   if (!is_finite(r.o)) return problem("origin", "is not finite");
+  // The renderer traces in float: beyond this an origin (minus the eye) would round to infinity.
+  if (max_component(abs(r.o)) > kMaxOrigin) return problem("origin", "is beyond 1e30 (float range)");
   if (!is_finite(r.d)) return problem("direction", "is not finite");
   // Any nonzero component will do: the tracer scales before normalizing (no underflow).
   if (!(max_component(abs(r.d)) > 0.0)) return problem("direction", "is zero-length");

@@ -16,8 +16,11 @@ struct RayProblem {
   std::string message;  // e.g. "ray 17: direction is zero-length"
 };
 
-// The first problem of ray `index`, or nothing: non-finite origin or direction, zero-length
-// direction, NaN or negative t_min, NaN t_max, t_min > t_max.
+// Largest |coordinate| of an origin: render space is float, and must hold origin minus eye.
+inline constexpr double kMaxOrigin = 1e30;
+
+// The first problem of ray `index`, or nothing: non-finite or out-of-range origin, non-finite or
+// zero-length direction, NaN, infinite or negative t_min, NaN t_max, t_min > t_max.
 std::optional<RayProblem> check_ray(const WorldRay& ray, size_t index);
 
 }  // namespace tessera::rays

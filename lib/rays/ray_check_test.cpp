@@ -13,7 +13,7 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 
 TEST(RayCheck, AcceptsOrdinaryRays) {
   EXPECT_FALSE(check_ray({{0, 0, 0}, {0, 0, 1}}, 0));
-  EXPECT_FALSE(check_ray({{1e300, 0, 0}, {1e-300, 0, 0}, 0.5f, 0.5f}, 0));  // tiny d, t_min == t_max
+  EXPECT_FALSE(check_ray({{1e30, 0, 0}, {1e-300, 0, 0}, 0.5f, 0.5f}, 0));  // tiny d, t_min == t_max
 }
 
 TEST(RayCheck, NamesTheRayAndTheField) {
@@ -24,6 +24,7 @@ TEST(RayCheck, NamesTheRayAndTheField) {
   };
   const Case cases[] = {
       {{{kNaN, 0, 0}, {0, 0, 1}}, "origin", "ray 7: origin is not finite"},
+      {{{0, -2e30, 0}, {0, 0, 1}}, "origin", "ray 7: origin is beyond 1e30"},
       {{{0, 0, 0}, {0, kNaN, 1}}, "direction", "ray 7: direction is not finite"},
       {{{0, 0, 0}, {0, kInf, 1}}, "direction", "ray 7: direction is not finite"},
       {{{0, 0, 0}, {0, 0, 0}}, "direction", "ray 7: direction is zero-length"},

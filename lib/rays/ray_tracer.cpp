@@ -56,7 +56,9 @@ bool RayTracer::trace(const WorldRay& w, WorldHit* out) const {
   // cube |x| <= 2R that holds that geometry; the stretch before it can only cross infinite
   // planes, and gets its own query from the unmoved start.
   double shift = double(w.tmin);
-  double tmax = double(w.tmax);
+  // Distances are floats: a plane met 1e52 away (a near-parallel ray from far off) is beyond
+  // what t can say, so it counts as no hit rather than a hit at t = infinity.
+  const double tmax = std::min(double(w.tmax), double(std::numeric_limits<float>::max()));
   const double R = double(rs.bounds_radius());
   const Vec3d start = o + dd * shift;
   Hit h;
@@ -74,6 +76,8 @@ bool RayTracer::trace(const WorldRay& w, WorldHit* out) const {
     found = rs.intersect(ray, PrimRef{}, &h);
     if (!found) return false;
   }
+  // The same for a surface point beyond float range (render space is float): no hit to report.
+  if (!std::isfinite(h.t) || !is_finite(h.p)) return false;
   // t: exact when nothing moved (shift 0), else the moved start's distance added in double.
   out->t = shift == 0.0 ? h.t : float(shift + double(h.t));
   out->p = rs.origin() + Vec3d(h.p);

@@ -14,6 +14,7 @@
 #include <random>
 
 #include "render/ray_log.h"
+#include "rays/ray_check.h"
 #include "render/tile_renderer.h"
 #include "scene/scene_parser.h"
 
@@ -288,6 +289,44 @@ TEST_F(RayTracerTest, FarOriginsKeepTheirPrecision) {
   ASSERT_TRUE(h.hit);
   EXPECT_EQ(t.scene().objects[h.object].name, "floor");
   EXPECT_NEAR(h.t, 499.0, 1e-4);
+}
+
+// Whatever passes check_ray, however extreme, gives a miss or a finite hit on a surface in the
+// ray's interval: never a crash, NaN or a point off the ray.
+TEST_F(RayTracerTest, ExtremeButValidRaysGiveFiniteAnswers) {
+  const RayTracer t = tracer(std::string(kOcta) + ", " + kSphere + ", " + kFloor);
+  std::mt19937_64 rng(99);
+  std::uniform_real_distribution<double> expo(-30, 30), unit(-1, 1);
+  auto value = [&] { return unit(rng) * std::pow(10.0, expo(rng)); };
+  int checked = 0, hits = 0;
+  for (int i = 0; i < 20000; ++i) {
+    WorldRay r{{value(), value(), value()}, {value(), value(), value()}};
+    if (i % 3 == 0) r.o = Vec3d(unit(rng), unit(rng), unit(rng) + 5);  // near the geometry
+    if (i % 5 == 0) r.d[i % 3] = 0;
+    if (i % 7 == 0) {
+      r.tmin = float(std::abs(value()));
+      r.tmax = r.tmin * 2;
+    }
+    if (check_ray(r, size_t(i))) continue;
+    ++checked;
+    WorldHit h;
+    t.nearest(&r, 1, &h);
+    if (!h.hit) {
+      ASSERT_TRUE(std::isinf(h.t)) << i;
+      continue;
+    }
+    ++hits;
+    ASSERT_TRUE(std::isfinite(h.t) && is_finite(h.p) && is_finite(h.n))
+        << i << " o " << r.o.x << " " << r.o.y << " " << r.o.z << " d " << r.d.x << " " << r.d.y << " " << r.d.z
+        << " t " << r.tmin << " " << r.tmax << " -> t " << h.t << " p " << h.p.x << " " << h.p.y << " " << h.p.z
+        << " object " << h.object;
+    ASSERT_GE(h.t, r.tmin) << i;
+    ASSERT_LE(h.t, r.tmax) << i;
+    ASSERT_NEAR(length(Vec3d(h.n)), 1.0, 1e-5) << i;
+    ASSERT_LT(h.object, 3u) << i;
+  }
+  EXPECT_GT(checked, 19000);
+  EXPECT_GT(hits, 2000);
 }
 
 template <class T>
