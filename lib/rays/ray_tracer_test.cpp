@@ -51,12 +51,14 @@ class RayTracerTest : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
 
   // A scene of `objects` seen from `eye` (render space is world minus the eye).
-  RayTracer tracer(const std::string& objects, const std::string& eye = "[0, 3, 20]") {
+  RayTracer tracer(const std::string& objects, const std::string& eye = "[0, 3, 20]", int frame = 0,
+                   const std::string& animation = "") {
     const std::string json = R"({"camera": {"position": )" + eye + R"(, "look_at": [0, 0, 0]},
-      "materials": {"d": {"type": "diffuse"}, "g": {"type": "glass"}}, "objects": [)" + objects + "]}";
+      "materials": {"d": {"type": "diffuse"}, "g": {"type": "glass"}}, "objects": [)" + objects + "]" +
+                             (animation.empty() ? "" : ", \"animation\": " + animation) + "}";
     std::ofstream(dir_ / "s.json") << json;
     auto scene = std::make_shared<const Scene>(load_scene((dir_ / "s.json").string()));
-    return RayTracer(scene, std::make_shared<const RenderScene>(*scene, 0));
+    return RayTracer(scene, std::make_shared<const RenderScene>(*scene, frame));
   }
 
   WorldHit nearest(const RayTracer& t, const Vec3d& o, const Vec3d& d, float tmin = 0.0f,
@@ -231,6 +233,20 @@ TEST_F(RayTracerTest, GrazingRaysHitInsideTheSilhouetteAndMissOutsideIt) {
     expect_vec(h.p, {1, 0, 0}, 1e-6);
   } else {
     EXPECT_TRUE(std::isinf(h.t));
+  }
+}
+
+TEST_F(RayTracerTest, AnimatedScenesAreTracedAtTheRequestedFrame) {
+  // The ball rises 0.5 per frame: a ray 2.5 above its first position passes over it at frame 0
+  // and meets it at frames 2 and 4, where the sphere's equation says.
+  const std::string anim = R"({"frames": 5, "objects": {"ball": [{"frame": 0, "translate": [0, 0, 0]},
+                                                                  {"frame": 4, "translate": [0, 2, 0]}]}})";
+  for (int frame : {0, 2, 4}) {
+    const RayTracer t = tracer(kSphere, "[0, 3, 20]", frame, anim);
+    const WorldHit h = nearest(t, {0, 2.5, 0}, {0, 0, 1});
+    const double y = 2.5 - 0.5 * frame;  // the ray's height above the ball's centre
+    ASSERT_EQ(h.hit, y < 2.0) << frame;
+    if (h.hit) EXPECT_NEAR(h.t, 10.0 - std::sqrt(4.0 - y * y), 1e-5) << frame;
   }
 }
 
