@@ -16,12 +16,14 @@
 #include "bundle_scenes.h"
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
+#include "large_buffers.h"
 #include "ray_service.h"
 #include "render/embree_device.h"
 #include "request_limits.h"
 
 int main(int argc, char** argv) {
   using namespace tessera;
+  rays::keep_large_buffers();
   std::string listen = "127.0.0.1:7879";
   std::string coordinator = "127.0.0.1:7878";
   if (const char* env = std::getenv("TESSERA_COORDINATOR"); env && *env) coordinator = env;

@@ -26,6 +26,7 @@
 #include <thread>
 
 #include "ray_codec.h"
+#include "large_buffers.h"
 #include "ray_service.h"
 #include "render/embree_device.h"
 #include "scene/scene_parser.h"
@@ -207,6 +208,7 @@ nlohmann::json to_json(const Rate& r) { return {{"wall", r.wall}, {"cpu", r.cpu}
 }  // namespace
 
 int main(int argc, char** argv) {
+  keep_large_buffers();  // as tessera-rays does: the service here runs in this process
   bool smoke = false;
   int reps = 7;  // best of: filters out preemption on a shared machine
   std::string markdown;
