@@ -246,7 +246,9 @@ TEST_F(RayTracerTest, AnimatedScenesAreTracedAtTheRequestedFrame) {
     const WorldHit h = nearest(t, {0, 2.5, 0}, {0, 0, 1});
     const double y = 2.5 - 0.5 * frame;  // the ray's height above the ball's centre
     ASSERT_EQ(h.hit, y < 2.0) << frame << " t " << h.t << " p " << h.p.x << " " << h.p.y << " " << h.p.z;
-    if (h.hit) EXPECT_NEAR(h.t, 10.0 - std::sqrt(4.0 - y * y), 1e-5) << frame;
+    if (h.hit) {
+      EXPECT_NEAR(h.t, 10.0 - std::sqrt(4.0 - y * y), 1e-5) << frame;
+    }
   }
 }
 
