@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   tessera::cli::register_color_commands(app);
   tessera::cli::register_farm_commands(app);
   tessera::cli::register_health_command(app);
+  tessera::cli::register_rays_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

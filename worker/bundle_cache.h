@@ -27,9 +27,10 @@ class BundleCache {
 
   // `overrides` is the serialized tessera.v1.ImageOverrides of the job.
   std::shared_ptr<const RenderScene> frame(const std::string& sha256, const std::string& overrides, int frame);
+  // The parsed scene (fetched and loaded on first use), kept for as long as the cache lives.
+  std::shared_ptr<const Scene> scene(const std::string& sha256, const std::string& overrides);
 
  private:
-  std::shared_ptr<const Scene> scene(const std::string& sha256, const std::string& overrides);
   std::filesystem::path ensure_extracted(const std::string& sha256);
 
   std::filesystem::path dir_;

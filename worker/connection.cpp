@@ -5,6 +5,7 @@
 #include <random>
 #include <thread>
 
+#include "farm/bundle_fetch.h"
 #include "farm/channel.h"
 #include "farm/codec.h"
 #include "render/embree_device.h"
@@ -45,19 +46,7 @@ WorkerConnection::WorkerConnection(WorkerOptions options)
 
 WorkerConnection::~WorkerConnection() = default;
 
-std::string WorkerConnection::fetch_bundle(const std::string& sha256) {
-  grpc::ClientContext ctx;
-  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));
-  v1::FetchBundleRequest req;
-  req.set_sha256(sha256);
-  auto reader = stub_->FetchBundle(&ctx, req);
-  std::string bytes;
-  v1::BundleChunk chunk;
-  while (reader->Read(&chunk)) bytes += chunk.data();
-  grpc::Status s = reader->Finish();
-  if (!s.ok()) throw std::runtime_error("cannot fetch bundle " + sha256 + ": " + s.error_message());
-  return bytes;
-}
+std::string WorkerConnection::fetch_bundle(const std::string& sha256) { return farm::fetch_bundle(*stub_, sha256); }
 
 void WorkerConnection::request_stop() {
   stop_ = true;

@@ -296,6 +296,16 @@ RenderScene::~RenderScene() {
   rtc_scene_.reset();  // before the geometry data its callbacks and shared buffers point into
 }
 
+RenderScene::Source RenderScene::source_of(const PrimRef& prim) const {
+  switch (prim.kind) {
+    case PrimRef::Kind::kTriangle: return triangles_[prim.geom].sources[prim.id];
+    case PrimRef::Kind::kSphere: return {spheres_[prim.id].object, 0};
+    case PrimRef::Kind::kPlane: return {planes_[prim.id].object, 0};
+    case PrimRef::Kind::kNone: break;
+  }
+  return {};
+}
+
 size_t RenderScene::triangle_count() const {
   return triangles_[0].material_ids.size() + triangles_[1].material_ids.size();
 }
@@ -327,7 +337,8 @@ void RenderScene::build(const Scene& scene, int frame) {
       case SceneObject::Type::kSphere: {
         const uint32_t m = uint32_t(obj.material);
         const uint32_t index = uint32_t(spheres_.size());
-        spheres_.push_back({rel(xf.point(obj.center)), obj.radius * std::abs(state.transforms[oi].scale.x), m});
+        spheres_.push_back(
+            {rel(xf.point(obj.center)), obj.radius * std::abs(state.transforms[oi].scale.x), m, uint32_t(oi)});
         sphere_buckets_[is_glass(m) ? 1 : 0].ids.push_back(index);
         break;
       }
@@ -337,6 +348,7 @@ void RenderScene::build(const Scene& scene, int frame) {
         p.normal = normalize(xf.normal(obj.normal));
         orthonormal_basis(Vec3f(p.normal), p.b1, p.b2);
         p.material = uint32_t(obj.material);
+        p.object = uint32_t(oi);
         planes_.push_back(p);
         break;
       }
@@ -358,6 +370,7 @@ void RenderScene::build(const Scene& scene, int frame) {
           bucket.positions.insert(bucket.positions.end(), {a, b, c});
           bucket.indices.insert(bucket.indices.end(), {base, base + 1, base + 2});
           bucket.material_ids.push_back(m);
+          bucket.sources.push_back({uint32_t(oi), uint32_t(t)});
           if (materials_[m].is_emissive()) {
             auto [it, fresh] = light_of_material.try_emplace(m, area_lights_.size());
             if (fresh) area_lights_.push_back({{}, {}, 0.0f, materials_[m].emission});
@@ -502,6 +515,8 @@ bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double t
         hit->n = normalize(cross(v1 - v0, v2 - v0));
         hit->material = b.material_ids[pid];
         hit->prim = {PrimRef::Kind::kTriangle, pid, uint32_t(k)};
+        hit->u = u;
+        hit->v = v;
         return true;
       }
       if (g == sphere_buckets_[k].geom_id) {
@@ -516,6 +531,7 @@ bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double t
         hit->n = Vec3f(nd);
         hit->material = s.material;
         hit->prim = {PrimRef::Kind::kSphere, index, uint32_t(k)};
+        hit->u = hit->v = 0.0f;
         return true;
       }
     }
@@ -531,6 +547,7 @@ bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double t
   hit->n = Vec3f(pl.normal);
   hit->material = pl.material;
   hit->prim = {PrimRef::Kind::kPlane, uint32_t(plane), 0};
+  hit->u = hit->v = 0.0f;
   return true;
 }
 

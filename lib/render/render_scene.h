@@ -31,6 +31,9 @@ struct Hit {
   Vec3f n;       // unit geometric normal: outward for spheres, winding (CCW) for triangles
   uint32_t material = 0;
   PrimRef prim;
+  // Barycentrics of a triangle hit: p = (1-u-v) v0 + u v1 + v v2 (the values p was computed
+  // from); 0 for spheres and planes. Read by the ray service (lib/rays), not by shading.
+  float u = 0, v = 0;
 };
 
 // How rays meet triangles (docs/accuracy.md, case 4, has the leak counts and costs).
@@ -100,13 +103,21 @@ class RenderScene {
   Vec3d origin() const { return origin_; }  // world position of render space's origin (the eye)
   size_t triangle_count() const;
   size_t sphere_count() const { return spheres_.size(); }
+  // Where a primitive came from: its object (index into Scene::objects) and, for meshes, the
+  // triangle's index in the mesh file (0 for spheres and planes). Read by the ray service.
+  struct Source { uint32_t object = UINT32_MAX, primitive = 0; };
+  Source source_of(const PrimRef& prim) const;
+  // Max |coordinate| of all bounded geometry (triangles, spheres), render space: the ray service
+  // moves far ray origins to this cube's neighbourhood in double before rounding them to float.
+  float bounds_radius() const { return bounds_radius_; }
 
-  struct Sphere { Vec3d center; double radius; uint32_t material; };
-  struct Plane { Vec3d point; Vec3d normal; Vec3f b1, b2; uint32_t material; };
+  struct Sphere { Vec3d center; double radius; uint32_t material; uint32_t object; };
+  struct Plane { Vec3d point; Vec3d normal; Vec3f b1, b2; uint32_t material; uint32_t object; };
   struct TriangleBucket {
     std::vector<Vec3f> positions;      // +1 padding element: Embree reads 16 bytes per vertex
     std::vector<uint32_t> indices;
     std::vector<uint32_t> material_ids;
+    std::vector<Source> sources;       // per triangle
     uint32_t geom_id = RTC_INVALID_GEOMETRY_ID;
   };
   struct SphereBucket {

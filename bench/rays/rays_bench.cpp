@@ -1,0 +1,343 @@
+// Rays as a service, measured (issue 18; results in docs/rays.md). For the bunny and a large
+// mesh (the armadillo, 346k triangles), coherent (camera grid) and incoherent (random) rays:
+//   bare Embree  rtcIntersect1 on the same RTCScene, same user-geometry callbacks, render-space
+//                rays prepared beforehand: the traversal ceiling
+//   in-process   RayTracer::nearest (lib/rays) in batches of 1, 64, 4096, 65536 world-space rays
+//   gRPC unary   RayService.Trace over loopback TCP, one batch per call, request encoding and
+//                answer decoding included
+//   gRPC stream  RayService.TraceStream, every batch in flight at once
+// plus the latency (p50, p99) of single-ray Trace calls. One tracing thread everywhere (the
+// service runs with --threads 1), best of --reps. Two clocks: wall time, and the process's CPU
+// time (every thread: client, gRPC, server; user + system): on a shared machine the CPU time is
+// what the work costs even while other processes take the cores away, so the goal ratios are
+// computed from it; the wall-clock rates are in the JSON too.
+// Prints JSON on stdout; appends a markdown table to --markdown. Asserts nothing about time.
+#include <grpcpp/grpcpp.h>
+#include <time.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <thread>
+
+#include "ray_codec.h"
+#include "large_buffers.h"
+#include "ray_service.h"
+#include "render/embree_device.h"
+#include "scene/scene_parser.h"
+
+namespace fs = std::filesystem;
+using namespace tessera;
+using namespace tessera::rays;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// CPU time of every thread of the process, user and system, to the nanosecond.
+double process_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+// Rays per second of wall time and of process CPU time.
+struct Rate {
+  double wall = 0, cpu = 0;
+};
+
+class Stopwatch {
+ public:
+  Stopwatch() : wall_(Clock::now()), cpu_(process_cpu_seconds()) {}
+  Rate rate(double rays) const {
+    return {rays / seconds_since(wall_), rays / std::max(1e-9, process_cpu_seconds() - cpu_)};
+  }
+
+ private:
+  Clock::time_point wall_;
+  double cpu_;
+};
+
+std::string cpu_model() {
+  std::ifstream in("/proc/cpuinfo");
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  }
+  return "unknown";
+}
+
+// Camera rays through a side x side grid of the scene's own camera, in pixel order.
+std::vector<WorldRay> coherent_rays(const RenderScene& rs, int side) {
+  std::vector<WorldRay> rays;
+  const auto& cam = rs.camera();
+  for (int y = 0; y < side; ++y) {
+    for (int x = 0; x < side; ++x) {
+      const float u = (float(x) + 0.5f) / float(side), v = (float(y) + 0.5f) / float(side);
+      rays.push_back({rs.origin(), Vec3d(normalize(cam.p0 + cam.du * u + cam.dv * v))});
+    }
+  }
+  return rays;
+}
+
+// From random points on a sphere around the subject towards random points near its centre:
+// every ray takes its own path through the BVH.
+std::vector<WorldRay> incoherent_rays(const Scene& scene, size_t n) {
+  const Vec3d c = scene.camera.look_at;
+  const double r = length(scene.camera.position - c);
+  std::mt19937_64 rng(18);
+  std::normal_distribution<double> g;
+  std::uniform_real_distribution<double> u(-0.4, 0.4);
+  std::vector<WorldRay> rays;
+  for (size_t i = 0; i < n; ++i) {
+    const Vec3d o = c + normalize(Vec3d(g(rng), g(rng), g(rng))) * (1.5 * r);
+    const Vec3d target = c + Vec3d(u(rng), u(rng), u(rng)) * r;
+    rays.push_back({o, normalize(target - o)});
+  }
+  return rays;
+}
+
+// The same rays as Embree queries: render space, and tfar clipped at the nearest infinite plane
+// (the renderer intersects planes itself and asks Embree only for what lies before them). The
+// preparation is not timed: this is the ceiling a service could approach.
+Rate bare_embree(const Scene& scene, const RenderScene& rs, const std::vector<WorldRay>& world) {
+  std::vector<RTCRayHit> rays(world.size());
+  for (size_t i = 0; i < world.size(); ++i) {
+    const Vec3f o(world[i].o - rs.origin()), d(world[i].d);
+    float tfar = std::numeric_limits<float>::infinity();
+    for (const SceneObject& obj : scene.objects) {  // untransformed planes (those of these scenes)
+      if (obj.type != SceneObject::Type::kPlane) continue;
+      const double t = dot(obj.point - world[i].o, obj.normal) / dot(world[i].d, obj.normal);
+      if (t > 0 && t < tfar) tfar = float(t);
+    }
+    RTCRayHit& rh = rays[i];
+    rh.ray = {o.x, o.y, o.z, 0.0f, d.x, d.y, d.z, 0.0f, tfar, 0xFFFFFFFFu, 0, 0};
+  }
+  RenderScene::TraceContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.scene = &rs;
+  const Stopwatch watch;
+  for (RTCRayHit& rh : rays) {
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(rs.embree_scene(), &ctx.rtc, &rh);
+  }
+  return watch.rate(double(rays.size()));
+}
+
+Rate in_process(const RayTracer& tracer, const std::vector<WorldRay>& rays, size_t batch) {
+  std::vector<WorldHit> hits(rays.size());
+  const Stopwatch watch;
+  for (size_t b = 0; b < rays.size(); b += batch) {
+    tracer.nearest(rays.data() + b, std::min(batch, rays.size() - b), hits.data() + b);
+  }
+  return watch.rate(double(rays.size()));
+}
+
+v1::TraceRequest make_request(const std::vector<WorldRay>& rays, size_t begin, size_t end) {
+  v1::TraceRequest req;
+  req.mutable_scene()->set_bundle_sha256(std::string(64, '0'));
+  encode_rays({rays.begin() + long(begin), rays.begin() + long(end)}, {}, &req);
+  return req;
+}
+
+// Unary calls of `batch` rays over the first `total` rays; encode and decode included.
+Rate grpc_unary(v1::RayService::Stub& stub, const std::vector<WorldRay>& rays, size_t batch, size_t total) {
+  const Stopwatch watch;
+  for (size_t b = 0; b < total; b += batch) {
+    const size_t e = std::min(total, b + batch);
+    grpc::ClientContext ctx;
+    v1::TraceResponse resp;
+    if (!stub.Trace(&ctx, make_request(rays, b, e), &resp).ok()) throw std::runtime_error("Trace failed");
+    decode_hits(resp, e - b, false);
+  }
+  return watch.rate(double(total));
+}
+
+Rate grpc_stream(v1::RayService::Stub& stub, const std::vector<WorldRay>& rays, size_t batch) {
+  const Stopwatch watch;
+  grpc::ClientContext ctx;
+  auto stream = stub.TraceStream(&ctx);
+  std::thread writer([&] {
+    for (size_t b = 0; b < rays.size(); b += batch) {
+      if (!stream->Write(make_request(rays, b, std::min(rays.size(), b + batch)))) break;
+    }
+    stream->WritesDone();
+  });
+  v1::TraceResponse resp;
+  for (size_t b = 0; b < rays.size() && stream->Read(&resp); b += batch) {
+    decode_hits(resp, std::min(rays.size(), b + batch) - b, false);
+  }
+  writer.join();
+  if (!stream->Finish().ok()) throw std::runtime_error("TraceStream failed");
+  return watch.rate(double(rays.size()));
+}
+
+std::pair<double, double> latency_us(v1::RayService::Stub& stub, const std::vector<WorldRay>& rays, size_t calls) {
+  std::vector<double> us;
+  for (size_t i = 0; i < calls; ++i) {
+    const size_t k = i % rays.size();
+    const v1::TraceRequest req = make_request(rays, k, k + 1);
+    const auto t0 = Clock::now();
+    grpc::ClientContext ctx;
+    v1::TraceResponse resp;
+    if (!stub.Trace(&ctx, req, &resp).ok()) throw std::runtime_error("Trace failed");
+    us.push_back(seconds_since(t0) * 1e6);
+  }
+  std::sort(us.begin(), us.end());
+  return {us[us.size() / 2], us[std::min(us.size() - 1, us.size() * 99 / 100)]};
+}
+
+template <class F>
+Rate best_of(int reps, F f) {
+  Rate best;
+  for (int i = 0; i < reps; ++i) {
+    const Rate r = f();
+    best = {std::max(best.wall, r.wall), std::max(best.cpu, r.cpu)};
+  }
+  return best;
+}
+
+nlohmann::json to_json(const Rate& r) { return {{"wall", r.wall}, {"cpu", r.cpu}}; }
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  keep_large_buffers();  // as tessera-rays does: the service here runs in this process
+  bool smoke = false;
+  int reps = 7;  // best of: filters out preemption on a shared machine
+  std::string markdown;
+  std::vector<std::string> scenes = {"bunny", "armadillo"};
+  CLI::App app{"rays_bench: the ray service against in-process tracing and bare Embree"};
+  app.add_flag("--smoke", smoke, "A few thousand rays, one rep, the bunny only: checks that it runs");
+  app.add_option("--reps", reps, "Best of this many runs")->check(CLI::Range(1, 100));
+  app.add_option("--scenes", scenes, "bunny, armadillo")->delimiter(',');
+  app.add_option("--markdown", markdown, "Append a markdown table to this file");
+  CLI11_PARSE(app, argc, argv);
+  if (smoke) {
+    reps = 1;
+    scenes = {"bunny"};
+  }
+  const std::map<std::string, std::string> files = {{"bunny", "scenes/bunny.json"},
+                                                    {"armadillo", "bench/rays/armadillo.json"}};
+  const int side = smoke ? 64 : 256;  // 65,536 rays per set, 4,096 for the smoke run
+  const std::vector<size_t> batches = smoke ? std::vector<size_t>{1, 64, 4096} : std::vector<size_t>{1, 64, 4096, 65536};
+
+  nlohmann::json out;
+  out["cpu"] = cpu_model();
+  out["cores"] = std::thread::hardware_concurrency();
+  out["embree_isa"] = embree_isa();
+  out["tracing_threads"] = 1;
+  std::string md = "\n| scene | rays | bare Embree | in-process b=1 | 64 | 4096 | 65536 | gRPC unary b=1 | 64 | 4096 | "
+                   "65536 | stream 4096 | 65536 | in-proc/Embree cpu (wall) | gRPC/in-proc, worst b≥4096, cpu (wall) | "
+                   "p50 µs | p99 µs |\n"
+                   "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const std::string& name : scenes) {
+    if (!files.count(name)) {
+      std::cerr << "rays_bench: unknown scene " << name << "\n";
+      return 2;
+    }
+    const std::string path = std::string(TESSERA_SOURCE_DIR) + "/" + files.at(name);
+    auto scene = std::make_shared<const Scene>(load_scene(path));
+    auto rs = std::make_shared<const RenderScene>(*scene, 0);
+    auto tracer = std::make_shared<const RayTracer>(scene, rs);
+
+    // The service on loopback, in this process, one tracing thread.
+    RayServiceOptions options;
+    options.threads = 1;
+    options.max_batch_rays = 1 << 20;
+    RayServiceImpl service(
+        [tracer](const std::string&, int, std::shared_ptr<const RayTracer>* t) {
+          *t = tracer;
+          return grpc::Status::OK;
+        },
+        server::Authenticator(), options);
+    grpc::ServerBuilder builder;
+    int port = 0;
+    builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+    builder.RegisterService(&service);
+    builder.SetMaxReceiveMessageSize(64 << 20);
+    builder.SetMaxSendMessageSize(64 << 20);
+    std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+    grpc::ChannelArguments args;
+    args.SetMaxReceiveMessageSize(64 << 20);
+    args.SetMaxSendMessageSize(64 << 20);
+    auto stub = v1::RayService::NewStub(
+        grpc::CreateCustomChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials(), args));
+
+    nlohmann::json js;
+    js["triangles"] = rs->triangle_count();
+    for (const bool coherent : {true, false}) {
+      const std::vector<WorldRay> rays =
+          coherent ? coherent_rays(*rs, side) : incoherent_rays(*scene, size_t(side) * size_t(side));
+      nlohmann::json r;
+      r["rays"] = rays.size();
+      std::vector<WorldHit> hits(rays.size());
+      tracer->nearest(rays.data(), rays.size(), hits.data());
+      r["hit_fraction"] = double(std::count_if(hits.begin(), hits.end(), [](const WorldHit& h) { return h.hit; })) /
+                          double(rays.size());
+      const Rate bare = best_of(reps, [&] { return bare_embree(*scene, *rs, rays); });
+      r["bare_embree_rays_per_s"] = to_json(bare);
+      std::map<size_t, Rate> ip, gu, gs;
+      double worst_cpu = 1e30, worst_wall = 1e30;  // the goal's ratio: the smallest over batches >= 4096
+      for (size_t b : batches) {
+        const std::string k = std::to_string(b);
+        ip[b] = best_of(reps, [&] { return in_process(*tracer, rays, b); });
+        // Single rays: a sample of calls is enough (and keeps the bench short).
+        const size_t total = b == 1 ? std::min(rays.size(), size_t(smoke ? 300 : 3000)) : rays.size();
+        gu[b] = best_of(reps, [&] { return grpc_unary(*stub, rays, b, total); });
+        r["in_process_rays_per_s"][k] = to_json(ip[b]);
+        r["grpc_unary_rays_per_s"][k] = to_json(gu[b]);
+        if (b >= 4096) {
+          gs[b] = best_of(reps, [&] { return grpc_stream(*stub, rays, b); });
+          r["grpc_stream_rays_per_s"][k] = to_json(gs[b]);
+          // The service's better way to deliver batches of b (one call each, or a stream of
+          // them) against tracing the same batches in-process.
+          const Rate ratio{std::max(gu[b].wall, gs[b].wall) / ip[b].wall, std::max(gu[b].cpu, gs[b].cpu) / ip[b].cpu};
+          r["ratio_grpc_to_in_process"][k] = to_json(ratio);
+          worst_cpu = std::min(worst_cpu, ratio.cpu);
+          worst_wall = std::min(worst_wall, ratio.wall);
+        }
+      }
+      const auto [p50, p99] = latency_us(*stub, rays, smoke ? 300 : 3000);
+      r["single_ray_latency_us"] = {{"p50", p50}, {"p99", p99}};
+      // All the rays in one call against bare Embree on the same rays.
+      const Rate all = ip[batches.back()];
+      const Rate to_bare{all.wall / bare.wall, all.cpu / bare.cpu};
+      r["ratio_in_process_to_bare_embree"] = to_json(to_bare);
+      r["ratio_grpc_to_in_process_batch_ge_4096"] = to_json({worst_wall, worst_cpu});
+      js[coherent ? "coherent" : "incoherent"] = r;
+      auto m = [](double x) {
+        char b[32];
+        std::snprintf(b, sizeof b, "%.2f", x / 1e6);
+        return std::string(b);
+      };
+      auto at = [&](const std::map<size_t, Rate>& rates, size_t b) {
+        return rates.count(b) ? m(rates.at(b).cpu) : std::string("–");
+      };
+      char tail[128];
+      std::snprintf(tail, sizeof tail, "%.2f (%.2f) | %.2f (%.2f) | %.0f | %.0f", to_bare.cpu, to_bare.wall, worst_cpu,
+                    worst_wall, p50, p99);
+      md += "| " + name + " (" + std::to_string(rs->triangle_count()) + " tris) | " +
+            (coherent ? "coherent" : "incoherent") + " | " + m(bare.cpu) + " | " + at(ip, 1) + " | " + at(ip, 64) +
+            " | " + at(ip, 4096) + " | " + at(ip, 65536) + " | " + at(gu, 1) + " | " + at(gu, 64) + " | " +
+            at(gu, 4096) + " | " + at(gu, 65536) + " | " + at(gs, 4096) + " | " + at(gs, 65536) + " | " + tail +
+            " |\n";
+    }
+    out["scenes"][name] = js;
+    server->Shutdown();
+  }
+  std::cout << out.dump(2) << "\n";
+  if (!markdown.empty()) {
+    std::ofstream(markdown, std::ios::app) << "\nrays_bench (Mrays per CPU-second of the whole process, one tracing thread; "
+                                           << out["cpu"].get<std::string>()
+                                           << ", Embree " << out["embree_isa"].get<std::string>() << ")\n"
+                                           << md;
+  }
+  return 0;
+}

@@ -1,0 +1,15 @@
+// Uploading a scene bundle to the coordinator unless it has it already (HasBundle, then
+// UploadBundle in 1 MiB chunks). Used by `tessera rays --server`; `tessera submit` has its own
+// copy in farm_commands.cpp (see docs/rays.md: to be folded into this one).
+#pragma once
+
+#include "farm/bundle.h"
+#include "farm_client.h"
+
+namespace tessera::cli {
+
+// Returns true if it uploaded, false if the coordinator had the bundle. Throws
+// std::runtime_error with FarmClient::describe()'s message on failure.
+bool upload_bundle_if_missing(FarmClient& client, const farm::BuiltBundle& bundle);
+
+}  // namespace tessera::cli

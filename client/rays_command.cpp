@@ -1,0 +1,237 @@
+// `tessera rays SCENE --in rays.csv --out hits.csv`: nearest-hit or occlusion queries for a file
+// of rays, in-process (lib/rays, the renderer's intersection code), or with --server on a
+// tessera-rays service (the scene bundle is uploaded to the coordinator first). Same answers
+// either way, bit for bit. Exit codes: 0 done, 1 failure (network, I/O), 2 bad input.
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <thread>
+
+#include "bundle_upload.h"
+#include "commands.h"
+#include "farm/bundle.h"
+#include "farm/channel.h"
+#include "farm_client.h"
+#include "ray_codec.h"
+#include "rays/parallel_trace.h"
+#include "rays/ray_csv.h"
+#include "rays/ray_npy.h"
+#include "scene/scene_parser.h"
+#include "tessera/v1/ray_service.grpc.pb.h"
+
+namespace tessera::cli {
+
+namespace v1 = tessera::v1;
+using rays::HitTable;
+using rays::RayTable;
+
+namespace {
+
+constexpr int kExitFailure = 1;
+constexpr int kExitBadInput = 2;
+
+struct RaysError {
+  int code;
+  std::string message;
+};
+
+struct RaysArgs {
+  std::string scene, in, out, server, coordinator;
+  SecurityFlags security;
+  int frame = 0;
+  bool occlusion = false;
+  int batch = 65536;
+};
+
+bool is_npy(const std::string& path) { return path.size() >= 4 && path.compare(path.size() - 4, 4, ".npy") == 0; }
+
+RayTable read_rays(const std::string& path) {
+  try {
+    if (is_npy(path)) return rays::read_rays_npy(path);
+    std::ifstream in(path);
+    if (!in) throw std::runtime_error(path + ": cannot open");
+    return rays::read_rays_csv(in, path);
+  } catch (const std::runtime_error& e) {
+    throw RaysError{kExitBadInput, e.what()};
+  }
+}
+
+void write_hits(const std::string& path, const RayTable& rays, const HitTable& hits) {
+  try {
+    if (is_npy(path)) return rays::write_hits_npy(path, rays, hits);
+    std::ofstream out(path);
+    rays::write_hits_csv(out, rays, hits);
+    out.close();
+    if (!out) throw std::runtime_error(path + ": cannot write");
+  } catch (const std::runtime_error& e) {
+    throw RaysError{kExitFailure, e.what()};
+  }
+}
+
+// The same checks the service makes, here with the index in the whole file.
+void check_rays(const RayTable& t, const std::string& source) {
+  for (size_t i = 0; i < t.rays.size(); ++i) {
+    if (auto p = rays::check_ray(t.rays[i], i)) {
+      throw RaysError{kExitBadInput, source + ": " + p->message + " (rays count from 0 in file order)"};
+    }
+  }
+}
+
+HitTable trace_locally(const RaysArgs& a, const RayTable& rays) {
+  std::shared_ptr<const Scene> scene;
+  try {
+    scene = std::make_shared<const Scene>(load_scene(a.scene));
+  } catch (const SceneError& e) {
+    throw RaysError{kExitBadInput, e.what()};
+  }
+  if (a.frame < 0 || a.frame >= scene->frame_count()) {
+    throw RaysError{kExitBadInput, "--frame " + std::to_string(a.frame) + ": the scene has frames 0-" +
+                                       std::to_string(scene->frame_count() - 1)};
+  }
+  const rays::RayTracer tracer(scene, std::make_shared<const RenderScene>(*scene, a.frame));
+  HitTable h;
+  for (const SceneObject& o : scene->objects) h.objects.push_back(o.name);
+  for (const Material& m : scene->materials) h.materials.push_back(m.name);
+  h.occlusion = a.occlusion;
+  rays::trace_batch(tracer, rays.rays, a.occlusion, &h.hits);
+  return h;
+}
+
+std::string describe_rays_server(const grpc::Status& s, const std::string& address) {
+  if (s.error_code() == grpc::StatusCode::UNAVAILABLE) {
+    return "cannot reach the ray service at " + address + " (" + s.error_message() +
+           "). Start one with: tessera-rays --listen " + address + " --coordinator COORDINATOR";
+  }
+  return "the ray service at " + address + ": " + s.error_message();
+}
+
+HitTable trace_remotely(const RaysArgs& a, const RayTable& rays) {
+  Scene scene;
+  try {
+    scene = load_scene(a.scene);
+  } catch (const SceneError& e) {
+    throw RaysError{kExitBadInput, e.what()};
+  }
+  farm::ChannelSecurity security;
+  farm::BuiltBundle bundle;
+  try {
+    security = resolve_security(a.security);
+    bundle = farm::make_bundle(a.scene, scene.dependencies);
+    FarmClient coordinator(resolve_coordinator(a.coordinator), security);
+    if (upload_bundle_if_missing(coordinator, bundle)) {
+      std::fprintf(stderr, "uploaded scene bundle %s to %s\n", bundle.sha256.substr(0, 12).c_str(),
+                   coordinator.address().c_str());
+    }
+  } catch (const std::exception& e) {
+    throw RaysError{kExitFailure, e.what()};
+  }
+  auto stub = v1::RayService::NewStub(farm::make_coordinator_channel(a.server, security));
+  v1::SceneRef ref;
+  ref.set_bundle_sha256(bundle.sha256);
+  ref.set_frame(a.frame);
+  HitTable h;
+  h.occlusion = a.occlusion;
+  {
+    grpc::ClientContext ctx;
+    ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));  // first use loads the scene
+    v1::SceneDescription d;
+    const grpc::Status s = stub->DescribeScene(&ctx, ref, &d);
+    if (!s.ok()) {
+      throw RaysError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
+                      describe_rays_server(s, a.server)};
+    }
+    h.objects.assign(d.objects().begin(), d.objects().end());
+    h.materials.assign(d.materials().begin(), d.materials().end());
+  }
+  // One stream; a writer thread keeps every batch in flight while this one reads the answers
+  // (they come back in order), so the network and the tracing overlap.
+  grpc::ClientContext ctx;
+  auto stream = stub->TraceStream(&ctx);
+  const size_t n = rays.rays.size(), batch = size_t(a.batch);
+  std::thread writer([&] {
+    for (size_t begin = 0; begin < n; begin += batch) {
+      const size_t end = std::min(n, begin + batch);
+      v1::TraceRequest req;
+      if (begin == 0) *req.mutable_scene() = ref;
+      req.set_occlusion(a.occlusion);
+      rays::encode_rays({rays.rays.begin() + long(begin), rays.rays.begin() + long(end)}, {}, &req);
+      if (!stream->Write(req)) break;  // the stream failed: Finish() says why
+    }
+    stream->WritesDone();
+  });
+  v1::TraceResponse resp;
+  std::string problem;
+  for (size_t begin = 0; begin < n && stream->Read(&resp); begin += batch) {
+    const size_t count = std::min(n, begin + batch) - begin;
+    try {
+      std::vector<rays::WorldHit> hits = rays::decode_hits(resp, count, a.occlusion);
+      h.hits.insert(h.hits.end(), hits.begin(), hits.end());
+    } catch (const std::runtime_error& e) {
+      problem = e.what();
+      ctx.TryCancel();
+      break;
+    }
+  }
+  writer.join();
+  const grpc::Status s = stream->Finish();
+  if (!problem.empty()) throw RaysError{kExitFailure, "the ray service at " + a.server + " answered badly: " + problem};
+  if (!s.ok()) {
+    throw RaysError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
+                    describe_rays_server(s, a.server)};
+  }
+  if (h.hits.size() != n) throw RaysError{kExitFailure, "the ray service at " + a.server + " ended the stream early"};
+  return h;
+}
+
+int run_rays(const RaysArgs& a) {
+  const RayTable rays = read_rays(a.in);
+  check_rays(rays, a.in);
+  const auto start = std::chrono::steady_clock::now();
+  const HitTable hits = a.server.empty() ? trace_locally(a, rays) : trace_remotely(a, rays);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  write_hits(a.out, rays, hits);
+  size_t n_hit = 0;
+  for (const rays::WorldHit& w : hits.hits) n_hit += w.hit;
+  std::printf("%zu rays, %zu %s, %.3f s (scene load included)%s\n", rays.rays.size(), n_hit,
+              a.occlusion ? "occluded" : "hits", seconds, a.server.empty() ? "" : (", via " + a.server).c_str());
+  return 0;
+}
+
+}  // namespace
+
+void register_rays_command(CLI::App& app) {
+  auto a = std::make_shared<RaysArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "rays", "Nearest hits (or occlusion) of a file of rays: CSV with a header, or .npy (docs/rays.md)");
+  cmd->add_option("scene", a->scene, "Scene file (JSON, see docs/scene-format.md)")->required();
+  cmd->add_option("--in", a->in, "Rays: CSV (ox,oy,oz,dx,dy,dz[,tmin,tmax,id]) or .npy (n x 6, 8 or 9)")->required();
+  cmd->add_option("--out", a->out, "Hits: CSV, or .npy (a structured array)")->required();
+  cmd->add_option("--frame", a->frame, "Frame of an animated scene")->capture_default_str();
+  cmd->add_flag("--occlusion", a->occlusion, "Only whether something lies in (tmin, tmax): line of sight");
+  cmd->add_option("--server", a->server, "tessera-rays HOST:PORT: trace there instead of in-process");
+  cmd->add_option("--coordinator", a->coordinator,
+                  "With --server: the coordinator the bundle is uploaded to (default: $TESSERA_COORDINATOR, else "
+                  "127.0.0.1:7878)");
+  cmd->add_option("--batch", a->batch, "With --server: rays per request")
+      ->check(CLI::Range(1, 1 << 24))->capture_default_str();
+  // The farm commands' flags: one client token and CA for the coordinator and the ray server.
+  cmd->add_option("--token-file", a->security.token_file, "File holding the client token (else $TESSERA_CLIENT_TOKEN)")
+      ->group("Security");
+  cmd->add_option("--tls-ca", a->security.tls_ca, "PEM CA certificate of the servers (else $TESSERA_TLS_CA)")
+      ->group("Security");
+  cmd->add_option("--tls-cert", a->security.tls_cert, "PEM client certificate")->group("Security");
+  cmd->add_option("--tls-key", a->security.tls_key, "PEM private key of --tls-cert")->group("Security");
+  cmd->callback([a] {
+    int rc = 0;
+    try {
+      rc = run_rays(*a);
+    } catch (const RaysError& e) {
+      std::cerr << "tessera rays: " << e.message << "\n";
+      rc = e.code;
+    }
+    if (rc != 0) throw CLI::RuntimeError(rc);
+  });
+}
+
+}  // namespace tessera::cli

@@ -1,0 +1,112 @@
+#include "rays/ray_tracer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace tessera::rays {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// The unit direction, in double. One that is unit length to within 2^-20 already is kept as
+// given, so a float direction passes to the renderer bit for bit (its own camera rays are
+// normalized floats: replaying one must give the renderer's exact hit).
+Vec3d unit_direction(const Vec3d& d) {
+  if (std::abs(length(d) - 1.0) <= 0x1p-20) return d;
+  const Vec3d s = d / max_component(abs(d));  // scaled first: |d| of 1e-300 or 1e300 is fine
+  return s / length(s);
+}
+
+// [t_in, t_out] of the ray o + t d inside the cube |x| <= L (max norm), in double; false if it
+// misses the cube.
+bool cube_span(const Vec3d& o, const Vec3d& d, double L, double* t_in, double* t_out) {
+  *t_in = -kInf;
+  *t_out = kInf;
+  for (int k = 0; k < 3; ++k) {
+    if (d[k] == 0.0) {
+      if (std::abs(o[k]) > L) return false;
+      continue;
+    }
+    const double a = (-L - o[k]) / d[k], b = (L - o[k]) / d[k];
+    *t_in = std::max(*t_in, std::min(a, b));
+    *t_out = std::min(*t_out, std::max(a, b));
+  }
+  return *t_in <= *t_out;
+}
+
+}  // namespace
+
+RayTracer::RayTracer(std::shared_ptr<const Scene> scene, std::shared_ptr<const RenderScene> frame)
+    : scene_(std::move(scene)), frame_(std::move(frame)) {}
+
+bool RayTracer::trace(const WorldRay& w, WorldHit* out) const {
+  const RenderScene& rs = *frame_;
+  const Vec3d dd = unit_direction(w.d);
+  const Vec3f d(dd);
+  // Render space is world minus the eye, formed in double. A ray from the eye (a camera ray)
+  // starts at exactly 0, as the renderer's do.
+  const Vec3d o = w.o - rs.origin();
+  // Where the float ray starts, as a distance along the ray: t_min (the query asks nothing
+  // before it), or further for a far origin. The renderer itself only traces rays from the
+  // eye or from surfaces; a client may start one a million units away, where float spacing
+  // would bend it past a small mesh. So a far ray (beyond 16x the radius R of all bounded
+  // geometry, the renderer's own "far" threshold) moves, in double, to where it enters the
+  // cube |x| <= 2R that holds that geometry; the stretch before it can only cross infinite
+  // planes, and gets its own query from the unmoved start.
+  double shift = double(w.tmin);
+  // Distances are floats: a plane met 1e52 away (a near-parallel ray from far off) is beyond
+  // what t can say, so it counts as no hit rather than a hit at t = infinity.
+  const double tmax = std::min(double(w.tmax), double(std::numeric_limits<float>::max()));
+  const double R = double(rs.bounds_radius());
+  const Vec3d start = o + dd * shift;
+  Hit h;
+  bool found = false;
+  double t_in = 0.0, t_out = 0.0;
+  if (R > 0.0 && max_component(abs(start)) > 16.0 * R && cube_span(start, dd, 2.0 * R, &t_in, &t_out) &&
+      t_out > 0.0 && t_in > 0.0 && t_in < tmax - shift) {
+    // Planes before the cube, from the unmoved start.
+    const Ray before{Vec3f(start), d, float(t_in)};
+    found = rs.intersect(before, PrimRef{}, &h);
+    if (!found) shift += t_in;
+  }
+  if (!found) {
+    const Ray ray{Vec3f(o + dd * shift), d, float(tmax - shift)};
+    found = rs.intersect(ray, PrimRef{}, &h);
+    if (!found) return false;
+  }
+  // The same for a surface point beyond float range (render space is float): no hit to report.
+  if (!std::isfinite(h.t) || !is_finite(h.p)) return false;
+  // t: exact when nothing moved (shift 0), else the moved start's distance added in double.
+  out->t = shift == 0.0 ? h.t : float(shift + double(h.t));
+  out->p = rs.origin() + Vec3d(h.p);
+  out->n = h.n;
+  // The integrator shades with the geometric normal turned towards the side the ray came from
+  // (integrator.cpp: front = dot(d, n) < 0).
+  out->ns = dot(d, h.n) < 0.0f ? h.n : -h.n;
+  out->u = h.u;
+  out->v = h.v;
+  const RenderScene::Source src = rs.source_of(h.prim);
+  out->object = src.object;
+  out->primitive = src.primitive;
+  out->material = h.material;
+  return true;
+}
+
+void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
+  for (size_t i = 0; i < n; ++i) {
+    hits[i] = WorldHit{};
+    hits[i].hit = trace(rays[i], &hits[i]);
+  }
+}
+
+void RayTracer::occluded(const WorldRay* rays, size_t n, WorldHit* hits) const {
+  for (size_t i = 0; i < n; ++i) {
+    WorldHit scratch;
+    hits[i] = WorldHit{};
+    hits[i].hit = trace(rays[i], &scratch);
+  }
+}
+
+}  // namespace tessera::rays

@@ -1,0 +1,39 @@
+// Nearest-hit and occlusion queries for world-space rays on one frame of a scene, answered by
+// RenderScene::intersect: the renderer's own code (watertight triangles, double-precision
+// spheres and planes, the renderer's tie-breaking), so a query's hit is the one the renderer
+// would find. Knows nothing of gRPC or files.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+
+#include "rays/world_ray.h"
+#include "render/render_scene.h"
+#include "scene/scene.h"
+
+namespace tessera::rays {
+
+class RayTracer {
+ public:
+  // `frame` must have been built from `scene`.
+  RayTracer(std::shared_ptr<const Scene> scene, std::shared_ptr<const RenderScene> frame);
+
+  // Both trace n rays that passed check_ray() (not checked again here) one by one, so a ray's
+  // answer depends on that ray alone, never on the batch around it. Const and thread-safe: any
+  // number of threads may trace at once.
+  void nearest(const WorldRay* rays, size_t n, WorldHit* hits) const;
+  // Sets only hits[i].hit: whether any surface lies in (tmin, tmax]. It uses the nearest-hit
+  // path, so "occluded" and "has a nearest hit" can never disagree.
+  void occluded(const WorldRay* rays, size_t n, WorldHit* hits) const;
+
+  const Scene& scene() const { return *scene_; }
+  const RenderScene& frame() const { return *frame_; }
+
+ private:
+  bool trace(const WorldRay& ray, WorldHit* hit) const;
+
+  std::shared_ptr<const Scene> scene_;
+  std::shared_ptr<const RenderScene> frame_;
+};
+
+}  // namespace tessera::rays

@@ -1,0 +1,137 @@
+// tessera-rays: the ray service (docs/rays.md). Answers nearest-hit and line-of-sight queries on
+// scene bundles uploaded to the coordinator, which it fetches like a worker does.
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <signal.h>
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <thread>
+
+#include "auth.h"
+#include "bundle_scenes.h"
+#include "farm/bundle_fetch.h"
+#include "farm/channel.h"
+#include "large_buffers.h"
+#include "ray_service.h"
+#include "render/embree_device.h"
+#include "request_limits.h"
+
+int main(int argc, char** argv) {
+  using namespace tessera;
+  rays::keep_large_buffers();
+  std::string listen = "127.0.0.1:7879";
+  std::string coordinator = "127.0.0.1:7878";
+  if (const char* env = std::getenv("TESSERA_COORDINATOR"); env && *env) coordinator = env;
+  std::string cache = (std::filesystem::temp_directory_path() / "tessera-rays-cache").string();
+  std::string log_level = "info";
+  rays::RayServiceOptions options;
+  options.threads = int(std::max(1u, std::thread::hardware_concurrency()));
+  int64_t max_message_bytes = server::Limits{}.max_message_bytes;
+  int max_frames = 8;
+
+  CLI::App app{"tessera-rays: nearest-hit and line-of-sight queries over gRPC (tessera.v1.RayService)"};
+  app.add_option("--listen", listen, "HOST:PORT to serve on (port 0 picks a free one)")->capture_default_str();
+  app.add_option("--coordinator", coordinator, "Coordinator HOST:PORT the scene bundles come from (env TESSERA_COORDINATOR)")
+      ->capture_default_str();
+  app.add_option("--threads", options.threads, "Threads large batches (over 2048 rays) are split across, all requests together (smaller ones "
+                 "run on the thread that received them)")
+      ->check(CLI::Range(1, 4096))->capture_default_str();
+  app.add_option("--cache-dir", cache, "Where fetched scene bundles are kept")->capture_default_str();
+  app.add_option("--max-frames", max_frames, "Built frames (Embree scenes) kept in memory")
+      ->check(CLI::Range(1, 1024))->capture_default_str();
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
+  // Inbound: the same flags, files and environment variables as tessera-server's client side.
+  server::ServerSecurity inbound;
+  app.add_option("--client-token-file", inbound.client_token_file,
+                 "File holding the token clients must send (else env TESSERA_CLIENT_TOKEN; none: open)")
+      ->group("Security");
+  app.add_option("--tls-cert", inbound.tls_cert, "PEM certificate of this server: TLS on every connection")
+      ->group("Security");
+  app.add_option("--tls-key", inbound.tls_key, "PEM private key of --tls-cert")->group("Security");
+  app.add_option("--tls-ca", inbound.tls_ca, "PEM CA: also require client certificates signed by it (mutual TLS)")
+      ->group("Security");
+  // Outbound: to the coordinator, as a worker (bundles are fetched with the worker token).
+  std::string worker_token_file;
+  farm::ChannelSecurity outbound;
+  app.add_option("--worker-token-file", worker_token_file,
+                 "File holding the coordinator's worker token (else env TESSERA_WORKER_TOKEN)")
+      ->group("Security");
+  app.add_option("--coordinator-tls-ca", outbound.tls_ca, "PEM CA certificate of the coordinator: connect with TLS")
+      ->group("Security");
+  app.add_option("--coordinator-tls-cert", outbound.tls_cert, "PEM client certificate for the coordinator")
+      ->group("Security");
+  app.add_option("--coordinator-tls-key", outbound.tls_key, "PEM private key of --coordinator-tls-cert")
+      ->group("Security");
+  app.add_option("--max-message-bytes", max_message_bytes, "Largest gRPC message accepted")
+      ->check(CLI::Range(int64_t(2) << 20, int64_t(1) << 30))->capture_default_str()->group("Limits");
+  app.add_option("--max-batch-rays", options.max_batch_rays, "Most rays in one request (larger: INVALID_ARGUMENT)")
+      ->check(CLI::Range(int64_t(1), int64_t(1) << 24))->capture_default_str()->group("Limits");
+  app.set_version_flag("--version", "tessera-rays 0.1.0");
+  CLI11_PARSE(app, argc, argv);
+
+  server::Authenticator auth;
+  std::shared_ptr<grpc::ServerCredentials> credentials;
+  try {
+    auth = server::Authenticator(farm::read_token(inbound.client_token_file, "TESSERA_CLIENT_TOKEN"), "");
+    credentials = inbound.credentials();
+    outbound.token = farm::read_token(worker_token_file, "TESSERA_WORKER_TOKEN");
+  } catch (const std::exception& e) {
+    std::cerr << "tessera-rays: " << e.what() << "\n";
+    return 2;
+  }
+  spdlog::set_level(spdlog::level::from_str(log_level));
+  spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ [rays] %v");
+
+  sigset_t sigs;
+  sigemptyset(&sigs);
+  sigaddset(&sigs, SIGINT);
+  sigaddset(&sigs, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &sigs, nullptr);  // before any thread starts: all inherit it
+
+  std::unique_ptr<v1::WorkerService::Stub> stub;
+  std::unique_ptr<rays::BundleScenes> scenes;
+  try {
+    stub = v1::WorkerService::NewStub(farm::make_coordinator_channel(coordinator, outbound));
+    scenes = std::make_unique<rays::BundleScenes>(
+        cache, [&](const std::string& sha256) { return farm::fetch_bundle(*stub, sha256); }, size_t(max_frames));
+  } catch (const std::exception& e) {
+    std::cerr << "tessera-rays: " << e.what() << "\n";
+    return 1;
+  }
+  rays::RayServiceImpl service(scenes->source(), auth, options);
+
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort(listen, credentials, &port);
+  builder.RegisterService(&service);
+  builder.SetMaxReceiveMessageSize(int(max_message_bytes));
+  builder.SetMaxSendMessageSize(int(max_message_bytes));
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5000);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
+  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  if (!server || port == 0) {
+    std::cerr << "tessera-rays: cannot listen on " << listen << "\n";
+    return 1;
+  }
+  const std::string host = listen.substr(0, listen.rfind(':'));
+  spdlog::info("tessera-rays 0.1.0: bundles from {}, {} threads per batch, at most {} rays per batch, Embree {}",
+               coordinator, options.threads, options.max_batch_rays, embree_isa());
+  spdlog::info("security: {}, clients {}", inbound.tls_cert.empty() ? "plaintext" : "TLS",
+               auth.open(server::PeerRole::kClient) ? "open" : "need the client token");
+  std::printf("listening on %s:%d\n", host.c_str(), port);  // the line tests and scripts wait for
+  std::fflush(stdout);
+
+  int sig = 0;
+  sigwait(&sigs, &sig);
+  spdlog::info("signal {}: shutting down", sig);
+  server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+  server->Wait();
+  return 0;
+}

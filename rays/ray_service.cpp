@@ -1,0 +1,91 @@
+#include "ray_service.h"
+
+#include "ray_codec.h"
+#include "rays/parallel_trace.h"
+#include "render/embree_device.h"
+
+namespace tessera::rays {
+
+namespace v1 = tessera::v1;
+using grpc::Status;
+using grpc::StatusCode;
+
+RayServiceImpl::RayServiceImpl(SceneSource scenes, server::Authenticator auth, RayServiceOptions options)
+    : scenes_(std::move(scenes)), auth_(std::move(auth)), options_(options), arena_(std::max(1, options.threads)) {}
+
+Status RayServiceImpl::answer(const RayTracer& tracer, const v1::TraceRequest& req, v1::TraceResponse* resp) {
+  const int64_t n = req.directions_size() / 3;
+  if (n > options_.max_batch_rays) {
+    // Counted before anything is decoded: a huge batch costs its parse only.
+    return Status(StatusCode::INVALID_ARGUMENT, "batch of " + std::to_string(n) +
+                                                    " rays (directions / 3) is over this server's limit " +
+                                                    std::to_string(options_.max_batch_rays) +
+                                                    " (tessera-rays --max-batch-rays): send smaller batches");
+  }
+  std::vector<WorldRay> rays;
+  if (auto p = decode_rays(req, &rays)) {
+    return Status(StatusCode::INVALID_ARGUMENT, p->message + " (field " + p->field + ")");
+  }
+  std::vector<WorldHit> hits;
+  // Small batches run on the gRPC thread that received them (concurrent clients in parallel);
+  // large ones are split on the service's arena, so --threads bounds the cores they take.
+  if (rays.size() <= kParallelBatch) trace_batch(tracer, rays, req.occlusion(), &hits);
+  else arena_.execute([&] { trace_batch(tracer, rays, req.occlusion(), &hits); });
+  encode_hits(hits, req.occlusion(), resp);
+  *resp->mutable_ids() = req.ids();
+  return Status::OK;
+}
+
+Status RayServiceImpl::Trace(grpc::ServerContext* ctx, const v1::TraceRequest* req, v1::TraceResponse* resp) {
+  if (Status s = auth_.check(*ctx, server::PeerRole::kClient); !s.ok()) return s;
+  if (!req->has_scene()) return Status(StatusCode::INVALID_ARGUMENT, "scene: required (bundle_sha256 and frame)");
+  std::shared_ptr<const RayTracer> tracer;
+  if (Status s = scenes_(req->scene().bundle_sha256(), req->scene().frame(), &tracer); !s.ok()) return s;
+  return answer(*tracer, *req, resp);
+}
+
+Status RayServiceImpl::TraceStream(grpc::ServerContext* ctx,
+                                   grpc::ServerReaderWriter<v1::TraceResponse, v1::TraceRequest>* stream) {
+  if (Status s = auth_.check(*ctx, server::PeerRole::kClient); !s.ok()) return s;
+  std::shared_ptr<const RayTracer> tracer;
+  v1::SceneRef current;
+  v1::TraceRequest req;
+  for (int64_t batch = 0; stream->Read(&req); ++batch) {
+    // The scene is looked up when it changes, not per batch.
+    if (req.has_scene() && (!tracer || req.scene().bundle_sha256() != current.bundle_sha256() ||
+                            req.scene().frame() != current.frame())) {
+      if (Status s = scenes_(req.scene().bundle_sha256(), req.scene().frame(), &tracer); !s.ok()) return s;
+      current = req.scene();
+    }
+    if (!tracer) {
+      return Status(StatusCode::INVALID_ARGUMENT, "batch 0: scene required on a stream's first request");
+    }
+    v1::TraceResponse resp;
+    if (Status s = answer(*tracer, req, &resp); !s.ok()) {
+      return Status(s.error_code(), "batch " + std::to_string(batch) + ": " + s.error_message());
+    }
+    if (!stream->Write(resp)) break;  // the client went away
+  }
+  return Status::OK;
+}
+
+Status RayServiceImpl::DescribeScene(grpc::ServerContext* ctx, const v1::SceneRef* req, v1::SceneDescription* resp) {
+  if (Status s = auth_.check(*ctx, server::PeerRole::kClient); !s.ok()) return s;
+  std::shared_ptr<const RayTracer> tracer;
+  if (Status s = scenes_(req->bundle_sha256(), req->frame(), &tracer); !s.ok()) return s;
+  const Scene& scene = tracer->scene();
+  for (const SceneObject& o : scene.objects) {
+    resp->add_objects(o.name);
+    resp->add_object_kinds(o.type == SceneObject::Type::kMesh     ? "mesh"
+                           : o.type == SceneObject::Type::kSphere ? "sphere"
+                                                                  : "plane");
+  }
+  for (const Material& m : scene.materials) resp->add_materials(m.name);
+  resp->set_frame_count(scene.frame_count());
+  resp->set_triangles(tracer->frame().triangle_count());
+  resp->set_embree_isa(embree_isa());
+  resp->set_max_batch_rays(options_.max_batch_rays);
+  return Status::OK;
+}
+
+}  // namespace tessera::rays

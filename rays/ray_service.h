@@ -1,0 +1,47 @@
+// tessera.v1.RayService over a SceneSource: checks the token, the batch size and every ray,
+// then traces with RayTracer (lib/rays), large batches split across a TBB arena. A thin
+// adapter: the tracing itself knows nothing of gRPC.
+#pragma once
+
+#include <tbb/task_arena.h>
+
+#include <cstdint>
+
+#include "auth.h"
+#include "scene_source.h"
+#include "tessera/v1/ray_service.grpc.pb.h"
+
+namespace tessera::rays {
+
+struct RayServiceOptions {
+  // Rays per request. A request of 2^18 rays is ~16 MiB and its answer ~21 MiB, inside the
+  // farm's 64 MiB message limit with room to spare.
+  int64_t max_batch_rays = int64_t(1) << 18;
+  // Threads that large batches (> kParallelBatch rays) are split across, all requests together.
+  int threads = 1;
+};
+
+class RayServiceImpl final : public tessera::v1::RayService::Service {
+ public:
+  RayServiceImpl(SceneSource scenes, server::Authenticator auth, RayServiceOptions options);
+
+  grpc::Status Trace(grpc::ServerContext* ctx, const tessera::v1::TraceRequest* req,
+                     tessera::v1::TraceResponse* resp) override;
+  grpc::Status TraceStream(
+      grpc::ServerContext* ctx,
+      grpc::ServerReaderWriter<tessera::v1::TraceResponse, tessera::v1::TraceRequest>* stream) override;
+  grpc::Status DescribeScene(grpc::ServerContext* ctx, const tessera::v1::SceneRef* req,
+                             tessera::v1::SceneDescription* resp) override;
+
+ private:
+  // One batch on a tracer: INVALID_ARGUMENT naming the ray and field for bad input.
+  grpc::Status answer(const RayTracer& tracer, const tessera::v1::TraceRequest& req,
+                           tessera::v1::TraceResponse* resp);
+
+  SceneSource scenes_;
+  server::Authenticator auth_;
+  RayServiceOptions options_;
+  tbb::task_arena arena_;
+};
+
+}  // namespace tessera::rays

@@ -1,0 +1,284 @@
+// RayService over loopback gRPC: answers equal the in-process tracer's bit for bit, streams keep
+// order, ids come back, bad input is INVALID_ARGUMENT naming the ray and field, tokens are
+// checked; BundleScenes maps the coordinator's answers to the statuses clients see.
+#include "ray_service.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include "bundle_scenes.h"
+#include "farm/bundle.h"
+#include "farm/bundle_fetch.h"
+#include "farm/channel.h"
+#include "ray_codec.h"
+#include "scene/scene_parser.h"
+
+namespace tessera::rays {
+namespace {
+
+namespace fs = std::filesystem;
+namespace v1 = tessera::v1;
+
+constexpr const char* kHash = "aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa";
+constexpr const char* kSceneJson = R"({"camera": {"position": [0, 0, -5], "look_at": [0, 0, 10]},
+  "materials": {"red": {"type": "diffuse"}, "grey": {"type": "diffuse"}},
+  "objects": [{"type": "sphere", "name": "ball", "center": [0, 0, 10], "radius": 2, "material": "red"},
+              {"type": "plane", "name": "floor", "point": [0, -3, 0], "normal": [0, 1, 0], "material": "grey"}]})";
+
+class RayServiceTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("tessera_ray_service_test_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+    std::ofstream(dir_ / "scene.json") << kSceneJson;
+    auto scene = std::make_shared<const Scene>(load_scene((dir_ / "scene.json").string()));
+    tracer_ = std::make_shared<const RayTracer>(scene, std::make_shared<const RenderScene>(*scene, 0));
+  }
+  void TearDown() override {
+    if (server_) server_->Shutdown();
+    fs::remove_all(dir_);
+  }
+
+  void start(RayServiceOptions options = {}, const std::string& client_token = "") {
+    SceneSource source = [this](const std::string& sha, int frame, std::shared_ptr<const RayTracer>* t) {
+      if (sha != kHash) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "scene.bundle_sha256: unknown bundle " + sha);
+      *t = tracer_;
+      return grpc::Status::OK;
+    };
+    service_ = std::make_unique<RayServiceImpl>(source, server::Authenticator(client_token, ""), options);
+    grpc::ServerBuilder b;
+    int port = 0;
+    b.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+    b.RegisterService(service_.get());
+    server_ = b.BuildAndStart();
+    ASSERT_GT(port, 0);
+    address_ = "127.0.0.1:" + std::to_string(port);
+  }
+  std::unique_ptr<v1::RayService::Stub> stub(const std::string& token = "") {
+    farm::ChannelSecurity sec;
+    sec.token = token;
+    return v1::RayService::NewStub(farm::make_coordinator_channel(address_, sec));
+  }
+
+  static v1::TraceRequest request(const std::vector<WorldRay>& rays, bool with_scene = true) {
+    v1::TraceRequest req;
+    if (with_scene) req.mutable_scene()->set_bundle_sha256(kHash);
+    encode_rays(rays, {}, &req);
+    return req;
+  }
+  grpc::Status trace(const v1::TraceRequest& req, v1::TraceResponse* resp) {
+    grpc::ClientContext ctx;
+    return stub()->Trace(&ctx, req, resp);
+  }
+
+  fs::path dir_;
+  std::shared_ptr<const RayTracer> tracer_;
+  std::unique_ptr<RayServiceImpl> service_;
+  std::unique_ptr<grpc::Server> server_;
+  std::string address_;
+};
+
+std::vector<WorldRay> fan(int n) {
+  std::vector<WorldRay> rays;
+  for (int i = 0; i < n; ++i) {
+    const double a = -0.4 + 0.8 * i / std::max(1, n - 1);
+    rays.push_back({{0, 0, 0}, normalize(Vec3d(a, a * 0.7 - 0.2, 1))});
+  }
+  return rays;
+}
+
+void expect_same(const std::vector<WorldHit>& got, const std::vector<WorldHit>& want) {
+  ASSERT_EQ(got.size(), want.size());
+  for (size_t i = 0; i < got.size(); ++i) {
+    ASSERT_EQ(got[i].hit, want[i].hit) << i;
+    ASSERT_EQ(std::memcmp(&got[i].t, &want[i].t, 4), 0) << i;
+    ASSERT_EQ(got[i].p, want[i].p) << i;
+    ASSERT_EQ(got[i].n, want[i].n) << i;
+    ASSERT_EQ(got[i].object, want[i].object) << i;
+    ASSERT_EQ(got[i].material, want[i].material) << i;
+  }
+}
+
+TEST_F(RayServiceTest, TraceAnswersAsTheTracerDoesAndAnalytically) {
+  start();
+  v1::TraceResponse resp;
+  ASSERT_TRUE(trace(request({{{0, 0, 0}, {0, 0, 1}}, {{0, 0, 0}, {0, -1, 0}}, {{0, 0, 0}, {0, 1, 0}}}), &resp).ok());
+  const std::vector<WorldHit> hits = decode_hits(resp, 3, false);
+  ASSERT_TRUE(hits[0].hit);
+  EXPECT_FLOAT_EQ(hits[0].t, 8.0f);           // the sphere's near side
+  EXPECT_EQ(hits[0].n, Vec3f(0, 0, -1));
+  EXPECT_EQ(hits[0].object, 0u);
+  ASSERT_TRUE(hits[1].hit);
+  EXPECT_FLOAT_EQ(hits[1].t, 3.0f);           // the floor
+  EXPECT_EQ(hits[1].object, 1u);
+  EXPECT_EQ(tracer_->scene().materials[hits[1].material].name, "grey");
+  EXPECT_EQ(tracer_->scene().materials[hits[0].material].name, "red");
+  EXPECT_FALSE(hits[2].hit);
+  EXPECT_TRUE(std::isinf(hits[2].t));
+  EXPECT_EQ(hits[2].object, kNoIndex);
+
+  const std::vector<WorldRay> rays = fan(500);
+  ASSERT_TRUE(trace(request(rays), &resp).ok());
+  std::vector<WorldHit> want(rays.size());
+  tracer_->nearest(rays.data(), rays.size(), want.data());
+  expect_same(decode_hits(resp, rays.size(), false), want);
+}
+
+TEST_F(RayServiceTest, ParallelBatchesEqualSerialOnes) {
+  start({.max_batch_rays = 1 << 18, .threads = 4});
+  const std::vector<WorldRay> rays = fan(10000);
+  v1::TraceResponse resp;
+  ASSERT_TRUE(trace(request(rays), &resp).ok());
+  std::vector<WorldHit> want(rays.size());
+  tracer_->nearest(rays.data(), rays.size(), want.data());
+  expect_same(decode_hits(resp, rays.size(), false), want);
+}
+
+TEST_F(RayServiceTest, OcclusionSendsOnlyTheFlags) {
+  start();
+  WorldRay blocked{{0, 0, 0}, {0, 0, 1}, 0.0f, 20.0f}, short_of_it{{0, 0, 0}, {0, 0, 1}, 0.0f, 7.5f};
+  v1::TraceRequest req = request({blocked, short_of_it});
+  req.set_occlusion(true);
+  v1::TraceResponse resp;
+  ASSERT_TRUE(trace(req, &resp).ok());
+  EXPECT_EQ(resp.hit(), std::string("\1\0", 2));
+  EXPECT_EQ(resp.t_size(), 0);
+}
+
+TEST_F(RayServiceTest, StreamAnswersEveryBatchInOrderWithItsIds) {
+  start();
+  grpc::ClientContext ctx;
+  auto s = stub()->TraceStream(&ctx);
+  for (int b = 0; b < 5; ++b) {
+    v1::TraceRequest req = request(fan(10 + b), b == 0);  // the scene once, on the first batch
+    for (int i = 0; i < 10 + b; ++i) req.add_ids(uint64_t(1000 * b + i));
+    ASSERT_TRUE(s->Write(req));  // all five in flight before reading any answer
+  }
+  s->WritesDone();
+  v1::TraceResponse resp;
+  for (int b = 0; b < 5; ++b) {
+    ASSERT_TRUE(s->Read(&resp)) << b;
+    ASSERT_EQ(resp.ids_size(), 10 + b);
+    EXPECT_EQ(resp.ids(0), uint64_t(1000 * b));
+    EXPECT_EQ(decode_hits(resp, size_t(10 + b), false).size(), size_t(10 + b));
+  }
+  EXPECT_FALSE(s->Read(&resp));
+  EXPECT_TRUE(s->Finish().ok());
+}
+
+TEST_F(RayServiceTest, BadInputIsInvalidArgumentNamingTheRayAndField) {
+  start({.max_batch_rays = 100, .threads = 1});
+  auto expect_refused = [&](const v1::TraceRequest& req, const std::string& text) {
+    v1::TraceResponse resp;
+    const grpc::Status s = trace(req, &resp);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << text;
+    EXPECT_NE(s.error_message().find(text), std::string::npos) << s.error_message();
+    EXPECT_EQ(resp.hit().size(), 0u);  // nothing traced, no half answer
+  };
+  std::vector<WorldRay> rays = fan(10);
+  rays[3].d = Vec3d(0, NAN, 1);
+  expect_refused(request(rays), "ray 3: direction is not finite (field direction)");
+  rays[3].d = Vec3d(0, 0, 0);
+  expect_refused(request(rays), "ray 3: direction is zero-length");
+  rays = fan(10);
+  rays[7].tmin = 5;
+  rays[7].tmax = 1;
+  expect_refused(request(rays), "ray 7: t_min > t_max");
+  rays[7].tmin = 0;
+  rays[7].o.x = INFINITY;
+  expect_refused(request(rays), "ray 7: origin is not finite");
+  v1::TraceRequest req = request(fan(10));
+  req.mutable_origins()->RemoveLast();
+  expect_refused(req, "origins has 29 values; 10 rays (from directions) need 30");
+  req = request(fan(10));
+  req.add_t_max(1.0f);  // one t_max for ten rays
+  expect_refused(req, "t_max has 1 values");
+  expect_refused(request(fan(101)), "batch of 101 rays (directions / 3) is over this server's limit 100 (tessera-rays --max-batch-rays)");
+  req = request(fan(2));
+  req.mutable_scene()->set_bundle_sha256(std::string(64, 'b'));
+  expect_refused(req, "scene.bundle_sha256: unknown bundle bbbb");
+  expect_refused(request(fan(2), false), "scene: required");
+}
+
+TEST_F(RayServiceTest, ABadBatchEndsTheStreamNamingIt) {
+  start();
+  grpc::ClientContext ctx;
+  auto s = stub()->TraceStream(&ctx);
+  ASSERT_TRUE(s->Write(request(fan(4))));
+  std::vector<WorldRay> bad = fan(4);
+  bad[2].d = Vec3d(0, 0, 0);
+  s->Write(request(bad, false));
+  s->WritesDone();
+  v1::TraceResponse resp;
+  EXPECT_TRUE(s->Read(&resp));  // the good first batch is answered
+  EXPECT_FALSE(s->Read(&resp));
+  const grpc::Status st = s->Finish();
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(st.error_message(), "batch 1: ray 2: direction is zero-length (field direction)");
+}
+
+TEST_F(RayServiceTest, ClientTokenIsRequiredWhenConfigured) {
+  start({}, "s3cret");
+  v1::TraceResponse resp;
+  grpc::ClientContext c1;
+  EXPECT_EQ(stub()->Trace(&c1, request(fan(1)), &resp).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  grpc::ClientContext c2;
+  EXPECT_EQ(stub("wrong")->Trace(&c2, request(fan(1)), &resp).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  grpc::ClientContext c3;
+  EXPECT_TRUE(stub("s3cret")->Trace(&c3, request(fan(1)), &resp).ok());
+  grpc::ClientContext c4;
+  v1::SceneDescription d;
+  EXPECT_EQ(stub()->DescribeScene(&c4, v1::SceneRef(), &d).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+}
+
+TEST_F(RayServiceTest, DescribeSceneNamesObjectsAndMaterials) {
+  start();
+  grpc::ClientContext ctx;
+  v1::SceneRef ref;
+  ref.set_bundle_sha256(kHash);
+  v1::SceneDescription d;
+  ASSERT_TRUE(stub()->DescribeScene(&ctx, ref, &d).ok());
+  EXPECT_EQ(std::vector<std::string>(d.objects().begin(), d.objects().end()), (std::vector<std::string>{"ball", "floor"}));
+  EXPECT_EQ(std::vector<std::string>(d.object_kinds().begin(), d.object_kinds().end()),
+            (std::vector<std::string>{"sphere", "plane"}));
+  EXPECT_EQ(d.materials_size(), 2);
+  EXPECT_EQ(d.frame_count(), 1);
+  EXPECT_FALSE(d.embree_isa().empty());
+}
+
+TEST_F(RayServiceTest, BundleScenesMapsTheCoordinatorsAnswers) {
+  const farm::BuiltBundle bundle = farm::make_bundle(dir_ / "scene.json", {});
+  int fetches = 0;
+  BundleScenes scenes(dir_ / "cache", [&](const std::string& sha) -> std::string {
+    ++fetches;
+    if (sha == bundle.sha256) return bundle.bytes;
+    if (sha == std::string(64, 'c')) throw farm::FetchError(grpc::StatusCode::UNAVAILABLE, "connection refused");
+    throw farm::FetchError(grpc::StatusCode::NOT_FOUND, "no such bundle");
+  });
+  std::shared_ptr<const RayTracer> t;
+  ASSERT_TRUE(scenes.get(bundle.sha256, 0, &t).ok());
+  WorldRay r{{0, 0, 0}, {0, 0, 1}};
+  WorldHit h;
+  t->nearest(&r, 1, &h);
+  EXPECT_FLOAT_EQ(h.t, 8.0f);
+  ASSERT_TRUE(scenes.get(bundle.sha256, 0, &t).ok());
+  EXPECT_EQ(fetches, 1);  // fetched once, cached
+  grpc::Status s = scenes.get(bundle.sha256, 1, &t);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(s.error_message().find("scene.frame: 1 is not a frame"), std::string::npos) << s.error_message();
+  s = scenes.get(std::string(64, 'd'), 0, &t);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(s.error_message().find("scene.bundle_sha256: unknown bundle dddd"), std::string::npos);
+  EXPECT_EQ(scenes.get(std::string(64, 'c'), 0, &t).error_code(), grpc::StatusCode::UNAVAILABLE);
+  s = scenes.get("../etc/passwd", 0, &t);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(s.error_message().find("is not a SHA-256"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace tessera::rays

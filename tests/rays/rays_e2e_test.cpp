@@ -1,0 +1,193 @@
+// `tessera rays` and tessera-rays as processes: in-process and service answers identical byte for
+// byte (CSV and .npy, several batches), analytic values in the CSV, bad input exits 2 naming the
+// ray, tokens on both hops, and the Python example client built from ray_service.proto alone.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <regex>
+#include <thread>
+
+#include "../farm/farm_harness.h"
+#include "farm/bundle.h"
+#include "scene/scene_parser.h"
+
+namespace tessera::farmtest {
+namespace {
+
+using namespace std::chrono_literals;
+
+// Starts tessera-rays for `farm`'s coordinator and returns its address once it listens.
+std::string start_rays(Farm& farm, std::unique_ptr<Process>* proc, const std::vector<std::string>& extra = {}) {
+  std::vector<std::string> argv{(fs::path(TESSERA_BINARY_DIR) / "rays" / "tessera-rays").string(),
+                                "--listen",      "127.0.0.1:0",
+                                "--coordinator", farm.address(),
+                                "--cache-dir",   (farm.dir() / "rays-cache").string(),
+                                "--threads",     "2"};
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  *proc = std::make_unique<Process>(argv, farm.dir() / "rays.log");
+  const std::regex re("listening on (127\\.0\\.0\\.1:[0-9]+)");
+  for (int i = 0; i < 1000; ++i) {
+    std::smatch m;
+    const std::string log = (*proc)->log();
+    if (std::regex_search(log, m, re)) return m[1];
+    if (!(*proc)->running()) break;
+    std::this_thread::sleep_for(20ms);
+  }
+  ADD_FAILURE() << "tessera-rays did not start:\n" << (*proc)->log();
+  return "";
+}
+
+// Rays at the bunny of scenes/bunny.json: from the camera through a jittered grid (coherent),
+// then from random points in random directions (incoherent).
+void write_bunny_rays(const fs::path& path, int n) {
+  const Scene scene = load_scene(source("scenes/bunny.json").string());
+  const Vec3d eye = scene.camera.position, at = scene.camera.look_at;
+  std::mt19937_64 rng(18);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::ofstream out(path);
+  out.precision(17);
+  out << "ox,oy,oz,dx,dy,dz,id\n";
+  for (int i = 0; i < n; ++i) {
+    Vec3d o = eye, d = normalize(at - eye) + Vec3d(u(rng), u(rng), u(rng)) * 0.15;
+    if (i % 2) {
+      o = at + Vec3d(u(rng), u(rng), u(rng)) * 2.0;
+      d = Vec3d(u(rng), u(rng), u(rng));
+    }
+    out << o.x << ',' << o.y << ',' << o.z << ',' << d.x << ',' << d.y << ',' << d.z << ',' << i << '\n';
+  }
+}
+
+TEST(RaysCli, InProcessAndServiceAnswersAreIdentical) {
+  Farm farm;
+  farm.start_server();
+  std::unique_ptr<Process> rays;
+  const std::string addr = start_rays(farm, &rays);
+  const fs::path in = farm.dir() / "rays.csv";
+  write_bunny_rays(in, 3000);
+  const std::string scene = source("scenes/bunny.json").string();
+  for (const char* ext : {".csv", ".npy"}) {
+    const fs::path local = farm.dir() / (std::string("local") + ext), remote = farm.dir() / (std::string("remote") + ext);
+    CliResult r = farm.cli({"rays", scene, "--in", in.string(), "--out", local.string()});
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("3000 rays"), std::string::npos) << r.output;
+    // 7 batches of 450 (the last one short) on one stream.
+    r = farm.cli({"rays", scene, "--in", in.string(), "--out", remote.string(), "--server", addr, "--coordinator",
+                  farm.address(), "--batch", "450"});
+    ASSERT_EQ(r.code, 0) << r.output << rays->log();
+    ASSERT_EQ(read_text(local), read_text(remote)) << ext;
+  }
+  // Mostly hits, some misses: the comparison covered both.
+  const std::string csv = read_text(farm.dir() / "local.csv");
+  size_t hits = 0, lines = 0;
+  for (size_t at = csv.find('\n'); at != std::string::npos && at + 1 < csv.size(); at = csv.find('\n', at + 1)) {
+    ++lines;
+    hits += csv.compare(csv.find(',', at + 1) + 1, 2, "1,") == 0;
+  }
+  EXPECT_EQ(lines, 3000u);
+  EXPECT_GT(hits, 1000u);
+  EXPECT_LT(hits, 3000u);
+}
+
+TEST(RaysCli, CsvCarriesTheAnalyticHit) {
+  Farm farm;
+  const fs::path in = farm.dir() / "in.csv", out = farm.dir() / "out.csv";
+  std::ofstream(in) << "ox,oy,oz,dx,dy,dz,tmin,tmax\n0,0,0,0,0,5,0,inf\n0,0,0,0,-1,0,0,2.5\n0,0,0,0,0,1,9,inf\n";
+  const CliResult r = farm.cli({"rays", source("tests/rays/sphere_scene.json").string(), "--in", in.string(), "--out",
+                                out.string()});
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(read_text(out),
+            "hit,t,px,py,pz,nx,ny,nz,snx,sny,snz,u,v,object,primitive,material\n"
+            "1,8,0,0,8,0,0,-1,0,0,-1,0,0,ball,0,red\n"      // the sphere's near side
+            "0,inf,0,0,0,0,0,0,0,0,0,0,0,,,\n"               // the floor is 3 away: past t_max
+            "1,12,0,0,12,0,0,1,-0,-0,-1,0,0,ball,0,red\n");  // from t_min = 9, inside: the far side
+  // (the shading normal is the negated outward normal, signed zeros and all: bits as computed)
+}
+
+TEST(RaysCli, BadInputExitsTwoNamingTheRayAndField) {
+  Farm farm;
+  farm.start_server();
+  std::unique_ptr<Process> rays;
+  const std::string addr = start_rays(farm, &rays, {"--max-batch-rays", "100"});
+  const std::string scene = source("tests/rays/sphere_scene.json").string();
+  const fs::path bad = farm.dir() / "bad.csv", many = farm.dir() / "many.csv";
+  std::ofstream(bad) << "ox,oy,oz,dx,dy,dz,tmin,tmax\n0,0,0,0,0,1,0,1\n0,0,0,0,0,1,3,2\n";
+  CliResult r = farm.cli({"rays", scene, "--in", bad.string(), "--out", (farm.dir() / "x.csv").string()});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("ray 1: t_min > t_max"), std::string::npos) << r.output;
+  std::ofstream(bad) << "ox,oy,oz,dx,dy,dz\n0,0,0,0,0,1\n0,0,0,nan,0,1\n";
+  r = farm.cli({"rays", scene, "--in", bad.string(), "--out", (farm.dir() / "x.csv").string()});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("ray 1: direction is not finite"), std::string::npos) << r.output;
+  {
+    std::ofstream m(many);
+    m << "ox,oy,oz,dx,dy,dz\n";
+    for (int i = 0; i < 150; ++i) m << "0,0,0,0,0,1\n";
+  }
+  r = farm.cli({"rays", scene, "--in", many.string(), "--out", (farm.dir() / "x.csv").string(), "--server", addr,
+                "--coordinator", farm.address(), "--batch", "150"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("batch 0: batch of 150 rays (directions / 3) is over this server's limit 100"),
+            std::string::npos)
+      << r.output;
+  EXPECT_TRUE(rays->running());  // refused, not crashed
+}
+
+TEST(RaysCli, TokensOnBothHops) {
+  Farm farm;
+  std::ofstream(farm.dir() / "client.token") << "client-secret\n";
+  std::ofstream(farm.dir() / "worker.token") << "worker-secret\n";
+  const std::string client_token = (farm.dir() / "client.token").string();
+  const std::string worker_token = (farm.dir() / "worker.token").string();
+  farm.start_server({"--client-token-file", client_token, "--worker-token-file", worker_token});
+  std::unique_ptr<Process> rays;
+  const std::string addr =
+      start_rays(farm, &rays, {"--client-token-file", client_token, "--worker-token-file", worker_token});
+  const fs::path in = farm.dir() / "in.csv";
+  std::ofstream(in) << "ox,oy,oz,dx,dy,dz\n0,0,0,0,0,1\n";
+  const std::string scene = source("tests/rays/sphere_scene.json").string();
+  const std::vector<std::string> args{"rays", scene, "--in", in.string(), "--out", (farm.dir() / "o.csv").string(),
+                                      "--server", addr, "--coordinator", farm.address()};
+  CliResult r = farm.cli(args);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("client token"), std::string::npos) << r.output;
+  std::vector<std::string> with_token = args;
+  with_token.insert(with_token.end(), {"--token-file", client_token});
+  r = farm.cli(with_token);
+  ASSERT_EQ(r.code, 0) << r.output << rays->log();
+  EXPECT_EQ(read_text(farm.dir() / "o.csv").substr(read_text(farm.dir() / "o.csv").find('\n') + 1, 4), "1,8,");
+}
+
+TEST(RaysPython, ExampleClientFromTheProtoAlone) {
+  if (!fs::exists("/usr/bin/python3")) GTEST_SKIP() << "/usr/bin/python3 not installed";
+  Farm farm;
+  farm.start_server();
+  std::unique_ptr<Process> rays;
+  const std::string addr = start_rays(farm, &rays);
+  // Upload the bundle the way any client would (here: the CLI), then hand its hash to Python.
+  const fs::path scene = source("tests/rays/sphere_scene.json"), in = farm.dir() / "in.csv";
+  std::ofstream(in) << "ox,oy,oz,dx,dy,dz\n0,0,0,0,0,1\n";
+  CliResult r = farm.cli({"rays", scene.string(), "--in", in.string(), "--out", (farm.dir() / "o.csv").string(),
+                          "--server", addr, "--coordinator", farm.address()});
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::string sha = farm::make_bundle(scene, {}).sha256;
+  Process py({"/usr/bin/python3", source("docs/examples/rays_client.py").string(), addr, source("proto").string(), sha},
+             farm.dir() / "python.log");
+  ASSERT_EQ(py.wait(120s), 0) << py.log();
+  const std::string log = py.log();
+  for (const char* want : {"objects: ball (sphere), floor (plane)", "ray 0: hit ball t=8 p=[0.0, 0.0, 8.0] n=[0.0, 0.0, -1.0]",
+                           "ray 1: hit floor t=3 p=[0.0, -3.0, 0.0]", "ray 2: miss", "occluded: [0, 1]",
+                           "bad batch refused: INVALID_ARGUMENT ray 1: direction is zero-length (field direction)"}) {
+    EXPECT_NE(log.find(want), std::string::npos) << want << "\n" << log;
+  }
+  // An unknown hash: the service names the field.
+  Process unknown({"/usr/bin/python3", source("docs/examples/rays_client.py").string(), addr, source("proto").string(),
+                   std::string(64, 'e')},
+                  farm.dir() / "python-unknown.log");
+  EXPECT_NE(unknown.wait(120s), 0);
+  EXPECT_NE(unknown.log().find("scene.bundle_sha256: unknown bundle eeee"), std::string::npos) << unknown.log();
+}
+
+}  // namespace
+}  // namespace tessera::farmtest
