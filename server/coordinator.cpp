@@ -50,7 +50,15 @@ Coordinator::Coordinator(CoordinatorOptions options, BundleStore& store, JobStor
 }
 
 void Coordinator::restore_locked() {
-  JobStore::Loaded l = jobs_store_->load();
+  // Every stored tile names itself (TileData job_id, frame, tile_index, set by the coordinator
+  // when it accepted the result, and covered by the record's CRC): a record that is intact but
+  // belongs elsewhere is refused like a damaged one.
+  JobStore::Loaded l = jobs_store_->load([](const TileKey& row, const std::string& payload) -> std::string {
+    v1::TileData t;
+    if (!t.ParseFromString(payload)) return "it does not parse as a tile";
+    if (t.job_id() == row.job && t.frame() == row.frame && t.tile_index() == row.tile) return {};
+    return fmt::format("it is job {} frame {} tile {}", t.job_id(), t.frame(), t.tile_index());
+  });
   scheduler_.set_next_lease(l.next_lease);
   int live = 0;
   int64_t tiles = 0;
@@ -70,7 +78,9 @@ void Coordinator::restore_locked() {
   spdlog::info("restored {} jobs from {} ({} still to render, {} finished tiles); {} leases in flight at the last "
                "stop requeued; {} orphan tile files removed{}",
                l.jobs.size(), jobs_store_->db_path().string(), live, tiles, l.leases_requeued, l.orphans_removed,
-               l.tiles_missing ? fmt::format("; {} tiles whose file was missing will be rendered again", l.tiles_missing)
+               l.tiles_missing ? fmt::format("; {} stored tiles were missing, damaged or not what their row says "
+                                             "(errors above): they will be rendered again",
+                                             l.tiles_missing)
                                : std::string());
 }
 

@@ -122,6 +122,7 @@ JobStore::JobStore(const fs::path& data_dir) : dir_(data_dir), db_path_(data_dir
   }
   ::close(fd);
   ::unlink(probe.c_str());
+  refuse_lost_database();
   // A constructor that throws runs no destructor: close what was opened before passing the
   // refusal on (LeakSanitizer caught the SQLite connection leaking on a corrupt database).
   try {
@@ -142,6 +143,33 @@ JobStore::JobStore(const fs::path& data_dir) : dir_(data_dir), db_path_(data_dir
     throw;
   }
   writer_ = std::thread([this] { writer_loop(); });
+}
+
+void JobStore::refuse_lost_database() {
+  // SQLite takes a missing or 0-byte file for a new, empty database. For a new farm that is
+  // right; but when tiles/ still holds segments (or a write-ahead log is left), the database
+  // that described them was lost or truncated, and starting would take every segment for an
+  // orphan and delete it: the farm's finished work, wiped without a word. Refuse instead.
+  std::error_code ec;
+  const bool exists = fs::exists(db_path_, ec);
+  const auto size = exists ? fs::file_size(db_path_, ec) : 0;
+  if (exists && (ec || size > 0)) return;
+  std::vector<std::string> claimed;
+  int64_t tile_files = 0;
+  for (const auto& e : fs::directory_iterator(dir_ / "tiles", ec)) {
+    (void)e;
+    ++tile_files;
+  }
+  if (tile_files > 0) claimed.push_back((dir_ / "tiles").string() + " holds " + std::to_string(tile_files) + " files");
+  const fs::path wal = db_path_.string() + "-wal";
+  if (fs::exists(wal, ec) && fs::file_size(wal, ec) > 0 && !ec) claimed.push_back(wal.string() + " is not empty");
+  if (claimed.empty()) return;  // nothing a database could claim: a new farm
+  std::string what;
+  for (const auto& c : claimed) what += (what.empty() ? "" : " and ") + c;
+  throw StoreError("the database " + db_path_.string() + (exists ? " is empty (0 bytes)" : " is missing") + " but " +
+                   what + ": this is not a new farm, and starting would delete its finished tiles as orphans. "
+                   "Restore the database from a backup, or move " + dir_.string() +
+                   " away (or use another --data-dir) to start a new farm");
 }
 
 void JobStore::close_handles() {
@@ -298,7 +326,7 @@ void JobStore::open_database() {
 // ---------------------------------------------------------------------------------------------
 // Loading
 
-JobStore::Loaded JobStore::load() {
+JobStore::Loaded JobStore::load(const TileCheck& check) {
   Loaded out;
   auto query = [&](const std::string& sql, auto&& row) {
     sqlite3_stmt* st = nullptr;
@@ -356,10 +384,20 @@ JobStore::Loaded JobStore::load() {
                                          sqlite3_column_int64(st, 6)};
             if (!acked.count(t.frame)) {
               auto got = tiles_->read(at);
+              // A record that is intact but holds another tile (segment files swapped or copied
+              // over each other) is as wrong as a damaged one: serving it would put another
+              // frame's or job's pixels into this frame.
+              if (got.bytes && check) {
+                if (std::string other = check({r.id, t.frame, t.tile}, *got.bytes); !other.empty()) {
+                  got.error = tiles_->segment_path(at.segment).string() + " at offset " + std::to_string(at.offset) +
+                              ": the record is not this tile: " + other;
+                  got.bytes.reset();
+                }
+              }
               if (!got.bytes) {
                 // Should not happen (the segment is durable before its row); re-render rather than lie.
-                spdlog::error("job {} frame {} tile {}: done in {} but its pixels are unreadable ({}): the tile will "
-                              "be rendered again",
+                spdlog::error("job {} frame {} tile {}: done in {} but its stored pixels are unusable ({}): the tile "
+                              "will be rendered again",
                               r.id, t.frame, t.tile, db_path_.string(), got.error);
                 missing.push_back({r.id, {t.frame, t.tile}});
                 ++out.tiles_missing;

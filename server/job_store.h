@@ -21,6 +21,7 @@
 #include <condition_variable>
 #include <deque>
 #include <filesystem>
+#include <functional>
 #include <future>
 #include <map>
 #include <memory>
@@ -60,13 +61,20 @@ class JobStore {
     std::vector<JobRecord> jobs;      // resident jobs, in submit order
     LeaseId next_lease = 1;
     int64_t leases_requeued = 0;      // leases in flight at the last stop
-    int64_t tiles_missing = 0;        // done rows whose record was unreadable: re-rendered
+    int64_t tiles_missing = 0;        // done rows whose record was unreadable, damaged or another
+                                      // tile's: dropped, so the tile is rendered again
     int64_t orphans_removed = 0;      // files in tiles/ no committed row needs (segments of a crash
                                       // before the commit, or of acknowledged frames)
   };
+  // Is a stored tile's payload the tile its row names? "" when it is, else what it is instead
+  // (e.g. "it is job J frame F tile T"). Payloads are opaque here; the coordinator, which knows
+  // their format, supplies the check. Without it only the record's length and CRC are checked.
+  using TileCheck = std::function<std::string(const TileKey& row, const std::string& payload)>;
   // Reads the state back (call once, before any write). Leases in flight at the last stop come
-  // back as queued tiles; orphan segments (and any other file in tiles/) are removed.
-  Loaded load();
+  // back as queued tiles; a done row whose record is unreadable, damaged or another tile's is
+  // dropped (the tile is rendered again); orphan segments (and any other file in tiles/) are
+  // removed.
+  Loaded load(const TileCheck& check = {});
 
   // --- writes (queued; applied in order by the writer thread) ---------------------------------
   void job_submitted(const JobSnapshot& s);
@@ -111,6 +119,8 @@ class JobStore {
   void exec(const char* sql);
   sqlite3_stmt* prepare(const char* sql);
   void open_database();
+  // Throws when the database is missing or empty but the directory holds tiles it described.
+  void refuse_lost_database();
   void close_handles();  // finalizes statements and closes both connections (idempotent)
   // Segment bookkeeping (writer thread, and load() before it): which segment holds each tile of
   // an unacknowledged frame of a resident job, and how many such tiles each segment holds. A
