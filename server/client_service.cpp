@@ -113,6 +113,23 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::WatchJobEvent> {
 
 }  // namespace
 
+Status ClientServiceImpl::authenticate(const grpc::CallbackServerContext& ctx, Caller* caller) const {
+  std::string token_name;
+  Status s = auth_.check(ctx, PeerRole::kClient, &token_name);
+  if (!s.ok()) return s;
+  caller->identity = client_identity(ctx, token_name);
+  caller->admin = admins_.count(caller->identity) > 0;
+  return s;
+}
+
+Status ClientServiceImpl::authorize(const std::string& job, const Caller& caller, const char* action) {
+  const std::optional<std::string> owner = coord_.job_owner(job);
+  if (!owner) return Status::OK;
+  Status s = check_job_access(job, *owner, caller, action);
+  if (!s.ok()) spdlog::warn("{} refused: {}", caller.identity, s.error_message());
+  return s;
+}
+
 grpc::ServerUnaryReactor* ClientServiceImpl::HasBundle(grpc::CallbackServerContext* ctx,
                                                        const v1::HasBundleRequest* req, v1::HasBundleResponse* resp) {
   if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
@@ -133,8 +150,9 @@ grpc::ServerReadReactor<v1::BundleChunk>* ClientServiceImpl::UploadBundle(grpc::
 
 grpc::ServerUnaryReactor* ClientServiceImpl::SubmitJob(grpc::CallbackServerContext* ctx,
                                                        const v1::SubmitJobRequest* req, v1::JobStatus* resp) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
-  const std::string client = client_identity(*ctx);
+  Caller caller;
+  if (Status s = authenticate(*ctx, &caller); !s.ok()) return reply(ctx, std::move(s));
+  const std::string& client = caller.identity;
   Status s = quota_.reserve(client, [&](const std::string& job) {
     v1::JobStatus st;
     return coord_.get_job(job, &st).ok() &&
@@ -153,15 +171,18 @@ grpc::ServerUnaryReactor* ClientServiceImpl::SubmitJob(grpc::CallbackServerConte
 
 grpc::ServerWriteReactor<v1::WatchJobEvent>* ClientServiceImpl::WatchJob(grpc::CallbackServerContext* ctx,
                                                                         const v1::WatchJobRequest* req) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) {
-    return new Refused<grpc::ServerWriteReactor<v1::WatchJobEvent>>(std::move(s));
-  }
+  Caller caller;
+  Status s = authenticate(*ctx, &caller);
+  if (s.ok()) s = authorize(req->job_id(), caller, "watch");
+  if (!s.ok()) return new Refused<grpc::ServerWriteReactor<v1::WatchJobEvent>>(std::move(s));
   return new WatchReactor(coord_, req->job_id());
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::AckFrame(grpc::CallbackServerContext* ctx, const v1::AckFrameRequest* req,
                                                       v1::AckFrameResponse*) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
+  Caller caller;
+  if (Status s = authenticate(*ctx, &caller); !s.ok()) return reply(ctx, std::move(s));
+  if (Status s = authorize(req->job_id(), caller, "acknowledge frames of"); !s.ok()) return reply(ctx, std::move(s));
   return reply(ctx, coord_.ack_frame(req->job_id(), req->frame()));
 }
 
@@ -180,7 +201,9 @@ grpc::ServerUnaryReactor* ClientServiceImpl::ListJobs(grpc::CallbackServerContex
 
 grpc::ServerUnaryReactor* ClientServiceImpl::CancelJob(grpc::CallbackServerContext* ctx,
                                                        const v1::CancelJobRequest* req, v1::JobStatus* resp) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
+  Caller caller;
+  if (Status s = authenticate(*ctx, &caller); !s.ok()) return reply(ctx, std::move(s));
+  if (Status s = authorize(req->job_id(), caller, "cancel"); !s.ok()) return reply(ctx, std::move(s));
   return reply(ctx, coord_.cancel(req->job_id(), resp));
 }
 

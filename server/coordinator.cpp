@@ -288,6 +288,16 @@ Status Coordinator::get_job(const std::string& id, v1::JobStatus* out) {
   return Status(StatusCode::NOT_FOUND, "no job '" + id + "' on this coordinator");
 }
 
+std::optional<std::string> Coordinator::job_owner(const std::string& id) {
+  auto owner = locked([&]() -> std::optional<std::string> {
+    if (auto s = scheduler_.job(id)) return s->spec.owner;
+    return std::nullopt;
+  });
+  if (owner) return owner;
+  if (auto s = evicted_job(id)) return s->spec.owner;
+  return std::nullopt;
+}
+
 void Coordinator::list_jobs(v1::ListJobsResponse* out) {
   locked([&] {
     for (const auto& s : scheduler_.jobs()) status_proto(s, out->add_jobs());

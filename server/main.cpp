@@ -52,6 +52,11 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(size_t(0), size_t(1) << 24))->capture_default_str();
   ServerSecurity security;
   security.add_flags(app);
+  std::vector<std::string> admins;
+  app.add_option("--admin", admins,
+                 "A client identity that may watch, cancel and acknowledge every client's jobs "
+                 "(token:NAME of a named client token, cn:NAME of a TLS client certificate); repeatable")
+      ->group("Security");
   Limits limits;
   limits.add_flags(app);
   app.set_version_flag("--version", "tessera-server 0.1.0");
@@ -99,7 +104,7 @@ int main(int argc, char** argv) {
   opts.retention = std::chrono::seconds(int64_t(retention_hours * 3600));
   opts.watch_backlog_tiles = watch_backlog_tiles;
   Coordinator coordinator(opts, *store, jobs.get());
-  ClientServiceImpl client_service(coordinator, auth, limits);
+  ClientServiceImpl client_service(coordinator, auth, limits, {admins.begin(), admins.end()});
   WorkerServiceImpl worker_service(coordinator, auth);
 
   grpc::EnableDefaultHealthCheckService(true);

@@ -62,8 +62,10 @@ class JobQuota {
   std::map<std::string, int> pending_;
 };
 
-// The identity a client's jobs are counted under.
-std::string client_identity(const grpc::ServerContextBase& ctx);
+// The identity a client's jobs are counted under and owned by (job_access.h): "cn:CN" of a TLS
+// client certificate, else "token:NAME" of a named client token (`token_name`, from
+// Authenticator::check), else the peer's address without the port.
+std::string client_identity(const grpc::ServerContextBase& ctx, const std::string& token_name = {});
 
 template <class ActiveFn>
 grpc::Status JobQuota::reserve(const std::string& client, ActiveFn active) {

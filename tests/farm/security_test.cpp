@@ -25,11 +25,12 @@ void sh(const std::string& cmd) {
   ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
 }
 
-// A throwaway CA, a server certificate for 127.0.0.1/localhost and a client certificate signed by
-// it, and a second, unrelated CA. EC P-256 keys: quick to make.
+// A throwaway CA, a server certificate for 127.0.0.1/localhost and two client certificates
+// (CN client-1, client-2) signed by it, and a second, unrelated CA. EC P-256 keys: quick to make.
 struct Pki {
   fs::path dir;
   fs::path ca, server_cert, server_key, client_cert, client_key, other_ca;
+  fs::path client2_cert, client2_key;  // a second client identity (CN client-2)
 };
 
 Pki make_pki(const fs::path& dir) {
@@ -43,8 +44,9 @@ Pki make_pki(const fs::path& dir) {
   const std::string q = " 2>>" + d + "/openssl.log";
   sh("cd " + d + " && openssl req -x509 " + key + " -keyout ca.key -out ca.pem -days 2 -subj '/CN=Tessera Test CA'" + q);
   sh("cd " + d + " && openssl req -x509 " + key + " -keyout other.key -out other-ca.pem -days 2 -subj '/CN=Other CA'" + q);
-  for (const std::string who : {"server", "client"}) {
-    const std::string cn = who == "server" ? "localhost" : "client-1";
+  for (const std::string who : {"server", "client", "client2"}) {
+    const std::string cn = who == "server" ? "localhost" : who == "client" ? "client-1" : "client-2";
+    if (who == "client2") fs::copy_file(p.dir / "client.ext", p.dir / "client2.ext");
     sh("cd " + d + " && openssl req " + key + " -keyout " + who + ".key -out " + who + ".csr -subj '/CN=" + cn + "'" + q);
     sh("cd " + d + " && openssl x509 -req -in " + who + ".csr -CA ca.pem -CAkey ca.key -CAcreateserial -days 2 -out " +
        who + ".pem -extfile " + who + ".ext" + q);
@@ -55,6 +57,8 @@ Pki make_pki(const fs::path& dir) {
   p.server_key = p.dir / "server.key";
   p.client_cert = p.dir / "client.pem";
   p.client_key = p.dir / "client.key";
+  p.client2_cert = p.dir / "client2.pem";
+  p.client2_key = p.dir / "client2.key";
   return p;
 }
 
@@ -177,6 +181,112 @@ TEST(FarmSecurity, MutualTlsRequiresAClientCertificate) {
   const std::vector<std::string> good{"--tls-ca", pki.ca.string(), "--tls-cert", pki.client_cert.string(),
                                       "--tls-key", pki.client_key.string()};
   expect_renders(farm, good);
+}
+
+// Job ownership (issue 15, defect 9): a job belongs to the identity that submitted it.
+// `tessera ARGS` for a job, returning the result.
+CliResult on_job(Farm& farm, const std::vector<std::string>& args, const std::vector<std::string>& who) {
+  std::vector<std::string> a = args;
+  a.insert(a.end(), {"--coordinator", farm.address()});
+  a.insert(a.end(), who.begin(), who.end());
+  return farm.cli(a, 60s);
+}
+
+std::string submit_detached(Farm& farm, const std::vector<std::string>& who) {
+  CliResult s = on_job(farm, {"submit", kScene.string(), "--frames", "0", "--detach"}, who);
+  EXPECT_EQ(s.code, 0) << s.output;
+  return job_id_from(s.output);
+}
+
+// The checks both identity kinds share: the other identity may not watch, acknowledge or
+// cancel; the owner and an administrator may.
+void expect_ownership(Farm& farm, const std::vector<std::string>& alice, const std::vector<std::string>& bob,
+                      const std::string& alice_id, const std::string& bob_id,
+                      const std::vector<std::string>& admin) {
+  const std::string job = submit_detached(farm, alice);
+  ASSERT_FALSE(job.empty());
+  CliResult c = on_job(farm, {"cancel", job}, bob);
+  EXPECT_EQ(c.code, 1) << c.output;
+  EXPECT_TRUE(has(c.output, "PERMISSION_DENIED") || has(c.output, "belongs to " + alice_id)) << c.output;
+  EXPECT_TRUE(has(c.output, "job " + job + " belongs to " + alice_id + ", and you are " + bob_id)) << c.output;
+  CliResult w = on_job(farm, {"watch", job, "-o", (farm.dir() / "bob_####.exr").string()}, bob);
+  EXPECT_EQ(w.code, 1) << w.output;
+  EXPECT_TRUE(has(w.output, "belongs to " + alice_id)) << w.output;
+  EXPECT_FALSE(fs::exists(farm.dir() / "bob_0000.exr"));
+  // Status stays readable; the job is untouched.
+  CliResult st = on_job(farm, {"status", job, "--json"}, bob);
+  ASSERT_EQ(st.code, 0) << st.output;
+  EXPECT_EQ(nlohmann::json::parse(st.output).at("state"), "queued") << st.output;
+  // The owner may cancel; so may an administrator (a second job).
+  EXPECT_EQ(on_job(farm, {"cancel", job}, alice).code, 0);
+  const std::string job2 = submit_detached(farm, alice);
+  CliResult ca = on_job(farm, {"cancel", job2}, admin);
+  EXPECT_EQ(ca.code, 0) << ca.output;
+  CliResult st2 = on_job(farm, {"status", job2, "--json"}, alice);
+  EXPECT_EQ(nlohmann::json::parse(st2.output).at("state"), "cancelled") << st2.output;
+}
+
+TEST(FarmSecurity, NamedClientTokensOwnTheirJobs) {
+  Farm farm;
+  // One file, name:token per line.
+  write(farm.dir() / "clients", "# the farm's clients\nalice: alice-secret-1\nbob:bob-secret-2\nops:ops-secret-3\n");
+  write(farm.dir() / "alice.token", "alice-secret-1");
+  write(farm.dir() / "bob.token", "bob-secret-2");
+  write(farm.dir() / "ops.token", "ops-secret-3");
+  farm.start_server({"--client-tokens", (farm.dir() / "clients").string(), "--admin", "token:ops"});
+  const std::vector<std::string> alice{"--token-file", (farm.dir() / "alice.token").string()};
+  const std::vector<std::string> bob{"--token-file", (farm.dir() / "bob.token").string()};
+  const std::vector<std::string> ops{"--token-file", (farm.dir() / "ops.token").string()};
+  expect_ownership(farm, alice, bob, "token:alice", "token:bob", ops);
+  // No token, or an unknown one, is refused before any of that.
+  CliResult none = on_job(farm, {"status"}, {});
+  EXPECT_EQ(none.code, 1);
+  EXPECT_TRUE(has(none.output, "requires a client token")) << none.output;
+
+  // A directory of files NAME holding a token works the same; a bad file is named at start.
+  fs::create_directories(farm.dir() / "tokdir");
+  write(farm.dir() / "tokdir" / "carol", "carol-secret\n");
+  write(farm.dir() / "bad-clients", "alice:a\nno-colon-here\n");
+  Process bad({bin("tessera-server"), "--listen", "127.0.0.1:0", "--data-dir", (farm.dir() / "d2").string(),
+               "--client-tokens", (farm.dir() / "bad-clients").string()},
+              farm.dir() / "bad.log");
+  EXPECT_EQ(bad.wait(20s), 2) << bad.log();
+  EXPECT_TRUE(has(bad.log(), "bad-clients line 2: expected name:token")) << bad.log();
+  Process dir_server({bin("tessera-server"), "--listen", "127.0.0.1:0", "--data-dir", (farm.dir() / "d3").string(),
+                      "--client-tokens", (farm.dir() / "tokdir").string(), "--log-level", "info"},
+                     farm.dir() / "dir.log");
+  std::string addr;
+  for (int i = 0; i < 400 && addr.empty(); ++i) {
+    const auto at = dir_server.log().find("listening on ");
+    if (at != std::string::npos && dir_server.log().find('\n', at) != std::string::npos) {
+      addr = dir_server.log().substr(at + 13, dir_server.log().find('\n', at) - at - 13);
+    } else {
+      std::this_thread::sleep_for(25ms);
+    }
+  }
+  ASSERT_FALSE(addr.empty()) << dir_server.log();
+  write(farm.dir() / "carol.token", "carol-secret");
+  CliResult carol = farm.cli({"submit", kScene.string(), "--frames", "0", "--detach", "--coordinator", addr,
+                              "--token-file", (farm.dir() / "carol.token").string()});
+  EXPECT_EQ(carol.code, 0) << carol.output;
+  EXPECT_TRUE(has(dir_server.log(), "submitted")) << dir_server.log();
+}
+
+TEST(FarmSecurity, MutualTlsIdentitiesOwnTheirJobs) {
+  Farm farm;
+  const Pki pki = make_pki(farm.dir());
+  farm.start_server({"--tls-cert", pki.server_cert.string(), "--tls-key", pki.server_key.string(), "--tls-ca",
+                     pki.ca.string()});
+  const std::vector<std::string> one{"--tls-ca", pki.ca.string(), "--tls-cert", pki.client_cert.string(),
+                                     "--tls-key", pki.client_key.string()};
+  const std::vector<std::string> two{"--tls-ca", pki.ca.string(), "--tls-cert", pki.client2_cert.string(),
+                                     "--tls-key", pki.client2_key.string()};
+  const std::string job = submit_detached(farm, one);
+  CliResult c = on_job(farm, {"cancel", job}, two);
+  EXPECT_EQ(c.code, 1) << c.output;
+  EXPECT_TRUE(has(c.output, "job " + job + " belongs to cn:client-1, and you are cn:client-2")) << c.output;
+  CliResult own = on_job(farm, {"cancel", job}, one);
+  EXPECT_EQ(own.code, 0) << own.output;
 }
 
 // Limits: each refused through the real CLI, with the code's exit status and the limit's flag.
