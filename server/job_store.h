@@ -115,7 +115,11 @@ class JobStore {
 
   void push(Op op);
   void writer_loop();
-  void apply(std::vector<Op>& batch);  // throws on failure (the transaction is rolled back)
+  // Applies the batch; throws on failure (the transaction is rolled back). With `new_segment`
+  // false, tiles that would need one (tiles of frames not acknowledged in this batch) are left
+  // out and returned, to be retried: the rest (acknowledgements, whose commit frees segments,
+  // evictions, job and lease rows) must not wait behind writes a full disk cannot take.
+  std::vector<Op> apply(std::vector<Op>& batch, bool new_segment = true);
   void exec(const char* sql);
   sqlite3_stmt* prepare(const char* sql);
   void open_database();
@@ -130,6 +134,9 @@ class JobStore {
   void track_tile(const TileKey& key, int64_t segment);
   void release_frame(const FrameKey& frame, std::vector<int64_t>& emptied);
   void release_job(const JobId& job, std::vector<int64_t>& emptied);
+  // Full disk, SQLite included: deletes now the segments the queued acknowledgements and
+  // evictions will free once committed (see the .cpp for the crash trade-off).
+  void reclaim_delivered(const std::vector<Op>& pending);
   std::map<FrameKey, std::map<int, int64_t>> frame_tiles_;
   std::unordered_map<int64_t, int64_t> segment_live_;
 
