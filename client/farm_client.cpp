@@ -31,6 +31,10 @@ FarmClient::FarmClient(std::string address, const farm::ChannelSecurity& securit
   stub_ = tessera::v1::ClientService::NewStub(channel_);
 }
 
+bool FarmClient::wait_for_coordinator(std::chrono::milliseconds up_to) const {
+  return farm::wait_for_coordinator(*channel_, up_to);
+}
+
 std::unique_ptr<grpc::ClientContext> FarmClient::context() const { return context(timeout_); }
 
 std::unique_ptr<grpc::ClientContext> FarmClient::context(std::chrono::seconds deadline) {

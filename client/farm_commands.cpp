@@ -243,7 +243,9 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
     if ((s.error_code() == grpc::StatusCode::UNAVAILABLE || s.ok()) && frames && reconnects < 30) {
       ++reconnects;
       spdlog::warn("lost the watch stream ({}); re-attaching", s.error_message());
-      std::this_thread::sleep_for(std::chrono::seconds(std::min(reconnects, 5)));
+      // Back as soon as the coordinator listens again (at most the pause below).
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      client.wait_for_coordinator(std::chrono::seconds(std::min(reconnects, 5)));
       continue;
     }
     throw FarmError{kExitFailure, client.describe(s, "watching job " + job_id)};
