@@ -4,7 +4,12 @@
 // nothing a client acknowledged is rendered again.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <sys/mount.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <cstring>
 #include <fstream>
@@ -132,6 +137,64 @@ TEST(FarmExhaustion, CoordinatorStartsOnAFullDiskAndServesWhatItHas) {
   CliResult w = farm.cli({"watch", job, "--coordinator", farm.address(), "-o", (out / "f_####.exr").string()});
   EXPECT_EQ(w.code, 0) << w.output << farm.server().log();
   EXPECT_EQ(compare_exr(out / "f_0000.exr", reference_frame(scene, 0, {})), "");
+}
+
+// Descriptors the process holds now.
+int open_descriptors(int pid) {
+  int n = 0;
+  std::error_code ec;
+  for (auto it = fs::directory_iterator("/proc/" + std::to_string(pid) + "/fd", ec); !ec && it != fs::directory_iterator();
+       it.increment(ec)) {
+    ++n;
+  }
+  return n;
+}
+
+TEST(FarmExhaustion, IdleConnectionsDoNotExhaustTheCoordinatorsDescriptors) {
+  // The coordinator starts with a soft limit of 256 descriptors (hard: 4096), as a default
+  // `ulimit -n` would give it; 600 connections that never send a byte then arrive.
+  rlimit own{};
+  getrlimit(RLIMIT_NOFILE, &own);
+  if (own.rlim_max < 2048) GTEST_SKIP() << "this test needs 2048 descriptors, the hard limit is " << own.rlim_max;
+  own.rlim_cur = own.rlim_max;
+  setrlimit(RLIMIT_NOFILE, &own);
+  Farm farm;
+  Process server({"/usr/bin/prlimit", "--nofile=256:4096", bin("tessera-server").string(), "--listen", "127.0.0.1:0",
+                  "--data-dir", (farm.dir() / "data").string()},
+                 farm.dir() / "server.log");
+  const std::regex re("listening on 127\\.0\\.0\\.1:([0-9]+)");
+  std::smatch m;
+  std::string log;
+  for (int i = 0; i < 800 && !std::regex_search(log = server.log(), m, re); ++i) std::this_thread::sleep_for(25ms);
+  ASSERT_FALSE(m.empty()) << log;
+  const int port = std::stoi(m[1]);
+  const std::string address = "127.0.0.1:" + std::to_string(port);
+  EXPECT_NE(log.find("descriptor limit 4096 (was 256"), std::string::npos) << log;
+  std::vector<int> idle;
+  for (int i = 0; i < 600; ++i) {
+    const int fd = socket(AF_INET, SOCK_STREAM, 0);
+    ASSERT_GE(fd, 0);
+    sockaddr_in sa{};
+    sa.sin_family = AF_INET;
+    sa.sin_port = htons(uint16_t(port));
+    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ASSERT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&sa), sizeof sa), 0) << std::strerror(errno);
+    idle.push_back(fd);
+  }
+  // Still serving while they are open...
+  CliResult h = farm.cli({"health", "--coordinator", address, "--timeout", "20"}, 60s);
+  EXPECT_EQ(h.code, 0) << h.output << server.log();
+  // ...and it does not keep them: connections that never complete their handshake are closed
+  // (10 s), so the descriptors come back while the peers still hold their ends.
+  bool released = false;
+  for (int i = 0; i < 600 && !released; ++i) {
+    released = open_descriptors(server.pid()) < 200;
+    if (!released) std::this_thread::sleep_for(100ms);
+  }
+  EXPECT_TRUE(released) << open_descriptors(server.pid()) << " descriptors still open";
+  for (int fd : idle) close(fd);
+  CliResult h2 = farm.cli({"health", "--coordinator", address, "--timeout", "20"}, 60s);
+  EXPECT_EQ(h2.code, 0) << h2.output;
 }
 
 }  // namespace
