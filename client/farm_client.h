@@ -45,6 +45,7 @@ class FarmClient {
  private:
   std::string address_;
   std::chrono::seconds timeout_;
+  bool tls_ = false;  // the channel uses TLS (--tls-ca)
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<tessera::v1::ClientService::Stub> stub_;
 };

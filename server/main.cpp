@@ -148,6 +148,12 @@ int main(int argc, char** argv) {
     std::cerr << "tessera-server: cannot listen on " << listen << " (address in use or not local?)\n";
     return 1;
   }
+  // Probes may ask about each service by name, not only the whole server ("").
+  if (auto* health = server->GetHealthCheckService()) {
+    for (const char* name : {"tessera.v1.ClientService", "tessera.v1.WorkerService"}) {
+      health->SetServingStatus(name, true);
+    }
+  }
   const std::string host = listen.substr(0, listen.rfind(':'));
   spdlog::info("tessera-server 0.1.0: data in {}, heartbeat {} ms, lease timeout {} ms", data_dir, heartbeat_ms,
                lease_timeout_ms);

@@ -128,6 +128,11 @@ TEST(FarmSecurity, TokensGuardEachRoleSeparately) {
               source("proto").string(), farm.dir().string(), "token-roles", "health"},
              farm.dir() / "probe.log");
   EXPECT_EQ(py.wait(60s), 0) << py.log();
+  // Health answers for each service by name too, without a token.
+  for (const char* service : {"tessera.v1.ClientService", "tessera.v1.WorkerService"}) {
+    CliResult h = farm.cli({"health", "--coordinator", farm.address(), "--service", service});
+    EXPECT_EQ(h.code, 0) << service << ": " << h.output;
+  }
 }
 
 TEST(FarmSecurity, ServerRefusesEqualClientAndWorkerTokens) {
@@ -152,9 +157,10 @@ TEST(FarmSecurity, TlsWithTokensRendersAndRefusesPlaintextAndWrongCa) {
   expect_renders(farm, good);
 
   std::string out;
-  // Plaintext to a TLS port: the handshake never completes, nothing is answered.
+  // Plaintext to a TLS port: the handshake never completes, nothing is answered; the client
+  // says what to do instead of "is it running?".
   EXPECT_EQ(count_workers(farm, {"--token-file", t.client.string()}, &out), -1);
-  EXPECT_TRUE(has(out, "cannot reach the coordinator")) << out;
+  EXPECT_TRUE(has(out, "if it speaks TLS, pass --tls-ca")) << out;
   // A client that trusts another CA refuses the server's certificate.
   EXPECT_EQ(count_workers(farm, {"--tls-ca", pki.other_ca.string(), "--token-file", t.client.string()}, &out), -1);
   EXPECT_TRUE(has(out, "cannot reach the coordinator")) << out;
