@@ -154,5 +154,33 @@ TEST(FarmDamage, EmptyDatabaseInAnOtherwiseEmptyDirectoryIsANewFarm) {
   EXPECT_TRUE(farm.server().running());
 }
 
+TEST(FarmDamage, ClientRefusesAFrameWithAMissingTileAndSaysWhich) {
+  // Whatever the coordinator says, the client checks: a frame reported done with a tile
+  // missing is neither written nor acknowledged, and "done" is not success then.
+  Farm farm;
+  Process fake({"/usr/bin/python3", source("tests/farm/fake_coordinator.py").string(), source("proto").string(),
+                farm.dir().string()},
+               farm.dir() / "fake.log");
+  std::string address;
+  for (int i = 0; i < 800 && address.empty(); ++i) {
+    const std::string log = fake.log();
+    const auto at = log.find("listening on ");
+    const auto eol = at == std::string::npos ? at : log.find('\n', at);
+    if (eol != std::string::npos) {
+      address = log.substr(at + 13, eol - at - 13);
+    } else {
+      ASSERT_TRUE(fake.running()) << log;
+      std::this_thread::sleep_for(25ms);
+    }
+  }
+  ASSERT_FALSE(address.empty()) << fake.log();
+  const fs::path out = farm.dir() / "out";
+  CliResult w = farm.cli({"watch", "liar", "--coordinator", address, "-o", (out / "f_####.exr").string()});
+  EXPECT_EQ(w.code, 1) << w.output;
+  EXPECT_NE(w.output.find("frame 0: tile 1 missing (1 of 2 received)"), std::string::npos) << w.output;
+  EXPECT_FALSE(fs::exists(out / "f_0000.exr"));
+  EXPECT_EQ(fake.log().find("ACK"), std::string::npos) << fake.log();
+}
+
 }  // namespace
 }  // namespace tessera::farmtest
