@@ -132,6 +132,7 @@ JobStore::JobStore(const fs::path& data_dir) : dir_(data_dir), db_path_(data_dir
   }
   ::unlink(probe.c_str());
   refuse_lost_database();
+  make_reserve();
   // A constructor that throws runs no destructor: close what was opened before passing the
   // refusal on (LeakSanitizer caught the SQLite connection leaking on a corrupt database).
   try {
@@ -267,6 +268,11 @@ void JobStore::open_database() {
     exec("PRAGMA journal_mode=WAL");
     // FULL: a commit is on disk when it returns (one fsync of the WAL per batch).
     exec("PRAGMA synchronous=FULL");
+    // A bounded WAL: checkpoint every 256 pages (1 MiB) and cut the file back to 1 MiB after a
+    // checkpoint. SQLite's default (1000 pages, never cut back) let the WAL alone grow to fill
+    // a small data disk.
+    exec("PRAGMA wal_autocheckpoint=256");
+    exec("PRAGMA journal_size_limit=1048576");
     bool has_schema = false;
     {
       sqlite3_stmt* st = nullptr;
@@ -578,8 +584,10 @@ void JobStore::writer_loop() {
       } catch (const std::exception& e2) {
         deferred.clear();
         spdlog::debug("storage: even the writes that need no new segment failed: {}", e2.what());
-        // SQLite itself has no room left. Make room with what the client already has.
+        // SQLite itself has no room left. Make room with what the client already has, and
+        // with the reserve, so that SQLite can checkpoint and cut its WAL back.
         reclaim_delivered(pending);
+        release_reserve();
       }
     }
     for (auto it = pending.begin(); it != pending.end();) {
@@ -590,9 +598,13 @@ void JobStore::writer_loop() {
         ++it;
       }
     }
+    if (error.empty() && reserve_wanted_) make_reserve();  // writer thread: no lock needed
     if (error.empty()) {
       std::lock_guard lock(mu_);
-      if (!healthy_) spdlog::info("storage recovered: {} writes committed", pending.size());
+      if (!healthy_) {
+        spdlog::info("storage recovered: {} writes committed", pending.size());
+        reserve_wanted_ = true;
+      }
       healthy_ = true;
       ++stats_.batches;
       stats_.ops += int64_t(pending.size());
@@ -788,6 +800,35 @@ std::vector<JobStore::Op> JobStore::apply(std::vector<Op>& batch, bool new_segme
     }
   }
   return deferred;
+}
+
+void JobStore::make_reserve() {
+  // A few hundred KiB held back on the data disk. When the disk fills up completely, SQLite can
+  // no longer checkpoint its WAL (the database file must grow a little), so the WAL can no
+  // longer be cut back, and nothing could ever be written again, acknowledgements included,
+  // even with nothing left to delete. Giving the reserve back breaks that deadlock.
+  reserve_wanted_ = false;
+  const fs::path reserve = dir_ / ".reserve";
+  std::error_code ec;
+  if (fs::exists(reserve, ec)) return;
+  const int fd = ::open(reserve.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) return;
+  const bool ok = ::posix_fallocate(fd, 0, kReserveBytes) == 0 && ::fsync(fd) == 0;
+  ::close(fd);
+  if (!ok) {
+    ::unlink(reserve.c_str());
+    reserve_wanted_ = true;  // try again after the next successful batch
+    spdlog::warn("cannot set aside {} KiB on the data disk (full?): will try again", kReserveBytes / 1024);
+  }
+}
+
+void JobStore::release_reserve() {
+  const fs::path reserve = dir_ / ".reserve";
+  if (::unlink(reserve.c_str()) == 0) {
+    spdlog::warn("disk full: gave back the {} KiB reserve so that the database can checkpoint", kReserveBytes / 1024);
+  }
+  // Copy the WAL into the database and cut it to nothing: the space the WAL held comes back.
+  sqlite3_exec(db_, "PRAGMA wal_checkpoint(TRUNCATE)", nullptr, nullptr, nullptr);
 }
 
 void JobStore::reclaim_delivered(const std::vector<Op>& pending) {

@@ -17,6 +17,7 @@
 #pragma once
 
 #include <sqlite3.h>
+#include <sys/types.h>
 
 #include <condition_variable>
 #include <deque>
@@ -137,6 +138,11 @@ class JobStore {
   // Full disk, SQLite included: deletes now the segments the queued acknowledgements and
   // evictions will free once committed (see the .cpp for the crash trade-off).
   void reclaim_delivered(const std::vector<Op>& pending);
+  // <data-dir>/.reserve: space held back for SQLite on a full disk (see the .cpp).
+  static constexpr off_t kReserveBytes = 512 * 1024;
+  void make_reserve();
+  void release_reserve();  // and checkpoint the WAL (TRUNCATE)
+  bool reserve_wanted_ = false;  // writer thread only (and the constructor)
   std::map<FrameKey, std::map<int, int64_t>> frame_tiles_;
   std::unordered_map<int64_t, int64_t> segment_live_;
 
