@@ -319,7 +319,7 @@ Status Coordinator::cancel(const std::string& id, v1::JobStatus* out) {
 }
 
 Status Coordinator::ack_frame(const std::string& id, int frame) {
-  return locked([&] {
+  Status s = locked([&] {
     switch (scheduler_.acknowledge_frame(id, frame)) {
       case Scheduler::AckResult::kAcknowledged:
         if (auto s = scheduler_.job(id); s && job_ended(s->state) && scheduler_.all_acknowledged(id)) {
@@ -339,6 +339,18 @@ Status Coordinator::ack_frame(const std::string& id, int frame) {
     }
     return Status::OK;
   });
+  // AckFrame answers OK only once the acknowledgement is durable (with the frame's tile rows:
+  // the same batch or an earlier one), so a frame a client was told is acknowledged is never
+  // rendered again, not even after kill -9 (issue 15). Group commit: one fsync per batch.
+  if (s.ok() && jobs_store_) {
+    if (const std::string err = jobs_store_->barrier().get(); !err.empty()) {
+      return Status(StatusCode::UNAVAILABLE, "frame " + std::to_string(frame) + " of job " + id +
+                                                 " is acknowledged but not yet stored (" + err +
+                                                 "): acknowledge it again later");
+    }
+    spdlog::debug("job {} frame {} acknowledgement stored", id, frame);
+  }
+  return s;
 }
 
 void Coordinator::list_workers(v1::ListWorkersResponse* out) {
