@@ -88,6 +88,35 @@ def main():
             expect(grpc.StatusCode.INVALID_ARGUMENT,
                    lambda: stub.SubmitJob(cs.SubmitJobRequest(bundle_sha256=sha), timeout=10),
                    "mtllib outside the bundle", "invalid scene: s.json: objects[0].file: m.obj: refers to", forbid=tmp)
+        elif check == "instance-bomb":
+            # issue 15, defect 2: a glTF of ~0.8 MB whose 1,000 nodes all instance one
+            # 20,000-triangle mesh (its buffer in a side .bin): 20 M triangles once flattened.
+            # The coordinator (--max-primitives 100000) must refuse it before flattening; the
+            # test reads its peak memory afterwards.
+            import json, struct
+            tris = 20000
+            verts = []
+            for t in range(tris):
+                x, y = (t % 200) * 0.01, (t // 200) * 0.01
+                verts += [x, y, 0.0, x + 0.01, y, 0.0, x, y + 0.01, 0.0]
+            buf = struct.pack("<%df" % len(verts), *verts)
+            gltf = {"asset": {"version": "2.0"}, "scene": 0,
+                    "scenes": [{"nodes": list(range(1000))}],
+                    "nodes": [{"mesh": 0, "translation": [i * 0.001, 0, 0]} for i in range(1000)],
+                    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+                    "buffers": [{"uri": "m.bin", "byteLength": len(buf)}],
+                    "bufferViews": [{"buffer": 0, "byteLength": len(buf)}],
+                    "accessors": [{"bufferView": 0, "componentType": 5126, "count": tris * 3, "type": "VEC3",
+                                   "min": [0, 0, 0], "max": [2.01, 1.01, 0]}]}
+            scene = (b'{"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1, 0], "vfov_deg": 40},'
+                     b' "objects": [{"type": "mesh", "file": "m.gltf"}]}')
+            sha = upload(common.Bundle(scene_file="s.json", files=[
+                common.BundleFile(path="s.json", content=scene),
+                common.BundleFile(path="m.gltf", content=json.dumps(gltf).encode()),
+                common.BundleFile(path="m.bin", content=buf)]))
+            expect(grpc.StatusCode.RESOURCE_EXHAUSTED,
+                   lambda: stub.SubmitJob(cs.SubmitJobRequest(bundle_sha256=sha), timeout=120),
+                   "1,000 instances of a 20,000-triangle mesh", "limit max_primitives")
         elif check == "token-roles":
             md = [("authorization", "Bearer " + os.environ["PROBE_WORKER_TOKEN"])]
             expect(grpc.StatusCode.UNAUTHENTICATED,

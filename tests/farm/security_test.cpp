@@ -189,6 +189,37 @@ TEST(FarmSecurity, MutualTlsRequiresAClientCertificate) {
   expect_renders(farm, good);
 }
 
+// Peak resident memory of a process, in MiB (VmHWM).
+double peak_rss_mib(int pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string key;
+  double kib = -1;
+  while (in >> key) {
+    if (key == "VmHWM:") {
+      in >> kib;
+      break;
+    }
+  }
+  return kib / 1024.0;
+}
+
+TEST(FarmSecurity, InstancedMeshOverThePrimitiveLimitIsRefusedBeforeItIsFlattened) {
+  // Issue 15, defect 2: 1,000 instances of a 20,000-triangle mesh took the coordinator to
+  // 1.1 GB before --max-primitives 100000 refused it.
+  Farm farm;
+  farm.start_server({"--max-primitives", "100000"});
+  Process py({"/usr/bin/python3", source("tests/farm/security_probe.py").string(), farm.address(),
+              source("proto").string(), farm.dir().string(), "instance-bomb"},
+             farm.dir() / "probe.log");
+  EXPECT_EQ(py.wait(180s), 0) << py.log() << farm.server().log();
+  const double peak = peak_rss_mib(farm.server().pid());
+  std::printf("coordinator peak RSS after the instanced bundle: %.1f MiB\n", peak);
+  EXPECT_GT(peak, 0.0);
+  // The file is under 1 MB and the mesh 20,000 triangles: a few tens of MiB beyond the
+  // coordinator's own ~30 MiB, not the ~1 GB that flattening 20 M triangles costs.
+  EXPECT_LT(peak, 300.0) << py.log();
+}
+
 // Job ownership (issue 15, defect 9): a job belongs to the identity that submitted it.
 // `tessera ARGS` for a job, returning the result.
 CliResult on_job(Farm& farm, const std::vector<std::string>& args, const std::vector<std::string>& who) {
