@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "bundle_upload.h"
 #include "farm/bundle.h"
 #include "farm/codec.h"
 #include "scene/scene_parser.h"
@@ -24,18 +25,29 @@ grpc::ServerUnaryReactor* reply(grpc::CallbackServerContext* ctx, Status s) {
 
 class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk> {
  public:
-  UploadReactor(BundleStore& store, v1::UploadBundleResponse* resp, int64_t max_bytes)
-      : store_(store), resp_(resp), max_bytes_(max_bytes) {
+  UploadReactor(BundleStore& store, v1::UploadBundleResponse* resp, int64_t max_bytes, UploadSlots& slots)
+      : store_(store), resp_(resp), max_bytes_(max_bytes), slots_(slots) {
+    try {
+      upload_ = std::make_unique<BundleUpload>(store_.dir());
+    } catch (const std::exception& e) {
+      Finish(Status(StatusCode::RESOURCE_EXHAUSTED, std::string("cannot take the upload: ") + e.what()));
+      return;
+    }
     StartRead(&chunk_);
   }
   void OnReadDone(bool ok) override {
     if (ok) {
       if (sha_.empty()) sha_ = chunk_.sha256();
-      bytes_ += chunk_.data();
-      // Checked per chunk: the coordinator never holds more than the limit plus one message.
-      if (int64_t(bytes_.size()) > max_bytes_) {
+      // Checked per chunk: the upload is refused as soon as it is over the limit.
+      if (upload_->size() + int64_t(chunk_.data().size()) > max_bytes_) {
         Finish(over_limit(StatusCode::RESOURCE_EXHAUSTED, "the scene bundle's size in bytes (so far)",
-                          int64_t(bytes_.size()), "--max-bundle-bytes", max_bytes_));
+                          upload_->size() + int64_t(chunk_.data().size()), "--max-bundle-bytes", max_bytes_));
+        return;
+      }
+      try {
+        upload_->append(chunk_.data());  // to disk, hashed on the way: one chunk in memory
+      } catch (const std::exception& e) {
+        Finish(Status(StatusCode::RESOURCE_EXHAUSTED, std::string("cannot store the bundle: ") + e.what()));
         return;
       }
       StartRead(&chunk_);
@@ -47,10 +59,17 @@ class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk> {
       return;
     }
     try {
-      store_.put(sha_, bytes_);
+      const std::string actual = upload_->finish();
+      if (actual != sha_) {
+        Finish(Status(StatusCode::INVALID_ARGUMENT, "bundle refused: bundle bytes hash to " + actual +
+                                                        ", not to the announced " + sha_));
+        return;
+      }
+      store_.put_file(sha_, upload_->path());
+      upload_->taken();
       resp_->set_sha256(sha_);
-      resp_->set_size(bytes_.size());
-      spdlog::info("bundle {} stored ({} bytes)", sha_, bytes_.size());
+      resp_->set_size(uint64_t(upload_->size()));
+      spdlog::info("bundle {} stored ({} bytes)", sha_, upload_->size());
       Finish(Status::OK);
     } catch (const farm::BundleError& e) {
       Finish(Status(StatusCode::INVALID_ARGUMENT, std::string("bundle refused: ") + e.what()));
@@ -58,15 +77,19 @@ class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk> {
       Finish(Status(StatusCode::INTERNAL, std::string("cannot store the bundle: ") + e.what()));
     }
   }
-  void OnDone() override { delete this; }
+  void OnDone() override {
+    slots_.release();
+    delete this;
+  }
 
  private:
   BundleStore& store_;
   v1::UploadBundleResponse* resp_;
   int64_t max_bytes_;
+  UploadSlots& slots_;
   v1::BundleChunk chunk_;
   std::string sha_;
-  std::string bytes_;
+  std::unique_ptr<BundleUpload> upload_;
 };
 
 // The watch stream: the coordinator pushes events into the outbox; this reactor writes them.
@@ -145,7 +168,10 @@ grpc::ServerReadReactor<v1::BundleChunk>* ClientServiceImpl::UploadBundle(grpc::
   if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) {
     return new Refused<grpc::ServerReadReactor<v1::BundleChunk>>(std::move(s));
   }
-  return new UploadReactor(coord_.bundles(), resp, limits_.max_bundle_bytes);
+  if (Status s = uploads_.acquire(); !s.ok()) {
+    return new Refused<grpc::ServerReadReactor<v1::BundleChunk>>(std::move(s));
+  }
+  return new UploadReactor(coord_.bundles(), resp, limits_.max_bundle_bytes, uploads_);
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::SubmitJob(grpc::CallbackServerContext* ctx,

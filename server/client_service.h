@@ -5,6 +5,7 @@
 #include <string>
 
 #include "auth.h"
+#include "bundle_upload.h"
 #include "coordinator.h"
 #include "job_access.h"
 #include "request_limits.h"
@@ -21,7 +22,7 @@ class ClientServiceImpl final : public tessera::v1::ClientService::CallbackServi
   explicit ClientServiceImpl(Coordinator& c, Authenticator auth = {}, Limits limits = {},
                              std::set<std::string> admins = {})
       : coord_(c), auth_(std::move(auth)), limits_(limits), quota_(limits.max_jobs_per_client),
-        admins_(std::move(admins)) {
+        admins_(std::move(admins)), uploads_(limits.max_concurrent_uploads) {
     for (const auto& [owner, job] : coord_.active_jobs_by_owner()) quota_.restore(owner, job);
   }
 
@@ -56,6 +57,7 @@ class ClientServiceImpl final : public tessera::v1::ClientService::CallbackServi
   Limits limits_;
   JobQuota quota_;
   std::set<std::string> admins_;
+  UploadSlots uploads_;
 };
 
 }  // namespace tessera::server

@@ -19,6 +19,11 @@ void Limits::add_flags(CLI::App& app) {
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40))->capture_default_str()->group("Limits");
   app.add_option("--max-jobs-per-client", max_jobs_per_client, "Most queued or running jobs per client")
       ->check(CLI::Range(1, 1000000))->capture_default_str()->group("Limits");
+  app.add_option("--max-concurrent-uploads", max_concurrent_uploads,
+                 "Most bundle uploads in progress at once (each streams to disk: one chunk of memory)")
+      ->check(CLI::Range(1, 10000))
+      ->group("Limits")
+      ->capture_default_str();
 }
 
 grpc::Status over_limit(grpc::StatusCode code, const std::string& what, int64_t value, const char* flag,

@@ -29,6 +29,7 @@ struct Limits {
   int max_frames = 10000;                     // frames in one job
   uint64_t max_primitives = 20000000;         // triangles of every mesh instance + spheres + planes
   int max_jobs_per_client = 100;              // queued or running jobs of one client identity
+  int max_concurrent_uploads = 4;             // bundle uploads in progress at once (bundle_upload.h)
 
   // Adds --max-message-bytes, --max-bundle-bytes, ... to the server's command line.
   void add_flags(CLI::App& app);

@@ -13,6 +13,7 @@ Checks (each prints "ok CHECK" or raises):
 import hashlib
 import os
 import sys
+import time
 
 import tessera_stubs
 
@@ -117,6 +118,38 @@ def main():
             expect(grpc.StatusCode.RESOURCE_EXHAUSTED,
                    lambda: stub.SubmitJob(cs.SubmitJobRequest(bundle_sha256=sha), timeout=120),
                    "1,000 instances of a 20,000-triangle mesh", "limit max_primitives")
+        elif check == "upload-flood":
+            # issue 15, defect 3: four concurrent 100 MB uploads announcing a wrong hash (the
+            # server runs with --max-concurrent-uploads 4): each refused at its end for the hash,
+            # a fifth at the same time refused at once; the test reads the peak memory after.
+            import threading
+            chunk = b"\x5a" * (1 << 20)
+            release = threading.Event()
+            results = {}
+
+            def flood(i, mib):
+                def chunks():
+                    yield common.BundleChunk(sha256="0" * 64, data=chunk)
+                    release.wait(60)  # hold the slot until every upload has started
+                    for _ in range(mib - 1):
+                        yield common.BundleChunk(data=chunk)
+                try:
+                    stub.UploadBundle(chunks(), timeout=300)
+                    results[i] = "accepted"
+                except grpc.RpcError as e:
+                    results[i] = f"{e.code().name}: {e.details()}"
+
+            threads = [threading.Thread(target=flood, args=(i, 100)) for i in range(4)]
+            for t in threads: t.start()
+            time.sleep(2)  # the four are in progress (each sent its first chunk)
+            fifth = threading.Thread(target=flood, args=(4, 1))
+            fifth.start(); fifth.join(60)
+            release.set()
+            for t in threads: t.join(300)
+            print("  results:", results)
+            assert results[4].startswith("RESOURCE_EXHAUSTED") and "--max-concurrent-uploads" in results[4], results[4]
+            for i in range(4):
+                assert results[i].startswith("INVALID_ARGUMENT") and "not to the announced" in results[i], results[i]
         elif check == "token-roles":
             md = [("authorization", "Bearer " + os.environ["PROBE_WORKER_TOKEN"])]
             expect(grpc.StatusCode.UNAUTHENTICATED,

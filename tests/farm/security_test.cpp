@@ -203,21 +203,41 @@ double peak_rss_mib(int pid) {
   return kib / 1024.0;
 }
 
+// Runs one security_probe.py check against the farm (it must pass), then returns the
+// coordinator's peak resident memory in MiB.
+double probe_peak_rss(Farm& farm, const std::string& check) {
+  Process py({"/usr/bin/python3", source("tests/farm/security_probe.py").string(), farm.address(),
+              source("proto").string(), farm.dir().string(), check},
+             farm.dir() / ("probe-" + check + ".log"));
+  EXPECT_EQ(py.wait(300s), 0) << py.log() << farm.server().log();
+  const double peak = peak_rss_mib(farm.server().pid());
+  std::printf("%s: coordinator peak RSS %.1f MiB\n%s", check.c_str(), peak, py.log().c_str());
+  EXPECT_GT(peak, 0.0);
+  return peak;
+}
+
 TEST(FarmSecurity, InstancedMeshOverThePrimitiveLimitIsRefusedBeforeItIsFlattened) {
   // Issue 15, defect 2: 1,000 instances of a 20,000-triangle mesh took the coordinator to
   // 1.1 GB before --max-primitives 100000 refused it.
   Farm farm;
   farm.start_server({"--max-primitives", "100000"});
-  Process py({"/usr/bin/python3", source("tests/farm/security_probe.py").string(), farm.address(),
-              source("proto").string(), farm.dir().string(), "instance-bomb"},
-             farm.dir() / "probe.log");
-  EXPECT_EQ(py.wait(180s), 0) << py.log() << farm.server().log();
-  const double peak = peak_rss_mib(farm.server().pid());
-  std::printf("coordinator peak RSS after the instanced bundle: %.1f MiB\n", peak);
-  EXPECT_GT(peak, 0.0);
+  const double peak = probe_peak_rss(farm, "instance-bomb");
   // The file is under 1 MB and the mesh 20,000 triangles: a few tens of MiB beyond the
   // coordinator's own ~30 MiB, not the ~1 GB that flattening 20 M triangles costs.
-  EXPECT_LT(peak, 300.0) << py.log();
+  EXPECT_LT(peak, 300.0);
+}
+
+TEST(FarmSecurity, ConcurrentUploadsStreamToDiskAndAreBounded) {
+  // Issue 15, defect 3: four concurrent 300 MB uploads with a wrong hash took the coordinator to
+  // 1.7 GB. Here 4 x 100 MB: each goes to disk while hashed (one chunk in memory) and is refused
+  // for its hash; a fifth concurrent upload is refused at once (--max-concurrent-uploads 4).
+  Farm farm;
+  farm.start_server({"--max-concurrent-uploads", "4"});
+  EXPECT_LT(probe_peak_rss(farm, "upload-flood"), 200.0);
+  // Nothing of them is left on disk.
+  for (const auto& e : fs::directory_iterator(farm.data_dir() / "bundles")) {
+    EXPECT_EQ(e.path().filename().string().rfind(".upload-", 0), std::string::npos) << e.path();
+  }
 }
 
 // Job ownership (issue 15, defect 9): a job belongs to the identity that submitted it.
