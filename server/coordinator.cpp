@@ -343,6 +343,14 @@ Status Coordinator::ack_frame(const std::string& id, int frame) {
   // the same batch or an earlier one), so a frame a client was told is acknowledged is never
   // rendered again, not even after kill -9 (issue 15). Group commit: one fsync per batch.
   if (s.ok() && jobs_store_) {
+    // While storage is failing (a full disk), batches are retried once a second: waiting for one
+    // per frame would stall the client a second per frame. Say so at once instead; the
+    // acknowledgement is kept in memory and stored with the next batch that goes through.
+    if (!jobs_store_->healthy()) {
+      return Status(StatusCode::UNAVAILABLE, "frame " + std::to_string(frame) + " of job " + id +
+                                                 " is acknowledged but cannot be stored right now (" +
+                                                 jobs_store_->last_error() + "): it will be once storage recovers");
+    }
     if (const std::string err = jobs_store_->barrier().get(); !err.empty()) {
       return Status(StatusCode::UNAVAILABLE, "frame " + std::to_string(frame) + " of job " + id +
                                                  " is acknowledged but not yet stored (" + err +
