@@ -203,6 +203,15 @@ double peak_rss_mib(int pid) {
   return kib / 1024.0;
 }
 
+// ASan keeps freed memory in quarantine (256 MiB by default) and adds shadow memory, so a peak
+// RSS says nothing about the coordinator's own use there: the bounds are checked in the plain
+// build only (the sanitizer build still runs the probes and their refusals).
+#if defined(__SANITIZE_ADDRESS__)
+constexpr bool kRssMeaningful = false;
+#else
+constexpr bool kRssMeaningful = true;
+#endif
+
 // Runs one security_probe.py check against the farm (it must pass), then returns the
 // coordinator's peak resident memory in MiB.
 double probe_peak_rss(Farm& farm, const std::string& check) {
@@ -224,7 +233,9 @@ TEST(FarmSecurity, InstancedMeshOverThePrimitiveLimitIsRefusedBeforeItIsFlattene
   const double peak = probe_peak_rss(farm, "instance-bomb");
   // The file is under 1 MB and the mesh 20,000 triangles: a few tens of MiB beyond the
   // coordinator's own ~30 MiB, not the ~1 GB that flattening 20 M triangles costs.
-  EXPECT_LT(peak, 300.0);
+  if (kRssMeaningful) {
+    EXPECT_LT(peak, 300.0);
+  }
 }
 
 TEST(FarmSecurity, ConcurrentUploadsStreamToDiskAndAreBounded) {
@@ -233,7 +244,10 @@ TEST(FarmSecurity, ConcurrentUploadsStreamToDiskAndAreBounded) {
   // for its hash; a fifth concurrent upload is refused at once (--max-concurrent-uploads 4).
   Farm farm;
   farm.start_server({"--max-concurrent-uploads", "4"});
-  EXPECT_LT(probe_peak_rss(farm, "upload-flood"), 200.0);
+  const double peak = probe_peak_rss(farm, "upload-flood");
+  if (kRssMeaningful) {
+    EXPECT_LT(peak, 200.0);
+  }
   // Nothing of them is left on disk.
   for (const auto& e : fs::directory_iterator(farm.data_dir() / "bundles")) {
     EXPECT_EQ(e.path().filename().string().rfind(".upload-", 0), std::string::npos) << e.path();
