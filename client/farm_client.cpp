@@ -26,9 +26,13 @@ farm::ChannelSecurity resolve_security(const SecurityFlags& flags) {
 }
 
 FarmClient::FarmClient(std::string address, const farm::ChannelSecurity& security, std::chrono::seconds timeout)
-    : address_(std::move(address)), timeout_(timeout) {
+    : address_(std::move(address)), timeout_(timeout), tls_(!security.tls_ca.empty()) {
   channel_ = farm::make_coordinator_channel(address_, security);
   stub_ = tessera::v1::ClientService::NewStub(channel_);
+}
+
+bool FarmClient::wait_for_coordinator(std::chrono::milliseconds up_to) const {
+  return farm::wait_for_coordinator(*channel_, up_to);
 }
 
 std::unique_ptr<grpc::ClientContext> FarmClient::context() const { return context(timeout_); }
@@ -42,6 +46,12 @@ std::unique_ptr<grpc::ClientContext> FarmClient::context(std::chrono::seconds de
 std::string FarmClient::describe(const grpc::Status& s, const std::string& what) const {
   switch (s.error_code()) {
     case grpc::StatusCode::UNAVAILABLE:
+      // A plaintext client at a TLS port: the server reads our HTTP/2 preface as a bad TLS
+      // handshake and closes the socket.
+      if (!tls_ && s.error_message().find("Socket closed") != std::string::npos) {
+        return "the coordinator at " + address_ + " closed the connection (" + s.error_message() +
+               "): if it speaks TLS, pass --tls-ca CA.pem (or set TESSERA_TLS_CA)";
+      }
       return "cannot reach the coordinator at " + address_ + " (" + s.error_message() +
              "). Is it running? Start one with: tessera-server --listen " + address_ +
              " --data-dir DIR  (or point --coordinator / TESSERA_COORDINATOR at yours)";

@@ -33,6 +33,8 @@ class FarmClient {
 
   tessera::v1::ClientService::Stub& stub() { return *stub_; }
   const std::string& address() const { return address_; }
+  // Waits up to `up_to` for the coordinator to be reachable; true as soon as it is.
+  bool wait_for_coordinator(std::chrono::milliseconds up_to) const;
   // A context with the unary-call deadline.
   std::unique_ptr<grpc::ClientContext> context() const;
   // A context with a custom deadline.
@@ -43,6 +45,7 @@ class FarmClient {
  private:
   std::string address_;
   std::chrono::seconds timeout_;
+  bool tls_ = false;  // the channel uses TLS (--tls-ca)
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<tessera::v1::ClientService::Stub> stub_;
 };

@@ -11,6 +11,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 
@@ -179,6 +180,7 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
   std::optional<FrameAssembler> frames;
   std::optional<Progress> progress;
   v1::JobStatus final_status;
+  std::set<int> delivered_before;  // frames acknowledged by a client (maybe this one)
   int reconnects = 0;
   double total_start = now_s();
   double last_preview = now_s();
@@ -210,6 +212,7 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
           // already delivered to an earlier client.
           progress.emplace(st.tiles_total(), int64_t(st.frames_acknowledged_size()) * st.tiles_per_frame());
         }
+        delivered_before.insert(st.frames_acknowledged().begin(), st.frames_acknowledged().end());
         if (st.state() == v1::JOB_STATE_DONE || st.state() == v1::JOB_STATE_CANCELLED ||
             st.state() == v1::JOB_STATE_FAILED) {
           ended = true;
@@ -241,7 +244,12 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
           client.stub().AckFrame(actx.get(), ack, &ack_resp);
           continue;
         }
-        if (o.output.empty() || !frames->complete(f)) continue;
+        if (o.output.empty()) continue;
+        if (!frames->complete(f)) {
+          // Never write or acknowledge a frame with holes: the coordinator keeps its tiles.
+          spdlog::error("frame {} reported done but {}: not written, not acknowledged", f, frames->missing_tiles(f));
+          continue;
+        }
         FrameReport rep;
         try {
           rep = frames->write(f, o.output, o.scene_name, o.color, o.error_channels);
@@ -275,7 +283,9 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
     if ((s.error_code() == grpc::StatusCode::UNAVAILABLE || s.ok()) && frames && reconnects < 30) {
       ++reconnects;
       spdlog::warn("lost the watch stream ({}); re-attaching", s.error_message());
-      std::this_thread::sleep_for(std::chrono::seconds(std::min(reconnects, 5)));
+      // Back as soon as the coordinator listens again (at most the pause below).
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      client.wait_for_coordinator(std::chrono::seconds(std::min(reconnects, 5)));
       continue;
     }
     throw FarmError{kExitFailure, client.describe(s, "watching job " + job_id)};
@@ -291,6 +301,13 @@ int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions&
   if (final_status.state() == v1::JOB_STATE_CANCELLED) {
     std::printf("job %s was cancelled\n", job_id.c_str());
     return kExitCancelled;
+  }
+  // "Done" is only success when every frame reached a file (here or through an earlier client).
+  if (!o.output.empty()) {
+    if (const std::string lost = frames->frames_not_written(delivered_before); !lost.empty()) {
+      throw FarmError{kExitFailure, "job " + job_id + " is done on the coordinator, but not every frame arrived "
+                                    "complete, so these were not written: " + lost};
+    }
   }
   std::printf("job %s done: %lld tiles in %.2f s (%lld rendered twice), %.1f Mrays total\n", job_id.c_str(),
               (long long)final_status.tiles_total(), std::max(total, final_status.elapsed_seconds()),

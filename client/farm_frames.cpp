@@ -46,6 +46,13 @@ bool FrameAssembler::add(const tessera::v1::TileData& tile, std::string* error) 
              " is outside the job";
     return false;
   }
+  // A tile of another job (a coordinator serving a damaged store) would put wrong pixels into
+  // this frame: refuse it, by name.
+  if (tile.job_id() != job_.job_id()) {
+    *error = "tile " + std::to_string(tile.tile_index()) + " of frame " + std::to_string(tile.frame()) +
+             " belongs to job '" + tile.job_id() + "', not " + job_.job_id();
+    return false;
+  }
   if (written_.count(tile.frame())) return false;
   Frame& f = frames_[tile.frame()];
   if (f.tiles.count(tile.tile_index())) return false;  // a second copy: the first one won
@@ -76,6 +83,36 @@ bool FrameAssembler::add(const tessera::v1::TileData& tile, std::string* error) 
 bool FrameAssembler::complete(int frame) const {
   auto it = frames_.find(frame);
   return it != frames_.end() && int(it->second.tiles.size()) == job_.tiles_per_frame();
+}
+
+std::string FrameAssembler::missing_tiles(int frame) const {
+  auto it = frames_.find(frame);
+  const std::set<int> none;
+  const std::set<int>& have = it == frames_.end() ? none : it->second.tiles;
+  std::string list;
+  int listed = 0, missing = 0;
+  for (int t = 0; t < job_.tiles_per_frame(); ++t) {
+    if (have.count(t)) continue;
+    ++missing;
+    if (listed < 10) {
+      list += (list.empty() ? "" : ", ") + std::to_string(t);
+      ++listed;
+    }
+  }
+  if (missing > listed) list += ", ...";
+  return (missing == 1 ? "tile " : "tiles ") + list + " missing (" + std::to_string(have.size()) + " of " +
+         std::to_string(job_.tiles_per_frame()) + " received)";
+}
+
+std::string FrameAssembler::frames_not_written(const std::set<int>& delivered_before) const {
+  std::string out;
+  int lost = 0;
+  for (int f = job_.first_frame(); f <= job_.last_frame(); ++f) {
+    if (written_.count(f) || delivered_before.count(f)) continue;
+    if (++lost <= 5) out += (out.empty() ? "" : "; ") + std::string("frame ") + std::to_string(f) + ": " + missing_tiles(f);
+  }
+  if (lost > 5) out += "; and " + std::to_string(lost - 5) + " more frames";
+  return out;
 }
 
 FrameReport FrameAssembler::write(int frame, const std::string& pattern, const std::string& scene_name,

@@ -44,6 +44,13 @@ class FrameAssembler {
   // Adds a tile; false if it was already there (a duplicate: ignored) or does not belong.
   bool add(const tessera::v1::TileData& tile, std::string* error);
   bool complete(int frame) const;
+  // The frame's tiles not received yet, e.g. "tiles 3, 17 missing (58 of 60 received)".
+  std::string missing_tiles(int frame) const;
+  // The job's frames that were neither written here nor in `delivered_before` (acknowledged by
+  // an earlier client), each with its missing tiles; "" when every frame is accounted for. A job
+  // the coordinator calls done must leave this empty: otherwise a frame is lost, and the client
+  // must say so rather than exit 0.
+  std::string frames_not_written(const std::set<int>& delivered_before) const;
   bool written(int frame) const { return written_.count(frame) > 0; }
   // Writes the frame to frame_output_path(pattern, frame): a float EXR with the job's
   // attributes, or (other extensions / --format) tone-mapped and quantized by `color`.

@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include "client_tokens.h"
 #include "farm/channel.h"
 
 namespace tessera::server {
@@ -27,19 +28,28 @@ constexpr std::string_view kBearer = "Bearer ";
 
 }  // namespace
 
-Authenticator::Authenticator(const std::string& client_token, const std::string& worker_token) {
+Authenticator::Authenticator(const std::string& client_token, const std::string& worker_token,
+                             const std::map<std::string, std::string>& named_client_tokens) {
   if (!client_token.empty() && client_token == worker_token) {
     throw std::invalid_argument("the client and worker tokens must differ (a worker must not be able to submit jobs)");
+  }
+  for (const auto& [name, token] : named_client_tokens) {
+    if (token == worker_token) {
+      throw std::invalid_argument("the token of client '" + name + "' is the worker token: they must differ");
+    }
+    named_.emplace_back(name, digest(token));
   }
   if (!client_token.empty()) client_ = digest(client_token);
   if (!worker_token.empty()) worker_ = digest(worker_token);
 }
 
-bool Authenticator::open(PeerRole role) const { return !(role == PeerRole::kClient ? client_ : worker_); }
+bool Authenticator::open(PeerRole role) const {
+  return role == PeerRole::kClient ? !client_ && named_.empty() : !worker_;
+}
 
-grpc::Status Authenticator::check(const grpc::ServerContextBase& ctx, PeerRole role) const {
+grpc::Status Authenticator::check(const grpc::ServerContextBase& ctx, PeerRole role, std::string* name) const {
+  if (open(role)) return grpc::Status::OK;
   const auto& want = role == PeerRole::kClient ? client_ : worker_;
-  if (!want) return grpc::Status::OK;
   const char* who = role == PeerRole::kClient ? "client" : "worker";
   const auto& md = ctx.client_metadata();
   const auto it = md.find("authorization");
@@ -50,15 +60,33 @@ grpc::Status Authenticator::check(const grpc::ServerContextBase& ctx, PeerRole r
   const std::string_view value(it->second.data(), it->second.size());
   // Compare SHA-256 digests with CRYPTO_memcmp: constant time, and the length of the real token
   // does not leak through the comparison either.
-  const bool ok = value.substr(0, kBearer.size()) == kBearer &&
-                  CRYPTO_memcmp(digest(value.substr(kBearer.size())).data(), want->data(), want->size()) == 0;
-  if (!ok) return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, std::string("invalid ") + who + " token");
-  return grpc::Status::OK;
+  if (value.substr(0, kBearer.size()) != kBearer) {
+    return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, std::string("invalid ") + who + " token");
+  }
+  const Digest got = digest(value.substr(kBearer.size()));
+  if (want && CRYPTO_memcmp(got.data(), want->data(), want->size()) == 0) return grpc::Status::OK;
+  if (role == PeerRole::kClient) {
+    // Every named token is compared (constant time each): which one matched does not show in
+    // the time taken.
+    const std::string* match = nullptr;
+    for (const auto& [n, d] : named_) {
+      if (CRYPTO_memcmp(got.data(), d.data(), d.size()) == 0) match = &n;
+    }
+    if (match) {
+      if (name) *name = *match;
+      return grpc::Status::OK;
+    }
+  }
+  return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, std::string("invalid ") + who + " token");
 }
 
 void ServerSecurity::add_flags(CLI::App& app) {
   app.add_option("--client-token-file", client_token_file,
                  "File holding the token clients must send (else env TESSERA_CLIENT_TOKEN; none: open)")
+      ->group("Security");
+  app.add_option("--client-tokens", client_tokens,
+                 "Named client tokens: a file of name:token lines, or a directory of files NAME holding a token. "
+                 "Each name is a client identity (token:NAME) that owns the jobs it submits")
       ->group("Security");
   app.add_option("--worker-token-file", worker_token_file,
                  "File holding the token workers must send (else env TESSERA_WORKER_TOKEN; none: open)")
@@ -71,7 +99,8 @@ void ServerSecurity::add_flags(CLI::App& app) {
 
 Authenticator ServerSecurity::authenticator() const {
   return Authenticator(farm::read_token(client_token_file, "TESSERA_CLIENT_TOKEN"),
-                       farm::read_token(worker_token_file, "TESSERA_WORKER_TOKEN"));
+                       farm::read_token(worker_token_file, "TESSERA_WORKER_TOKEN"),
+                       client_tokens.empty() ? std::map<std::string, std::string>{} : read_client_tokens(client_tokens));
 }
 
 std::shared_ptr<grpc::ServerCredentials> ServerSecurity::credentials() const {

@@ -13,9 +13,12 @@
 #include <grpcpp/grpcpp.h>
 
 #include <array>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace CLI {
 class App;
@@ -29,16 +32,20 @@ class Authenticator {
  public:
   Authenticator() = default;  // open: every call accepted
   // Empty tokens mean "open" for that role. Throws std::invalid_argument when both are set and
-  // equal (the worker token must not grant client calls, nor the other way round).
-  Authenticator(const std::string& client_token, const std::string& worker_token);
+  // equal (the worker token must not grant client calls, nor the other way round), or when a
+  // named client token (client_tokens.h: name -> token) equals the worker token.
+  Authenticator(const std::string& client_token, const std::string& worker_token,
+                const std::map<std::string, std::string>& named_client_tokens = {});
 
   bool open(PeerRole role) const;
-  // OK, or UNAUTHENTICATED saying what was missing or wrong (never echoing the token).
-  grpc::Status check(const grpc::ServerContextBase& ctx, PeerRole role) const;
+  // OK, or UNAUTHENTICATED saying what was missing or wrong (never echoing the token). For a
+  // named client token, `*name` is set to its name (left empty for the shared token).
+  grpc::Status check(const grpc::ServerContextBase& ctx, PeerRole role, std::string* name = nullptr) const;
 
  private:
   using Digest = std::array<unsigned char, 32>;
   std::optional<Digest> client_, worker_;
+  std::vector<std::pair<std::string, Digest>> named_;  // named client tokens
 };
 
 // The server's security flags: tokens (files, else TESSERA_CLIENT_TOKEN / TESSERA_WORKER_TOKEN)
@@ -46,6 +53,7 @@ class Authenticator {
 // require and verify client certificates signed by that CA (mutual TLS) as well.
 struct ServerSecurity {
   std::string client_token_file, worker_token_file, tls_cert, tls_key, tls_ca;
+  std::string client_tokens;  // --client-tokens: named client tokens (client_tokens.h)
 
   void add_flags(CLI::App& app);
   // Both throw std::exception with a message naming the file or flag.

@@ -3,6 +3,7 @@
 #include <fstream>
 #include <random>
 #include <sstream>
+#include <vector>
 
 #include "farm/bundle.h"
 
@@ -15,6 +16,12 @@ BundleStore::BundleStore(fs::path data_dir) : dir_(std::move(data_dir) / "bundle
   std::error_code ec;
   fs::create_directories(dir_, ec);
   if (ec) throw BundleError("cannot create bundle store " + dir_.string() + ": " + ec.message());
+  // Uploads in progress when the coordinator died (bundle_upload.h) will never finish.
+  std::vector<fs::path> stale;
+  for (const auto& e : fs::directory_iterator(dir_, ec)) {
+    if (e.path().filename().string().rfind(".upload-", 0) == 0) stale.push_back(e.path());
+  }
+  for (const auto& p : stale) fs::remove(p, ec);
 }
 
 bool BundleStore::has(const std::string& sha256) const {
@@ -43,6 +50,22 @@ void BundleStore::put(const std::string& sha256, const std::string& bytes) {
     }
   }
   fs::rename(tmp, file_of(sha256));
+}
+
+void BundleStore::put_file(const std::string& sha256, const fs::path& uploaded) {
+  if (!farm::is_sha256_hex(sha256)) throw BundleError("'" + sha256 + "' is not a lower-case hex SHA-256");
+  std::lock_guard lock(mu_);
+  std::string bytes;
+  {
+    std::ifstream in(uploaded, std::ios::binary);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    if (!in && !in.eof()) throw BundleError("cannot read the upload " + uploaded.string());
+    bytes = ss.str();
+  }
+  farm::extract_bundle(bytes, dir_ / sha256);  // validates structure and paths
+  if (fs::exists(file_of(sha256))) return;
+  fs::rename(uploaded, file_of(sha256));
 }
 
 std::optional<std::string> BundleStore::read(const std::string& sha256) const {

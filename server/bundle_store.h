@@ -1,7 +1,8 @@
 // Content-addressed storage of scene bundles under <data-dir>/bundles: <sha256>.bundle holds the
 // bytes as uploaded (what workers fetch), <sha256>/ the extracted files (what the coordinator
 // parses to validate a job). Writes are atomic (temporary file + rename), so a crash never
-// leaves a bundle that looks complete but is not.
+// leaves a bundle that looks complete but is not; uploads in progress (.upload-*) left by a
+// crash are removed at start.
 #pragma once
 
 #include <filesystem>
@@ -19,6 +20,10 @@ class BundleStore {
   // Checks that `bytes` hash to `sha256` and form a valid bundle, then stores and extracts it.
   // Throws farm::BundleError naming the problem. Storing a bundle twice is harmless.
   void put(const std::string& sha256, const std::string& bytes);
+  // The same for an upload already on disk (bundle_upload.h), whose bytes the caller found to
+  // hash to `sha256`: read back, validated, extracted and renamed into place, one bundle at a
+  // time (so validation holds at most one bundle in memory). Throws farm::BundleError.
+  void put_file(const std::string& sha256, const std::filesystem::path& uploaded);
   std::optional<std::string> read(const std::string& sha256) const;
   // The scene file of a stored bundle (extracted on demand).
   std::filesystem::path scene_path(const std::string& sha256);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "bundle_upload.h"
 #include "farm/bundle.h"
 #include "farm/codec.h"
 #include "scene/scene_parser.h"
@@ -24,18 +25,29 @@ grpc::ServerUnaryReactor* reply(grpc::CallbackServerContext* ctx, Status s) {
 
 class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk> {
  public:
-  UploadReactor(BundleStore& store, v1::UploadBundleResponse* resp, int64_t max_bytes)
-      : store_(store), resp_(resp), max_bytes_(max_bytes) {
+  UploadReactor(BundleStore& store, v1::UploadBundleResponse* resp, int64_t max_bytes, UploadSlots& slots)
+      : store_(store), resp_(resp), max_bytes_(max_bytes), slots_(slots) {
+    try {
+      upload_ = std::make_unique<BundleUpload>(store_.dir());
+    } catch (const std::exception& e) {
+      Finish(Status(StatusCode::RESOURCE_EXHAUSTED, std::string("cannot take the upload: ") + e.what()));
+      return;
+    }
     StartRead(&chunk_);
   }
   void OnReadDone(bool ok) override {
     if (ok) {
       if (sha_.empty()) sha_ = chunk_.sha256();
-      bytes_ += chunk_.data();
-      // Checked per chunk: the coordinator never holds more than the limit plus one message.
-      if (int64_t(bytes_.size()) > max_bytes_) {
+      // Checked per chunk: the upload is refused as soon as it is over the limit.
+      if (upload_->size() + int64_t(chunk_.data().size()) > max_bytes_) {
         Finish(over_limit(StatusCode::RESOURCE_EXHAUSTED, "the scene bundle's size in bytes (so far)",
-                          int64_t(bytes_.size()), "--max-bundle-bytes", max_bytes_));
+                          upload_->size() + int64_t(chunk_.data().size()), "--max-bundle-bytes", max_bytes_));
+        return;
+      }
+      try {
+        upload_->append(chunk_.data());  // to disk, hashed on the way: one chunk in memory
+      } catch (const std::exception& e) {
+        Finish(Status(StatusCode::RESOURCE_EXHAUSTED, std::string("cannot store the bundle: ") + e.what()));
         return;
       }
       StartRead(&chunk_);
@@ -47,10 +59,17 @@ class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk> {
       return;
     }
     try {
-      store_.put(sha_, bytes_);
+      const std::string actual = upload_->finish();
+      if (actual != sha_) {
+        Finish(Status(StatusCode::INVALID_ARGUMENT, "bundle refused: bundle bytes hash to " + actual +
+                                                        ", not to the announced " + sha_));
+        return;
+      }
+      store_.put_file(sha_, upload_->path());
+      upload_->taken();
       resp_->set_sha256(sha_);
-      resp_->set_size(bytes_.size());
-      spdlog::info("bundle {} stored ({} bytes)", sha_, bytes_.size());
+      resp_->set_size(uint64_t(upload_->size()));
+      spdlog::info("bundle {} stored ({} bytes)", sha_, upload_->size());
       Finish(Status::OK);
     } catch (const farm::BundleError& e) {
       Finish(Status(StatusCode::INVALID_ARGUMENT, std::string("bundle refused: ") + e.what()));
@@ -58,15 +77,19 @@ class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk> {
       Finish(Status(StatusCode::INTERNAL, std::string("cannot store the bundle: ") + e.what()));
     }
   }
-  void OnDone() override { delete this; }
+  void OnDone() override {
+    slots_.release();
+    delete this;
+  }
 
  private:
   BundleStore& store_;
   v1::UploadBundleResponse* resp_;
   int64_t max_bytes_;
+  UploadSlots& slots_;
   v1::BundleChunk chunk_;
   std::string sha_;
-  std::string bytes_;
+  std::unique_ptr<BundleUpload> upload_;
 };
 
 // The watch stream: the coordinator pushes events into the outbox; this reactor writes them.
@@ -113,6 +136,23 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::WatchJobEvent> {
 
 }  // namespace
 
+Status ClientServiceImpl::authenticate(const grpc::CallbackServerContext& ctx, Caller* caller) const {
+  std::string token_name;
+  Status s = auth_.check(ctx, PeerRole::kClient, &token_name);
+  if (!s.ok()) return s;
+  caller->identity = client_identity(ctx, token_name);
+  caller->admin = admins_.count(caller->identity) > 0;
+  return s;
+}
+
+Status ClientServiceImpl::authorize(const std::string& job, const Caller& caller, const char* action) {
+  const std::optional<std::string> owner = coord_.job_owner(job);
+  if (!owner) return Status::OK;
+  Status s = check_job_access(job, *owner, caller, action);
+  if (!s.ok()) spdlog::warn("{} refused: {}", caller.identity, s.error_message());
+  return s;
+}
+
 grpc::ServerUnaryReactor* ClientServiceImpl::HasBundle(grpc::CallbackServerContext* ctx,
                                                        const v1::HasBundleRequest* req, v1::HasBundleResponse* resp) {
   if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
@@ -128,13 +168,17 @@ grpc::ServerReadReactor<v1::BundleChunk>* ClientServiceImpl::UploadBundle(grpc::
   if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) {
     return new Refused<grpc::ServerReadReactor<v1::BundleChunk>>(std::move(s));
   }
-  return new UploadReactor(coord_.bundles(), resp, limits_.max_bundle_bytes);
+  if (Status s = uploads_.acquire(); !s.ok()) {
+    return new Refused<grpc::ServerReadReactor<v1::BundleChunk>>(std::move(s));
+  }
+  return new UploadReactor(coord_.bundles(), resp, limits_.max_bundle_bytes, uploads_);
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::SubmitJob(grpc::CallbackServerContext* ctx,
                                                        const v1::SubmitJobRequest* req, v1::JobStatus* resp) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
-  const std::string client = client_identity(*ctx);
+  Caller caller;
+  if (Status s = authenticate(*ctx, &caller); !s.ok()) return reply(ctx, std::move(s));
+  const std::string& client = caller.identity;
   Status s = quota_.reserve(client, [&](const std::string& job) {
     v1::JobStatus st;
     return coord_.get_job(job, &st).ok() &&
@@ -153,15 +197,18 @@ grpc::ServerUnaryReactor* ClientServiceImpl::SubmitJob(grpc::CallbackServerConte
 
 grpc::ServerWriteReactor<v1::WatchJobEvent>* ClientServiceImpl::WatchJob(grpc::CallbackServerContext* ctx,
                                                                         const v1::WatchJobRequest* req) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) {
-    return new Refused<grpc::ServerWriteReactor<v1::WatchJobEvent>>(std::move(s));
-  }
+  Caller caller;
+  Status s = authenticate(*ctx, &caller);
+  if (s.ok()) s = authorize(req->job_id(), caller, "watch");
+  if (!s.ok()) return new Refused<grpc::ServerWriteReactor<v1::WatchJobEvent>>(std::move(s));
   return new WatchReactor(coord_, req->job_id());
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::AckFrame(grpc::CallbackServerContext* ctx, const v1::AckFrameRequest* req,
                                                       v1::AckFrameResponse*) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
+  Caller caller;
+  if (Status s = authenticate(*ctx, &caller); !s.ok()) return reply(ctx, std::move(s));
+  if (Status s = authorize(req->job_id(), caller, "acknowledge frames of"); !s.ok()) return reply(ctx, std::move(s));
   return reply(ctx, coord_.ack_frame(req->job_id(), req->frame()));
 }
 
@@ -180,7 +227,9 @@ grpc::ServerUnaryReactor* ClientServiceImpl::ListJobs(grpc::CallbackServerContex
 
 grpc::ServerUnaryReactor* ClientServiceImpl::CancelJob(grpc::CallbackServerContext* ctx,
                                                        const v1::CancelJobRequest* req, v1::JobStatus* resp) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
+  Caller caller;
+  if (Status s = authenticate(*ctx, &caller); !s.ok()) return reply(ctx, std::move(s));
+  if (Status s = authorize(req->job_id(), caller, "cancel"); !s.ok()) return reply(ctx, std::move(s));
   return reply(ctx, coord_.cancel(req->job_id(), resp));
 }
 

@@ -1,8 +1,13 @@
 // tessera.v1.ClientService on the callback API: thin adapters onto the Coordinator.
 #pragma once
 
+#include <set>
+#include <string>
+
 #include "auth.h"
+#include "bundle_upload.h"
 #include "coordinator.h"
+#include "job_access.h"
 #include "request_limits.h"
 #include "tessera/v1/client_service.grpc.pb.h"
 
@@ -13,8 +18,11 @@ class ClientServiceImpl final : public tessera::v1::ClientService::CallbackServi
   // Every method first checks the client token (auth.h); uploads and submissions the limits.
   // The per-client quota starts from the active jobs the coordinator restored: a restart does
   // not give every client a fresh allowance.
-  explicit ClientServiceImpl(Coordinator& c, Authenticator auth = {}, Limits limits = {})
-      : coord_(c), auth_(std::move(auth)), limits_(limits), quota_(limits.max_jobs_per_client) {
+  // `admins`: identities (job_access.h) that may watch, cancel and acknowledge any client's jobs.
+  explicit ClientServiceImpl(Coordinator& c, Authenticator auth = {}, Limits limits = {},
+                             std::set<std::string> admins = {})
+      : coord_(c), auth_(std::move(auth)), limits_(limits), quota_(limits.max_jobs_per_client),
+        admins_(std::move(admins)), uploads_(limits.max_concurrent_uploads) {
     for (const auto& [owner, job] : coord_.active_jobs_by_owner()) quota_.restore(owner, job);
   }
 
@@ -38,11 +46,18 @@ class ClientServiceImpl final : public tessera::v1::ClientService::CallbackServi
                                         tessera::v1::ListWorkersResponse*) override;
 
  private:
+  // Checks the client token; on success `*caller` is who is calling.
+  grpc::Status authenticate(const grpc::CallbackServerContext& ctx, Caller* caller) const;
+  // PERMISSION_DENIED unless `caller` may act on the job (job_access.h); OK for an unknown job
+  // (the method itself answers NOT_FOUND).
+  grpc::Status authorize(const std::string& job, const Caller& caller, const char* action);
 
   Coordinator& coord_;
   Authenticator auth_;
   Limits limits_;
   JobQuota quota_;
+  std::set<std::string> admins_;
+  UploadSlots uploads_;
 };
 
 }  // namespace tessera::server

@@ -50,7 +50,15 @@ Coordinator::Coordinator(CoordinatorOptions options, BundleStore& store, JobStor
 }
 
 void Coordinator::restore_locked() {
-  JobStore::Loaded l = jobs_store_->load();
+  // Every stored tile names itself (TileData job_id, frame, tile_index, set by the coordinator
+  // when it accepted the result, and covered by the record's CRC): a record that is intact but
+  // belongs elsewhere is refused like a damaged one.
+  JobStore::Loaded l = jobs_store_->load([](const TileKey& row, const std::string& payload) -> std::string {
+    v1::TileData t;
+    if (!t.ParseFromString(payload)) return "it does not parse as a tile";
+    if (t.job_id() == row.job && t.frame() == row.frame && t.tile_index() == row.tile) return {};
+    return fmt::format("it is job {} frame {} tile {}", t.job_id(), t.frame(), t.tile_index());
+  });
   scheduler_.set_next_lease(l.next_lease);
   int live = 0;
   int64_t tiles = 0;
@@ -70,7 +78,9 @@ void Coordinator::restore_locked() {
   spdlog::info("restored {} jobs from {} ({} still to render, {} finished tiles); {} leases in flight at the last "
                "stop requeued; {} orphan tile files removed{}",
                l.jobs.size(), jobs_store_->db_path().string(), live, tiles, l.leases_requeued, l.orphans_removed,
-               l.tiles_missing ? fmt::format("; {} tiles whose file was missing will be rendered again", l.tiles_missing)
+               l.tiles_missing ? fmt::format("; {} stored tiles were missing, damaged or not what their row says "
+                                             "(errors above): they will be rendered again",
+                                             l.tiles_missing)
                                : std::string());
 }
 
@@ -288,6 +298,16 @@ Status Coordinator::get_job(const std::string& id, v1::JobStatus* out) {
   return Status(StatusCode::NOT_FOUND, "no job '" + id + "' on this coordinator");
 }
 
+std::optional<std::string> Coordinator::job_owner(const std::string& id) {
+  auto owner = locked([&]() -> std::optional<std::string> {
+    if (auto s = scheduler_.job(id)) return s->spec.owner;
+    return std::nullopt;
+  });
+  if (owner) return owner;
+  if (auto s = evicted_job(id)) return s->spec.owner;
+  return std::nullopt;
+}
+
 void Coordinator::list_jobs(v1::ListJobsResponse* out) {
   locked([&] {
     for (const auto& s : scheduler_.jobs()) status_proto(s, out->add_jobs());
@@ -309,7 +329,7 @@ Status Coordinator::cancel(const std::string& id, v1::JobStatus* out) {
 }
 
 Status Coordinator::ack_frame(const std::string& id, int frame) {
-  return locked([&] {
+  Status s = locked([&] {
     switch (scheduler_.acknowledge_frame(id, frame)) {
       case Scheduler::AckResult::kAcknowledged:
         if (auto s = scheduler_.job(id); s && job_ended(s->state) && scheduler_.all_acknowledged(id)) {
@@ -329,6 +349,26 @@ Status Coordinator::ack_frame(const std::string& id, int frame) {
     }
     return Status::OK;
   });
+  // AckFrame answers OK only once the acknowledgement is durable (with the frame's tile rows:
+  // the same batch or an earlier one), so a frame a client was told is acknowledged is never
+  // rendered again, not even after kill -9 (issue 15). Group commit: one fsync per batch.
+  if (s.ok() && jobs_store_) {
+    // While storage is failing (a full disk), batches are retried once a second: waiting for one
+    // per frame would stall the client a second per frame. Say so at once instead; the
+    // acknowledgement is kept in memory and stored with the next batch that goes through.
+    if (!jobs_store_->healthy()) {
+      return Status(StatusCode::UNAVAILABLE, "frame " + std::to_string(frame) + " of job " + id +
+                                                 " is acknowledged but cannot be stored right now (" +
+                                                 jobs_store_->last_error() + "): it will be once storage recovers");
+    }
+    if (const std::string err = jobs_store_->barrier().get(); !err.empty()) {
+      return Status(StatusCode::UNAVAILABLE, "frame " + std::to_string(frame) + " of job " + id +
+                                                 " is acknowledged but not yet stored (" + err +
+                                                 "): acknowledge it again later");
+    }
+    spdlog::debug("job {} frame {} acknowledgement stored", id, frame);
+  }
+  return s;
 }
 
 void Coordinator::list_workers(v1::ListWorkersResponse* out) {

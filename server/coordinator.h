@@ -89,6 +89,9 @@ class Coordinator : private SchedulerListener {
   // (owner, job id) of every queued or running job with an owner: the quota after a restart.
   std::vector<std::pair<std::string, std::string>> active_jobs_by_owner();
   grpc::Status get_job(const std::string& id, tessera::v1::JobStatus* out);
+  // The identity that submitted the job (JobSpec::owner; "" for jobs of older databases), in
+  // memory or evicted; nullopt for an unknown job.
+  std::optional<std::string> job_owner(const std::string& id);
   void list_jobs(tessera::v1::ListJobsResponse* out);
   grpc::Status cancel(const std::string& id, tessera::v1::JobStatus* out);
   grpc::Status ack_frame(const std::string& id, int frame);

@@ -118,10 +118,21 @@ JobStore::JobStore(const fs::path& data_dir) : dir_(data_dir), db_path_(data_dir
     const int err = errno;
     if (fd >= 0) ::close(fd);
     ::unlink(probe.c_str());
-    throw StoreError("the data directory " + dir_.string() + " is not writable: " + std::strerror(err));
+    // A full disk is not a broken one: start and serve what is stored (clients can still fetch
+    // and acknowledge frames, which frees space); the first write that fails marks the store
+    // unhealthy, and new jobs are refused until then.
+    if (err != ENOSPC && err != EDQUOT) {
+      throw StoreError("the data directory " + dir_.string() + " is not writable: " + std::strerror(err));
+    }
+    spdlog::warn("the data directory {} is full ({}): serving what it holds; new jobs are refused until space is "
+                 "freed",
+                 dir_.string(), std::strerror(err));
+  } else {
+    ::close(fd);
   }
-  ::close(fd);
   ::unlink(probe.c_str());
+  refuse_lost_database();
+  make_reserve();
   // A constructor that throws runs no destructor: close what was opened before passing the
   // refusal on (LeakSanitizer caught the SQLite connection leaking on a corrupt database).
   try {
@@ -142,6 +153,33 @@ JobStore::JobStore(const fs::path& data_dir) : dir_(data_dir), db_path_(data_dir
     throw;
   }
   writer_ = std::thread([this] { writer_loop(); });
+}
+
+void JobStore::refuse_lost_database() {
+  // SQLite takes a missing or 0-byte file for a new, empty database. For a new farm that is
+  // right; but when tiles/ still holds segments (or a write-ahead log is left), the database
+  // that described them was lost or truncated, and starting would take every segment for an
+  // orphan and delete it: the farm's finished work, wiped without a word. Refuse instead.
+  std::error_code ec;
+  const bool exists = fs::exists(db_path_, ec);
+  const auto size = exists ? fs::file_size(db_path_, ec) : 0;
+  if (exists && (ec || size > 0)) return;
+  std::vector<std::string> claimed;
+  int64_t tile_files = 0;
+  for (const auto& e : fs::directory_iterator(dir_ / "tiles", ec)) {
+    (void)e;
+    ++tile_files;
+  }
+  if (tile_files > 0) claimed.push_back((dir_ / "tiles").string() + " holds " + std::to_string(tile_files) + " files");
+  const fs::path wal = db_path_.string() + "-wal";
+  if (fs::exists(wal, ec) && fs::file_size(wal, ec) > 0 && !ec) claimed.push_back(wal.string() + " is not empty");
+  if (claimed.empty()) return;  // nothing a database could claim: a new farm
+  std::string what;
+  for (const auto& c : claimed) what += (what.empty() ? "" : " and ") + c;
+  throw StoreError("the database " + db_path_.string() + (exists ? " is empty (0 bytes)" : " is missing") + " but " +
+                   what + ": this is not a new farm, and starting would delete its finished tiles as orphans. "
+                   "Restore the database from a backup, or move " + dir_.string() +
+                   " away (or use another --data-dir) to start a new farm");
 }
 
 void JobStore::close_handles() {
@@ -188,6 +226,11 @@ void JobStore::open_database() {
     throw StoreError("cannot open the database " + db + ": " + (db_ ? sqlite3_errmsg(db_) : "out of memory"));
   }
   sqlite3_busy_timeout(db_, 5000);
+  // Keep the -wal and -shm files when the coordinator stops: a restart then needs no new disk
+  // space to open the database (SQLite would otherwise recreate both, and fail on a full disk:
+  // issue 15, defect 7). They are reused, never grown, by the next run.
+  int persist = 1;
+  sqlite3_file_control(db_, nullptr, SQLITE_FCNTL_PERSIST_WAL, &persist);
   // Integrity first: a file that is not a database, or a damaged one, stops the coordinator here
   // with the file's name, instead of losing jobs later.
   {
@@ -201,7 +244,14 @@ void JobStore::open_database() {
       }
     }
     const std::string msg = sqlite3_errmsg(db_);
+    const int code = sqlite3_extended_errcode(db_) & 0xff;
     sqlite3_finalize(st);
+    // The file could not be read at all (disk full, I/O error, permissions): say so, rather
+    // than call a good database corrupt.
+    if (rc != SQLITE_DONE && code != SQLITE_NOTADB && code != SQLITE_CORRUPT) {
+      throw StoreError("cannot read the database " + db + " (" + msg +
+                       "): check the disk holding it (full, read-only, failing?)");
+    }
     if (rc != SQLITE_DONE) {
       throw StoreError("the database " + db + " is unreadable (" + msg +
                        "): it is corrupt or not a Tessera database. Move it away (the coordinator then starts "
@@ -218,6 +268,11 @@ void JobStore::open_database() {
     exec("PRAGMA journal_mode=WAL");
     // FULL: a commit is on disk when it returns (one fsync of the WAL per batch).
     exec("PRAGMA synchronous=FULL");
+    // A bounded WAL: checkpoint every 256 pages (1 MiB) and cut the file back to 1 MiB after a
+    // checkpoint. SQLite's default (1000 pages, never cut back) let the WAL alone grow to fill
+    // a small data disk.
+    exec("PRAGMA wal_autocheckpoint=256");
+    exec("PRAGMA journal_size_limit=1048576");
     bool has_schema = false;
     {
       sqlite3_stmt* st = nullptr;
@@ -292,13 +347,14 @@ void JobStore::open_database() {
   if (sqlite3_open_v2(db.c_str(), &read_db_, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, nullptr) != SQLITE_OK) {
     throw StoreError("cannot open the database " + db + " for reading: " + sqlite3_errmsg(read_db_));
   }
+  sqlite3_file_control(read_db_, nullptr, SQLITE_FCNTL_PERSIST_WAL, &persist);
   sqlite3_busy_timeout(read_db_, 5000);
 }
 
 // ---------------------------------------------------------------------------------------------
 // Loading
 
-JobStore::Loaded JobStore::load() {
+JobStore::Loaded JobStore::load(const TileCheck& check) {
   Loaded out;
   auto query = [&](const std::string& sql, auto&& row) {
     sqlite3_stmt* st = nullptr;
@@ -356,10 +412,20 @@ JobStore::Loaded JobStore::load() {
                                          sqlite3_column_int64(st, 6)};
             if (!acked.count(t.frame)) {
               auto got = tiles_->read(at);
+              // A record that is intact but holds another tile (segment files swapped or copied
+              // over each other) is as wrong as a damaged one: serving it would put another
+              // frame's or job's pixels into this frame.
+              if (got.bytes && check) {
+                if (std::string other = check({r.id, t.frame, t.tile}, *got.bytes); !other.empty()) {
+                  got.error = tiles_->segment_path(at.segment).string() + " at offset " + std::to_string(at.offset) +
+                              ": the record is not this tile: " + other;
+                  got.bytes.reset();
+                }
+              }
               if (!got.bytes) {
                 // Should not happen (the segment is durable before its row); re-render rather than lie.
-                spdlog::error("job {} frame {} tile {}: done in {} but its pixels are unreadable ({}): the tile will "
-                              "be rendered again",
+                spdlog::error("job {} frame {} tile {}: done in {} but its stored pixels are unusable ({}): the tile "
+                              "will be rendered again",
                               r.id, t.frame, t.tile, db_path_.string(), got.error);
                 missing.push_back({r.id, {t.frame, t.tile}});
                 ++out.tiles_missing;
@@ -371,17 +437,23 @@ JobStore::Loaded JobStore::load() {
             r.done.push_back(std::move(t));
           });
   }
-  if (!missing.empty()) {
+  // Dropping the rows of unusable tiles and the leases of the last run: on a full disk these
+  // deletions may fail (SQLite needs room to delete); that must not stop the coordinator, and
+  // they are repeated at the next start. (Lease rows left behind are only ever read here.)
+  try {
     exec("BEGIN");
     for (const auto& [job, ft] : missing) {
       exec(("DELETE FROM tiles WHERE job='" + job + "' AND frame=" + std::to_string(ft.first) +
             " AND tile=" + std::to_string(ft.second))
                .c_str());
     }
+    // Leases in flight at the last stop: their tiles are queued again (rows without a done tile).
+    exec("DELETE FROM leases");
     exec("COMMIT");
+  } catch (const std::exception& e) {
+    sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+    spdlog::warn("cannot clean up the database at start ({}): carrying on; retried at the next start", e.what());
   }
-  // Leases in flight at the last stop: their tiles are queued again (rows without a done tile).
-  exec("DELETE FROM leases");
   // Orphans: everything in tiles/ but the segments holding a readable tile of an unacknowledged
   // frame of a resident job. That is segments of a crash between the segment's sync and the
   // commit, of acknowledged frames or evicted jobs whose unlink was interrupted, and any
@@ -493,10 +565,30 @@ void JobStore::writer_loop() {
       queue_.clear();
     }
     std::string error;
+    std::vector<Op> deferred;
     try {
       apply(pending);
     } catch (const std::exception& e) {
       error = e.what();
+      // A full disk: whatever needs no new segment goes through now, above all the
+      // acknowledgements, whose commit deletes segments and so makes the room the rest needs.
+      // The tiles still to write stay queued, in order, ahead of anything queued later.
+      try {
+        deferred = apply(pending, false);
+        if (deferred.empty()) {
+          error.clear();  // nothing needed a segment: the retry simply went through
+        } else {
+          spdlog::warn("storage: committed {} writes that need no new tile segment; {} finished tiles wait for "
+                       "space", pending.size() - deferred.size(), deferred.size());
+        }
+      } catch (const std::exception& e2) {
+        deferred.clear();
+        spdlog::debug("storage: even the writes that need no new segment failed: {}", e2.what());
+        // SQLite itself has no room left. Make room with what the client already has, and
+        // with the reserve, so that SQLite can checkpoint and cut its WAL back.
+        reclaim_delivered(pending);
+        release_reserve();
+      }
     }
     for (auto it = pending.begin(); it != pending.end();) {
       if (auto* b = std::get_if<Barrier>(&*it)) {
@@ -506,14 +598,25 @@ void JobStore::writer_loop() {
         ++it;
       }
     }
+    if (error.empty() && reserve_wanted_) make_reserve();  // writer thread: no lock needed
     if (error.empty()) {
       std::lock_guard lock(mu_);
-      if (!healthy_) spdlog::info("storage recovered: {} writes committed", pending.size());
+      if (!healthy_) {
+        spdlog::info("storage recovered: {} writes committed", pending.size());
+        reserve_wanted_ = true;
+      }
       healthy_ = true;
       ++stats_.batches;
       stats_.ops += int64_t(pending.size());
       pending.clear();
       continue;
+    }
+    if (!deferred.empty()) {
+      // Everything else was committed: only the deferred tiles are left (barriers were answered
+      // with the error above: the tiles before them are not durable yet).
+      std::lock_guard lock(mu_);
+      stats_.ops += int64_t(pending.size() - deferred.size());
+      pending = std::move(deferred);
     }
     bool stopping;
     {
@@ -534,15 +637,37 @@ void JobStore::writer_loop() {
   }
 }
 
-void JobStore::apply(std::vector<Op>& batch) {
-  // 1. One segment with every tile of the batch, durable before any row that says "done".
-  std::vector<const std::string*> payloads;
+std::vector<JobStore::Op> JobStore::apply(std::vector<Op>& batch, bool new_segment) {
+  // 0. Tiles of frames acknowledged (or jobs evicted) in this same batch need no pixels on disk:
+  // the client has them. Their rows are written with no location (segment 0), and only the
+  // rows: this is what lets acknowledgements through when the disk is full.
+  std::set<FrameKey> delivered;
+  std::set<JobId> evicted;
   for (const Op& op : batch) {
-    if (const auto* t = std::get_if<TileDone>(&op)) payloads.push_back(t->payload.get());
+    if (const auto* a = std::get_if<FrameAck>(&op)) delivered.insert({a->job, a->frame});
+    if (const auto* v = std::get_if<Evicted>(&op)) evicted.insert(v->job);
+  }
+  auto needs_pixels = [&](const TileDone& t) {
+    return !delivered.count({t.key.job, t.key.frame}) && !evicted.count(t.key.job);
+  };
+  std::vector<Op> deferred;
+  std::vector<bool> skip(batch.size(), false);
+  // 1. One segment with every tile of the batch that needs one, durable before any row that
+  // says "done".
+  std::vector<const std::string*> payloads;
+  for (size_t i = 0; i < batch.size(); ++i) {
+    const auto* t = std::get_if<TileDone>(&batch[i]);
+    if (!t || !needs_pixels(*t)) continue;
+    if (new_segment) {
+      payloads.push_back(t->payload.get());
+    } else {
+      skip[i] = true;
+    }
   }
   std::vector<TileStore::Location> at;
   if (!payloads.empty()) at = tiles_->write_segment(payloads);
   size_t next_at = 0;
+  const TileStore::Location nowhere{};  // segment 0: never a file (numbers start at 1)
   // A lease issued and ended within one batch never needs a row.
   std::unordered_set<LeaseId> issued, transient;
   LeaseId hwm = lease_hwm_;
@@ -566,7 +691,9 @@ void JobStore::apply(std::vector<Op>& batch) {
   };
   exec("BEGIN IMMEDIATE");
   try {
-    for (const Op& op : batch) {
+    for (size_t i = 0; i < batch.size(); ++i) {
+      const Op& op = batch[i];
+      if (skip[i]) continue;
       if (const auto* j = std::get_if<JobRow>(&op)) {
         const JobSnapshot& s = j->s;
         sqlite3_stmt* st = j->insert ? ins_job_ : upd_job_;
@@ -604,7 +731,7 @@ void JobStore::apply(std::vector<Op>& batch) {
         sqlite3_bind_int(ins_tile_, 3, t->key.tile);
         sqlite3_bind_int64(ins_tile_, 4, int64_t(t->rays));
         sqlite3_bind_double(ins_tile_, 5, t->seconds);
-        const TileStore::Location& loc = at[next_at++];
+        const TileStore::Location& loc = needs_pixels(*t) ? at[next_at++] : nowhere;
         sqlite3_bind_int64(ins_tile_, 6, loc.segment);
         sqlite3_bind_int64(ins_tile_, 7, loc.offset);
         sqlite3_bind_int64(ins_tile_, 8, loc.length);
@@ -652,9 +779,12 @@ void JobStore::apply(std::vector<Op>& batch) {
   // in queue order; a segment is deleted once no tile of an unacknowledged frame is left in it.
   std::vector<int64_t> emptied;
   next_at = 0;
-  for (const Op& op : batch) {
-    if (const auto* t = std::get_if<TileDone>(&op)) {
-      track_tile(t->key, at[next_at++].segment);
+  for (size_t i = 0; i < batch.size(); ++i) {
+    const Op& op = batch[i];
+    if (skip[i]) {
+      deferred.push_back(op);
+    } else if (const auto* t = std::get_if<TileDone>(&op)) {
+      if (needs_pixels(*t)) track_tile(t->key, at[next_at++].segment);
     } else if (const auto* a = std::get_if<FrameAck>(&op)) {
       release_frame({a->job, a->frame}, emptied);
     } else if (const auto* v = std::get_if<Evicted>(&op)) {
@@ -669,6 +799,70 @@ void JobStore::apply(std::vector<Op>& batch) {
       tiles_->remove_segment(seg);
     }
   }
+  return deferred;
+}
+
+void JobStore::make_reserve() {
+  // A few hundred KiB held back on the data disk. When the disk fills up completely, SQLite can
+  // no longer checkpoint its WAL (the database file must grow a little), so the WAL can no
+  // longer be cut back, and nothing could ever be written again, acknowledgements included,
+  // even with nothing left to delete. Giving the reserve back breaks that deadlock.
+  reserve_wanted_ = false;
+  const fs::path reserve = dir_ / ".reserve";
+  std::error_code ec;
+  if (fs::exists(reserve, ec)) return;
+  const int fd = ::open(reserve.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) return;
+  const bool ok = ::posix_fallocate(fd, 0, kReserveBytes) == 0 && ::fsync(fd) == 0;
+  ::close(fd);
+  if (!ok) {
+    ::unlink(reserve.c_str());
+    reserve_wanted_ = true;  // try again after the next successful batch
+    spdlog::warn("cannot set aside {} KiB on the data disk (full?): will try again", kReserveBytes / 1024);
+  }
+}
+
+void JobStore::release_reserve() {
+  const fs::path reserve = dir_ / ".reserve";
+  if (::unlink(reserve.c_str()) == 0) {
+    spdlog::warn("disk full: gave back the {} KiB reserve so that the database can checkpoint", kReserveBytes / 1024);
+  }
+  // Copy the WAL into the database and cut it to nothing: the space the WAL held comes back.
+  sqlite3_exec(db_, "PRAGMA wal_checkpoint(TRUNCATE)", nullptr, nullptr, nullptr);
+}
+
+void JobStore::reclaim_delivered(const std::vector<Op>& pending) {
+  // The segments that the queued acknowledgements (and evictions) will delete once committed,
+  // deleted now, because on a full disk the commit cannot happen until something is deleted.
+  // The bookkeeping is left alone: it is updated when the commit goes through (deleting again
+  // is harmless). The price: should the coordinator die before that commit, those frames are
+  // not acknowledged in the database and their rows point nowhere, so they are rendered again
+  // (never served wrong); without this, a full disk never recovers while running.
+  std::unordered_map<int64_t, int64_t> live = segment_live_;
+  std::vector<int64_t> emptied;
+  auto release = [&](const FrameKey& f) {
+    auto it = frame_tiles_.find(f);
+    if (it == frame_tiles_.end()) return;
+    for (const auto& [tile, seg] : it->second) {
+      if (--live[seg] == 0) emptied.push_back(seg);
+    }
+  };
+  std::set<FrameKey> seen;
+  for (const Op& op : pending) {
+    if (const auto* a = std::get_if<FrameAck>(&op)) {
+      if (seen.insert({a->job, a->frame}).second) release({a->job, a->frame});
+    } else if (const auto* v = std::get_if<Evicted>(&op)) {
+      for (auto it = frame_tiles_.lower_bound({v->job, std::numeric_limits<int>::min()});
+           it != frame_tiles_.end() && it->first.first == v->job; ++it) {
+        if (seen.insert(it->first).second) release(it->first);
+      }
+    }
+  }
+  if (emptied.empty()) return;
+  for (int64_t seg : emptied) tiles_->remove_segment(seg);
+  spdlog::warn("disk full: deleted {} tile segments holding only frames a client already has (their "
+               "acknowledgements are not committed yet) to make room",
+               emptied.size());
 }
 
 void JobStore::track_tile(const TileKey& key, int64_t segment) {

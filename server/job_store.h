@@ -17,10 +17,12 @@
 #pragma once
 
 #include <sqlite3.h>
+#include <sys/types.h>
 
 #include <condition_variable>
 #include <deque>
 #include <filesystem>
+#include <functional>
 #include <future>
 #include <map>
 #include <memory>
@@ -60,13 +62,20 @@ class JobStore {
     std::vector<JobRecord> jobs;      // resident jobs, in submit order
     LeaseId next_lease = 1;
     int64_t leases_requeued = 0;      // leases in flight at the last stop
-    int64_t tiles_missing = 0;        // done rows whose record was unreadable: re-rendered
+    int64_t tiles_missing = 0;        // done rows whose record was unreadable, damaged or another
+                                      // tile's: dropped, so the tile is rendered again
     int64_t orphans_removed = 0;      // files in tiles/ no committed row needs (segments of a crash
                                       // before the commit, or of acknowledged frames)
   };
+  // Is a stored tile's payload the tile its row names? "" when it is, else what it is instead
+  // (e.g. "it is job J frame F tile T"). Payloads are opaque here; the coordinator, which knows
+  // their format, supplies the check. Without it only the record's length and CRC are checked.
+  using TileCheck = std::function<std::string(const TileKey& row, const std::string& payload)>;
   // Reads the state back (call once, before any write). Leases in flight at the last stop come
-  // back as queued tiles; orphan segments (and any other file in tiles/) are removed.
-  Loaded load();
+  // back as queued tiles; a done row whose record is unreadable, damaged or another tile's is
+  // dropped (the tile is rendered again); orphan segments (and any other file in tiles/) are
+  // removed.
+  Loaded load(const TileCheck& check = {});
 
   // --- writes (queued; applied in order by the writer thread) ---------------------------------
   void job_submitted(const JobSnapshot& s);
@@ -107,10 +116,16 @@ class JobStore {
 
   void push(Op op);
   void writer_loop();
-  void apply(std::vector<Op>& batch);  // throws on failure (the transaction is rolled back)
+  // Applies the batch; throws on failure (the transaction is rolled back). With `new_segment`
+  // false, tiles that would need one (tiles of frames not acknowledged in this batch) are left
+  // out and returned, to be retried: the rest (acknowledgements, whose commit frees segments,
+  // evictions, job and lease rows) must not wait behind writes a full disk cannot take.
+  std::vector<Op> apply(std::vector<Op>& batch, bool new_segment = true);
   void exec(const char* sql);
   sqlite3_stmt* prepare(const char* sql);
   void open_database();
+  // Throws when the database is missing or empty but the directory holds tiles it described.
+  void refuse_lost_database();
   void close_handles();  // finalizes statements and closes both connections (idempotent)
   // Segment bookkeeping (writer thread, and load() before it): which segment holds each tile of
   // an unacknowledged frame of a resident job, and how many such tiles each segment holds. A
@@ -120,6 +135,14 @@ class JobStore {
   void track_tile(const TileKey& key, int64_t segment);
   void release_frame(const FrameKey& frame, std::vector<int64_t>& emptied);
   void release_job(const JobId& job, std::vector<int64_t>& emptied);
+  // Full disk, SQLite included: deletes now the segments the queued acknowledgements and
+  // evictions will free once committed (see the .cpp for the crash trade-off).
+  void reclaim_delivered(const std::vector<Op>& pending);
+  // <data-dir>/.reserve: space held back for SQLite on a full disk (see the .cpp).
+  static constexpr off_t kReserveBytes = 512 * 1024;
+  void make_reserve();
+  void release_reserve();  // and checkpoint the WAL (TRUNCATE)
+  bool reserve_wanted_ = false;  // writer thread only (and the constructor)
   std::map<FrameKey, std::map<int, int64_t>> frame_tiles_;
   std::unordered_map<int64_t, int64_t> segment_live_;
 

@@ -4,6 +4,7 @@
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -17,6 +18,25 @@
 #include "job_store.h"
 #include "request_limits.h"
 #include "worker_service.h"
+
+namespace {
+
+// Every connection costs a descriptor, and gRPC 1.51 (Debian bookworm) stops accepting for good
+// when accept4() fails with EMFILE: the listener is dropped, connections queue and are never
+// served again. The usual soft limit (1024) is reached by a thousand idle connections; the hard
+// limit is far higher. So take all of it, at start, and say what it is.
+void raise_descriptor_limit() {
+  rlimit lim{};
+  if (getrlimit(RLIMIT_NOFILE, &lim) != 0) return;
+  const rlim_t before = lim.rlim_cur;
+  if (lim.rlim_cur < lim.rlim_max) {
+    lim.rlim_cur = lim.rlim_max;
+    if (setrlimit(RLIMIT_NOFILE, &lim) != 0) lim.rlim_cur = before;
+  }
+  spdlog::info("descriptor limit {} (was {}; hard limit {})", lim.rlim_cur, before, lim.rlim_max);
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace tessera::server;
@@ -52,6 +72,11 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(size_t(0), size_t(1) << 24))->capture_default_str();
   ServerSecurity security;
   security.add_flags(app);
+  std::vector<std::string> admins;
+  app.add_option("--admin", admins,
+                 "A client identity that may watch, cancel and acknowledge every client's jobs "
+                 "(token:NAME of a named client token, cn:NAME of a TLS client certificate); repeatable")
+      ->group("Security");
   Limits limits;
   limits.add_flags(app);
   app.set_version_flag("--version", "tessera-server 0.1.0");
@@ -68,6 +93,7 @@ int main(int argc, char** argv) {
 
   spdlog::set_level(spdlog::level::from_str(log_level));
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
+  raise_descriptor_limit();
 
   // Signals are taken by one thread with sigwait: block them before any thread starts.
   sigset_t sigs;
@@ -99,7 +125,7 @@ int main(int argc, char** argv) {
   opts.retention = std::chrono::seconds(int64_t(retention_hours * 3600));
   opts.watch_backlog_tiles = watch_backlog_tiles;
   Coordinator coordinator(opts, *store, jobs.get());
-  ClientServiceImpl client_service(coordinator, auth, limits);
+  ClientServiceImpl client_service(coordinator, auth, limits, {admins.begin(), admins.end()});
   WorkerServiceImpl worker_service(coordinator, auth);
 
   grpc::EnableDefaultHealthCheckService(true);
@@ -114,10 +140,19 @@ int main(int argc, char** argv) {
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5000);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
+  // A connection that has not completed its handshake (TLS and HTTP/2 preface) within 10 s is
+  // closed (gRPC's default is 120 s): idle or garbage connections cannot hold descriptors long.
+  builder.AddChannelArgument(GRPC_ARG_SERVER_HANDSHAKE_TIMEOUT_MS, 10000);
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || port == 0) {
     std::cerr << "tessera-server: cannot listen on " << listen << " (address in use or not local?)\n";
     return 1;
+  }
+  // Probes may ask about each service by name, not only the whole server ("").
+  if (auto* health = server->GetHealthCheckService()) {
+    for (const char* name : {"tessera.v1.ClientService", "tessera.v1.WorkerService"}) {
+      health->SetServingStatus(name, true);
+    }
   }
   const std::string host = listen.substr(0, listen.rfind(':'));
   spdlog::info("tessera-server 0.1.0: data in {}, heartbeat {} ms, lease timeout {} ms", data_dir, heartbeat_ms,

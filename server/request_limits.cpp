@@ -19,6 +19,11 @@ void Limits::add_flags(CLI::App& app) {
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40))->capture_default_str()->group("Limits");
   app.add_option("--max-jobs-per-client", max_jobs_per_client, "Most queued or running jobs per client")
       ->check(CLI::Range(1, 1000000))->capture_default_str()->group("Limits");
+  app.add_option("--max-concurrent-uploads", max_concurrent_uploads,
+                 "Most bundle uploads in progress at once (each streams to disk: one chunk of memory)")
+      ->check(CLI::Range(1, 10000))
+      ->group("Limits")
+      ->capture_default_str();
 }
 
 grpc::Status over_limit(grpc::StatusCode code, const std::string& what, int64_t value, const char* flag,
@@ -60,12 +65,13 @@ void JobQuota::restore(const std::string& client, const std::string& job_id) {
   jobs_[client].insert(job_id);
 }
 
-std::string client_identity(const grpc::ServerContextBase& ctx) {
+std::string client_identity(const grpc::ServerContextBase& ctx, const std::string& token_name) {
   if (auto auth = ctx.auth_context()) {
     for (const auto& cn : auth->FindPropertyValues(GRPC_X509_CN_PROPERTY_NAME)) {
       return "cn:" + std::string(cn.data(), cn.size());
     }
   }
+  if (!token_name.empty()) return "token:" + token_name;
   // "ipv4:127.0.0.1:54321" / "ipv6:[::1]:54321": the address without the port.
   const std::string peer = ctx.peer();
   const auto colon = peer.rfind(':');

@@ -29,6 +29,7 @@ struct Limits {
   int max_frames = 10000;                     // frames in one job
   uint64_t max_primitives = 20000000;         // triangles of every mesh instance + spheres + planes
   int max_jobs_per_client = 100;              // queued or running jobs of one client identity
+  int max_concurrent_uploads = 4;             // bundle uploads in progress at once (bundle_upload.h)
 
   // Adds --max-message-bytes, --max-bundle-bytes, ... to the server's command line.
   void add_flags(CLI::App& app);
@@ -62,8 +63,10 @@ class JobQuota {
   std::map<std::string, int> pending_;
 };
 
-// The identity a client's jobs are counted under.
-std::string client_identity(const grpc::ServerContextBase& ctx);
+// The identity a client's jobs are counted under and owned by (job_access.h): "cn:CN" of a TLS
+// client certificate, else "token:NAME" of a named client token (`token_name`, from
+// Authenticator::check), else the peer's address without the port.
+std::string client_identity(const grpc::ServerContextBase& ctx, const std::string& token_name = {});
 
 template <class ActiveFn>
 grpc::Status JobQuota::reserve(const std::string& client, ActiveFn active) {

@@ -442,6 +442,13 @@ void Scheduler::restore(JobRecord rec) {
     const int fi = f - job.spec.first_frame;
     if (fi >= 0 && fi < frames && job.frames[size_t(fi)].done == per_frame) job.frames[size_t(fi)].acknowledged = true;
   }
+  // A job stored as done whose tiles are not all there any more (a damaged or lost segment
+  // record, dropped by the store) runs again: "done" would be a lie, and the client would be
+  // told every frame is ready while one is short. Cancelled and failed jobs stay as they are.
+  if (job.state == JobState::kDone && job.tiles_done < int64_t(frames) * per_frame) {
+    job.state = JobState::kRunning;
+    job.ended.reset();
+  }
   if (!job_ended(job.state)) {
     // Leases in flight at the crash come back as queued tiles, oldest work first.
     for (int f = 0; f < frames; ++f) {

@@ -347,6 +347,26 @@ TEST_F(SchedulerTest, RestoredJobWithEveryTileDoneIsDone) {
   EXPECT_EQ(s.queued_tiles(), 0u);
 }
 
+TEST_F(SchedulerTest, RestoredDoneJobWithALostTileRunsAgain) {
+  // Stored as done, but the store dropped one tile whose record was unreadable (issue 15,
+  // defect 4): the job must run again for that tile rather than stay done one tile short.
+  JobRecord r;
+  r.id = "old";
+  r.spec = spec(32, 16, 16);  // 2 tiles
+  r.state = JobState::kDone;
+  r.ended = Clock::now();
+  r.done.push_back({0, 1, out()});
+  s.restore(r);
+  EXPECT_EQ(s.job("old")->state, JobState::kRunning);
+  EXPECT_FALSE(s.job("old")->ended);
+  const WorkerId a = worker("a");
+  auto got = pull(a, 2);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].lease.tile.tile, 0);
+  EXPECT_EQ(s.complete(a, got[0].lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  EXPECT_EQ(s.job("old")->state, JobState::kDone);
+}
+
 TEST_F(SchedulerTest, ForgetDropsOnlyEndedJobs) {
   const JobId id = s.submit(spec(16, 16, 16));
   EXPECT_FALSE(s.forget(id));  // still queued

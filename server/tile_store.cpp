@@ -158,7 +158,7 @@ TileStore::ReadResult TileStore::read(const Location& at) const {
     if (!read_exact(bytes.data(), bytes.size(), at.offset + int64_t(kHeaderSize))) {
       out.error = where + ": the record is cut short (file too short)";
     } else if (crc32_ieee(bytes.data(), bytes.size()) != get_u32(header + 8)) {
-      out.error = where + ": CRC mismatch, the tile's bytes are damaged";
+      out.error = where + ": checksum error (CRC-32 mismatch): the tile's bytes are damaged";
     } else {
       out.bytes = std::move(bytes);
     }

@@ -91,7 +91,12 @@ int WorkerConnection::run() {
     std::uniform_real_distribution<double> jitter(0.8, 1.2);
     const auto wait = std::chrono::milliseconds(int64_t(double(backoff.count()) * jitter(rng)));
     spdlog::info("reconnecting to {} in {:.1f} s", options_.coordinator, wait.count() / 1000.0);
-    sleep_backoff(wait);
+    if (channel_->GetState(false) == GRPC_CHANNEL_READY) {
+      sleep_backoff(wait);  // connected yet refused (a bad token...): the backoff is what it is for
+    } else {
+      // The coordinator is away: go as soon as it listens again, not when the backoff ends.
+      farm::wait_for_coordinator(*channel_, wait, [this] { return stop_.load(); });
+    }
     backoff = std::min(options_.backoff_max, backoff * 2);
   }
   spdlog::info("worker stopped");

@@ -100,7 +100,7 @@ Material map_material(const aiMaterial* m, const std::string& file) {
 }  // namespace
 
 MeshLoadResult load_mesh(const std::string& path, const std::vector<std::string>& exclude,
-                         const std::string& confine_to) {
+                         const std::string& confine_to, uint64_t max_triangles) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) {
     throw SceneError(path + ": mesh file not found");
@@ -134,6 +134,26 @@ MeshLoadResult load_mesh(const std::string& path, const std::vector<std::string>
   auto excluded = [&](const aiString& n) {
     return std::find(exclude.begin(), exclude.end(), std::string(n.C_Str())) != exclude.end();
   };
+  if (max_triangles > 0) {
+    // Count what the walk below would create, without creating it (faces, per node instance).
+    uint64_t total = 0;
+    std::vector<const aiNode*> todo{ai->mRootNode};
+    while (!todo.empty()) {
+      const aiNode* node = todo.back();
+      todo.pop_back();
+      if (node != ai->mRootNode && excluded(node->mName)) continue;
+      for (unsigned c = 0; c < node->mNumChildren; ++c) todo.push_back(node->mChildren[c]);
+      for (unsigned k = 0; k < node->mNumMeshes; ++k) {
+        const aiMesh* am = ai->mMeshes[node->mMeshes[k]];
+        if (excluded(am->mName) || !(am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+        total += am->mNumFaces;
+      }
+      if (total > max_triangles) {
+        throw SceneError(path + ": its nodes instance more than " + std::to_string(max_triangles) +
+                         " triangles (the scene has more primitives than allowed): limit max_primitives");
+      }
+    }
+  }
   Mesh& mesh = result.mesh;
   // Walk the node tree so per-node transforms (glTF) are baked in, and named parts can be skipped.
   struct Item { const aiNode* node; aiMatrix4x4 to_root; };

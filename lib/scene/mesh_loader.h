@@ -1,6 +1,8 @@
 // Loads triangle meshes with assimp (OBJ+MTL, PLY ascii/binary, glTF 2.0, ...).
 #pragma once
 
+#include <cstdint>
+
 #include <string>
 #include <vector>
 
@@ -24,7 +26,11 @@ struct MeshLoadResult {
 // With `confine_to` set, every file the importer opens (the mesh and its side files: an OBJ's
 // material libraries, a glTF's buffers) must lie inside that directory; one outside is refused
 // and the load fails with a SceneError naming it.
+// With `max_triangles` > 0, the triangles the node tree instances (each node's meshes, counted
+// once per node that uses them) are counted *before* anything is flattened, and a file over the
+// limit is refused with a SceneError ending in "limit max_primitives": a small file whose nodes
+// instance one big mesh a thousand times must not make the loader allocate a gigabyte first.
 MeshLoadResult load_mesh(const std::string& path, const std::vector<std::string>& exclude = {},
-                         const std::string& confine_to = {});
+                         const std::string& confine_to = {}, uint64_t max_triangles = 0);
 
 }  // namespace tessera

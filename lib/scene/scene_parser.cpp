@@ -332,7 +332,12 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
         }
         MeshLoadResult loaded;
         try {
-          loaded = load_mesh(mesh_path.string(), exclude, options.confine_to);
+          // The remaining budget: a file over it is refused before it is flattened.
+          const uint64_t budget =
+              options.max_primitives == 0
+                  ? 0
+                  : std::max<uint64_t>(1, options.max_primitives - std::min(options.max_primitives, primitives));
+          loaded = load_mesh(mesh_path.string(), exclude, options.confine_to, budget);
         } catch (const SceneError& e) {
           o.at("file").fail(e.what());
         }

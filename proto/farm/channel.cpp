@@ -90,7 +90,8 @@ grpc::ChannelArguments coordinator_channel_args() {
 
 std::shared_ptr<grpc::Channel> make_coordinator_channel(const std::string& address, const ChannelSecurity& security) {
   grpc::ChannelArguments args = coordinator_channel_args();
-  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 200);
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
   std::shared_ptr<grpc::ChannelCredentials> creds;
   if (!security.tls_ca.empty()) {
     grpc::SslCredentialsOptions ssl;
@@ -113,6 +114,17 @@ std::shared_ptr<grpc::Channel> make_coordinator_channel(const std::string& addre
   std::vector<std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface>> interceptors;
   interceptors.push_back(std::make_unique<BearerFactory>(security.token));
   return grpc::experimental::CreateCustomChannelWithInterceptors(address, creds, args, std::move(interceptors));
+}
+
+bool wait_for_coordinator(grpc::Channel& channel, std::chrono::milliseconds up_to, const std::function<bool()>& stop) {
+  const auto end = std::chrono::system_clock::now() + up_to;
+  while (!(stop && stop())) {
+    const auto now = std::chrono::system_clock::now();
+    if (now >= end) return false;
+    // WaitForConnected asks the channel to connect (GetState(true)) and returns once it is.
+    if (channel.WaitForConnected(std::min(end, now + std::chrono::milliseconds(100)))) return true;
+  }
+  return false;
 }
 
 }  // namespace tessera::farm

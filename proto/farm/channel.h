@@ -3,6 +3,8 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include <chrono>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -19,8 +21,9 @@ struct ChannelSecurity {
 
 // Keepalive pings (10 s, 10 s timeout, also without calls) notice a coordinator that vanished
 // without closing the connection on long-lived streams; 64 MiB messages carry tiles and
-// bundles; gRPC's own reconnect backoff is capped at 2 s so a restarted coordinator is found
-// quickly (callers add their own backoff on top). The token is added by a client interceptor,
+// bundles; gRPC's own reconnect backoff starts at 200 ms and is capped at 1 s so a restarted
+// coordinator is found within about a second (callers wait with wait_for_coordinator, not a
+// blind sleep). The token is added by a client interceptor,
 // the one place every call of the channel passes, on plaintext and TLS channels alike (gRPC's
 // call credentials refuse to travel without TLS). Throws std::runtime_error for unreadable
 // certificate files.
@@ -30,6 +33,14 @@ grpc::ChannelArguments coordinator_channel_args();
 
 std::shared_ptr<grpc::Channel> make_coordinator_channel(const std::string& address,
                                                         const ChannelSecurity& security = {});
+
+// Waits up to `up_to` for the channel to be connected, returning true as soon as it is (false
+// on timeout, or when `stop` says so; it is polled every 100 ms). A peer that lost its
+// coordinator waits with this instead of sleeping its backoff: gRPC keeps retrying the
+// connection by itself (at most 1 s apart), so a coordinator that is listening again is used at
+// once, however long the peer's own backoff has grown (issue 15, defect 8).
+bool wait_for_coordinator(grpc::Channel& channel, std::chrono::milliseconds up_to,
+                          const std::function<bool()>& stop = {});
 
 // A token: the contents of `file` if given (surrounding whitespace dropped), else the environment
 // variable `env` (kept out of the command line, so it does not show in `ps`), else empty.

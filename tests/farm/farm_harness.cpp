@@ -137,9 +137,13 @@ void Farm::start_server(const std::vector<std::string>& extra) {
   throw std::runtime_error("tessera-server did not report its port:\n" + server_->log());
 }
 
-void Farm::restart_server(std::chrono::milliseconds down) {
+void Farm::stop_server() {
   server_->signal(SIGKILL);
   server_->wait(10s);
+}
+
+void Farm::restart_server(std::chrono::milliseconds down) {
+  stop_server();
   std::this_thread::sleep_for(down);
   start_server(server_extra_);
 }

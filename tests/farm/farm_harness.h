@@ -54,6 +54,10 @@ class Farm {
   void start_server(const std::vector<std::string>& extra = {});
   // kill -9 the coordinator, then start it again on the same port and data dir (same extra args).
   void restart_server(std::chrono::milliseconds down = std::chrono::milliseconds(0));
+  // kill -9 the coordinator and wait for it (a test then damages its files and calls
+  // start_server() again, which reuses the port).
+  void stop_server();
+  const std::vector<std::string>& server_extra() const { return server_extra_; }
   // Every coordinator log of this farm, oldest first (one per start).
   std::string server_logs() const;
   fs::path data_dir() const { return dir_ / "server-data"; }

@@ -13,6 +13,7 @@ Checks (each prints "ok CHECK" or raises):
 import hashlib
 import os
 import sys
+import time
 
 import tessera_stubs
 
@@ -88,6 +89,67 @@ def main():
             expect(grpc.StatusCode.INVALID_ARGUMENT,
                    lambda: stub.SubmitJob(cs.SubmitJobRequest(bundle_sha256=sha), timeout=10),
                    "mtllib outside the bundle", "invalid scene: s.json: objects[0].file: m.obj: refers to", forbid=tmp)
+        elif check == "instance-bomb":
+            # issue 15, defect 2: a glTF of ~0.8 MB whose 1,000 nodes all instance one
+            # 20,000-triangle mesh (its buffer in a side .bin): 20 M triangles once flattened.
+            # The coordinator (--max-primitives 100000) must refuse it before flattening; the
+            # test reads its peak memory afterwards.
+            import json, struct
+            tris = 20000
+            verts = []
+            for t in range(tris):
+                x, y = (t % 200) * 0.01, (t // 200) * 0.01
+                verts += [x, y, 0.0, x + 0.01, y, 0.0, x, y + 0.01, 0.0]
+            buf = struct.pack("<%df" % len(verts), *verts)
+            gltf = {"asset": {"version": "2.0"}, "scene": 0,
+                    "scenes": [{"nodes": list(range(1000))}],
+                    "nodes": [{"mesh": 0, "translation": [i * 0.001, 0, 0]} for i in range(1000)],
+                    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+                    "buffers": [{"uri": "m.bin", "byteLength": len(buf)}],
+                    "bufferViews": [{"buffer": 0, "byteLength": len(buf)}],
+                    "accessors": [{"bufferView": 0, "componentType": 5126, "count": tris * 3, "type": "VEC3",
+                                   "min": [0, 0, 0], "max": [2.01, 1.01, 0]}]}
+            scene = (b'{"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1, 0], "vfov_deg": 40},'
+                     b' "objects": [{"type": "mesh", "file": "m.gltf"}]}')
+            sha = upload(common.Bundle(scene_file="s.json", files=[
+                common.BundleFile(path="s.json", content=scene),
+                common.BundleFile(path="m.gltf", content=json.dumps(gltf).encode()),
+                common.BundleFile(path="m.bin", content=buf)]))
+            expect(grpc.StatusCode.RESOURCE_EXHAUSTED,
+                   lambda: stub.SubmitJob(cs.SubmitJobRequest(bundle_sha256=sha), timeout=120),
+                   "1,000 instances of a 20,000-triangle mesh", "limit max_primitives")
+        elif check == "upload-flood":
+            # issue 15, defect 3: four concurrent 100 MB uploads announcing a wrong hash (the
+            # server runs with --max-concurrent-uploads 4): each refused at its end for the hash,
+            # a fifth at the same time refused at once; the test reads the peak memory after.
+            import threading
+            chunk = b"\x5a" * (1 << 20)
+            release = threading.Event()
+            results = {}
+
+            def flood(i, mib):
+                def chunks():
+                    yield common.BundleChunk(sha256="0" * 64, data=chunk)
+                    release.wait(60)  # hold the slot until every upload has started
+                    for _ in range(mib - 1):
+                        yield common.BundleChunk(data=chunk)
+                try:
+                    stub.UploadBundle(chunks(), timeout=300)
+                    results[i] = "accepted"
+                except grpc.RpcError as e:
+                    results[i] = f"{e.code().name}: {e.details()}"
+
+            threads = [threading.Thread(target=flood, args=(i, 100)) for i in range(4)]
+            for t in threads: t.start()
+            time.sleep(2)  # the four are in progress (each sent its first chunk)
+            fifth = threading.Thread(target=flood, args=(4, 1))
+            fifth.start(); fifth.join(60)
+            release.set()
+            for t in threads: t.join(300)
+            print("  results:", results)
+            assert results[4].startswith("RESOURCE_EXHAUSTED") and "--max-concurrent-uploads" in results[4], results[4]
+            for i in range(4):
+                assert results[i].startswith("INVALID_ARGUMENT") and "not to the announced" in results[i], results[i]
         elif check == "token-roles":
             md = [("authorization", "Bearer " + os.environ["PROBE_WORKER_TOKEN"])]
             expect(grpc.StatusCode.UNAUTHENTICATED,
