@@ -1,6 +1,5 @@
 // Uploading a scene bundle to the coordinator unless it has it already (HasBundle, then
-// UploadBundle in 1 MiB chunks). Used by `tessera rays --server`; `tessera submit` has its own
-// copy in farm_commands.cpp (see docs/rays.md: to be folded into this one).
+// UploadBundle in 1 MiB chunks). Used by `tessera submit` and `tessera rays --server`.
 #pragma once
 
 #include "farm/bundle.h"

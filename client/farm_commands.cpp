@@ -18,6 +18,7 @@
 #include "commands.h"
 #include "farm/bundle.h"
 #include "farm/codec.h"
+#include "bundle_upload.h"
 #include "farm_client.h"
 #include "farm_frames.h"
 #include "image_options.h"
@@ -331,29 +332,11 @@ struct SubmitArgs {
 };
 
 void upload_if_missing(FarmClient& client, const farm::BuiltBundle& b) {
-  v1::HasBundleRequest hreq;
-  hreq.set_sha256(b.sha256);
-  v1::HasBundleResponse hresp;
-  auto ctx = client.context();
-  grpc::Status s = client.stub().HasBundle(ctx.get(), hreq, &hresp);
-  if (!s.ok()) throw FarmError{kExitFailure, client.describe(s, "checking for the scene bundle")};
-  if (hresp.present()) return;
-  // Generous deadline for the upload: a minute plus a second per MiB.
-  auto uctx = FarmClient::context(std::chrono::seconds(60 + int64_t(b.bytes.size() >> 20)));
-  v1::UploadBundleResponse uresp;
-  auto writer = client.stub().UploadBundle(uctx.get(), &uresp);
-  const size_t chunk = size_t(1) << 20;
-  size_t off = 0;
-  do {
-    v1::BundleChunk c;
-    if (off == 0) c.set_sha256(b.sha256);
-    c.set_data(b.bytes.substr(off, chunk));
-    off += chunk;
-    if (!writer->Write(c)) break;
-  } while (off < b.bytes.size());
-  writer->WritesDone();
-  s = writer->Finish();
-  if (!s.ok()) throw FarmError{kExitFailure, client.describe(s, "uploading the scene bundle")};
+  try {
+    if (!upload_bundle_if_missing(client, b)) return;
+  } catch (const std::runtime_error& e) {
+    throw FarmError{kExitFailure, e.what()};
+  }
   std::printf("uploaded scene bundle %s (%zu files, %zu bytes)\n", b.sha256.substr(0, 12).c_str(), b.files,
               b.bytes.size());
 }
