@@ -43,6 +43,14 @@ int run_render(const RenderArgs& a) {
     std::cerr << "tessera render: " << e.what() << "\n";
     return 2;
   }
+  // The farm confines a scene to its bundle (files under the scene's folder); locally nothing is
+  // refused, but a scene that reads elsewhere (an absolute or ../ mtllib, say) is not portable.
+  for (const std::string& dep : scene.dependencies) {
+    const std::filesystem::path p = std::filesystem::path(dep).lexically_normal();
+    if (p.is_absolute() || (!p.empty() && *p.begin() == "..")) {
+      spdlog::warn("{}: reads '{}', outside the scene's folder: `tessera submit` cannot bundle it", a.scene, dep);
+    }
+  }
   if (a.frame < 0 || a.frame >= scene.frame_count()) {
     std::cerr << "tessera render: --frame: must be in [0, " << scene.frame_count() - 1 << "], got " << a.frame
               << "\n";

@@ -171,6 +171,25 @@ TEST_F(RenderCli, BadTargetErrorSettingsNameTheFlagAndTheAllowedValues) {
   }
 }
 
+TEST_F(RenderCli, ASceneReadingOutsideItsFolderRendersWithAWarning) {
+  // An OBJ whose mtllib is an absolute path elsewhere: `tessera render` follows it (it is the
+  // user's own machine) but says that the farm cannot bundle it.
+  fs::create_directories(dir_ / "elsewhere");
+  fs::create_directories(dir_ / "scene");
+  std::ofstream(dir_ / "elsewhere/m.mtl") << "newmtl red\nKd 0.8 0.1 0.1\n";
+  std::ofstream(dir_ / "scene/tri.obj") << "mtllib " << (dir_ / "elsewhere/m.mtl").string()
+                                        << "\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nusemtl red\nf 1 2 3\n";
+  std::ofstream(dir_ / "scene/s.json") << R"({"camera": {"position": [0,0,4], "look_at": [0,0,0]},
+    "lights": [{"type": "point", "position": [0, 0, 3], "intensity": 10}],
+    "materials": {"m": {"type": "diffuse"}},
+    "objects": [{"type": "mesh", "file": "tri.obj", "material": "m"}]})";
+  const CmdResult r = run(kTessera + " render " + (dir_ / "scene/s.json").string() + " --width 8 --height 8 -q -o " +
+                          (dir_ / "x.exr").string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("outside the scene's folder"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("m.mtl"), std::string::npos) << r.output;
+}
+
 TEST_F(RenderCli, EveryEdgeCaseMeshRendersOrFailsCleanly) {
   // No crash on any file that breaks naive loaders: exit status 0 or 2, never a signal.
   const fs::path cases = fs::path(TESSERA_SOURCE_DIR) / "tests/data/obj-edge-cases";
