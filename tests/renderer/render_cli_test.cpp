@@ -172,13 +172,12 @@ TEST_F(RenderCli, BadTargetErrorSettingsNameTheFlagAndTheAllowedValues) {
 }
 
 TEST_F(RenderCli, ASceneReadingOutsideItsFolderRendersWithAWarning) {
-  // An OBJ whose mtllib is an absolute path elsewhere: `tessera render` follows it (it is the
+  // An OBJ whose mtllib lies outside the scene's folder: `tessera render` follows it (it is the
   // user's own machine) but says that the farm cannot bundle it.
   fs::create_directories(dir_ / "elsewhere");
   fs::create_directories(dir_ / "scene");
   std::ofstream(dir_ / "elsewhere/m.mtl") << "newmtl red\nKd 0.8 0.1 0.1\n";
-  std::ofstream(dir_ / "scene/tri.obj") << "mtllib " << (dir_ / "elsewhere/m.mtl").string()
-                                        << "\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nusemtl red\nf 1 2 3\n";
+  std::ofstream(dir_ / "scene/tri.obj") << "mtllib ../elsewhere/m.mtl\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nusemtl red\nf 1 2 3\n";
   std::ofstream(dir_ / "scene/s.json") << R"({"camera": {"position": [0,0,4], "look_at": [0,0,0]},
     "lights": [{"type": "point", "position": [0, 0, 3], "intensity": 10}],
     "materials": {"m": {"type": "diffuse"}},
