@@ -350,6 +350,12 @@ int run_submit(const SubmitArgs& a) {
   } catch (const SceneError& e) {
     throw FarmError{kExitBadInput, e.what()};
   }
+  if (a.image.gltf_given()) {
+    // Workers and the coordinator read the bundle's glTF with the defaults: the job's overrides
+    // do not carry these yet, and a farm frame must equal `tessera render`'s.
+    throw FarmError{kExitBadInput, "--camera, --scene-index and --fps are not carried to the farm yet: it renders a "
+                                   "glTF's first camera of its default scene at 24 fps (use tessera render for others)"};
+  }
   int first = 0, last = scene.frame_count() - 1;
   if (!a.frames.empty()) {
     const auto dash = a.frames.find('-');

@@ -9,8 +9,10 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <functional>
+#include <numbers>
 #include <sstream>
 
+#include "scene/gltf_scene.h"
 #include "scene/json_reader.h"
 #include "scene/mesh_loader.h"
 
@@ -282,12 +284,21 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
   if (auto lights = r.find("lights")) {
     for (const auto& l : lights->array()) {
       Light light;
-      const std::string type = l.at("type").one_of({"point", "directional"});
-      if (type == "point") {
-        light.type = Light::Type::kPoint;
+      const std::string type = l.at("type").one_of({"point", "spot", "directional"});
+      if (type == "point" || type == "spot") {
+        light.type = type == "point" ? Light::Type::kPoint : Light::Type::kSpot;
         light.position = read_point(l.at("position"));
         light.intensity = l.at("intensity").rgb(kMaxRadiance);
-      } else {
+      }
+      if (type == "spot") {
+        light.direction = read_direction(l.at("direction"));
+        const double outer = l.at("outer_cone_deg").number_in(0.0, 90.0, true);
+        double inner = 0;
+        if (auto v = l.find("inner_cone_deg")) inner = v->number_in(0.0, outer);
+        if (inner >= outer) l.at("inner_cone_deg").fail("must be less than outer_cone_deg");
+        light.inner_cone_rad = inner * std::numbers::pi / 180;
+        light.outer_cone_rad = outer * std::numbers::pi / 180;
+      } else if (type == "directional") {
         light.type = Light::Type::kDirectional;
         light.direction = read_direction(l.at("direction"));
         light.irradiance = l.at("irradiance").rgb(kMaxRadiance);
@@ -424,6 +435,7 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
 }
 
 Scene load_scene(const std::string& path, const SceneLoadOptions& options) {
+  if (is_gltf_path(path)) return load_gltf_scene(path, options);  // a glTF file is a whole scene
   std::error_code ec;
   if (!fs::exists(path, ec)) throw SceneError(path + ": scene file not found");
   if (!fs::is_regular_file(path, ec)) throw SceneError(path + ": not a regular file");
@@ -443,6 +455,12 @@ void apply_overrides(Scene& scene, const ImageOverrides& o) {
   };
   if (o.width) { check("width", *o.width, 1, SceneLimits::kMaxResolution); scene.image.width = *o.width; }
   if (o.height) { check("height", *o.height, 1, SceneLimits::kMaxResolution); scene.image.height = *o.height; }
+  if (scene.camera_aspect && (o.width.has_value() != o.height.has_value())) {
+    // A glTF camera's aspect ratio fills in the side not given.
+    const double a = *scene.camera_aspect;
+    if (o.width) scene.image.height = std::clamp(int(std::lround(*o.width / a)), 1, SceneLimits::kMaxResolution);
+    else scene.image.width = std::clamp(int(std::lround(*o.height * a)), 1, SceneLimits::kMaxResolution);
+  }
   if (o.spp) { check("spp", *o.spp, 1, SceneLimits::kMaxSpp); scene.image.spp = *o.spp; }
   if (o.max_depth) { check("max-depth", *o.max_depth, 0, SceneLimits::kMaxDepth); scene.image.max_depth = *o.max_depth; }
   if (o.seed) scene.image.seed = *o.seed;
