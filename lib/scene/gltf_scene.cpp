@@ -281,6 +281,17 @@ Scene load_gltf_scene(const std::string& path, const SceneLoadOptions& options) 
   std::error_code ec;
   if (!fs::exists(path, ec)) throw SceneError(path + ": scene file not found");
   if (!fs::is_regular_file(path, ec)) throw SceneError(path + ": not a regular file");
+  const uint64_t size = fs::file_size(path, ec);
+  if (ec || size > options.max_file_bytes) {
+    throw SceneError(path + ": larger than " + std::to_string(options.max_file_bytes) + " bytes");
+  }
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes(size_t(size), '\0');
+  if (!in.read(bytes.data(), std::streamsize(size))) throw SceneError(path + ": cannot read the file");
+  return parse_gltf_scene(bytes, path, options);
+}
+
+Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const SceneLoadOptions& options) {
   const std::string file_name = fs::path(path).filename().string();
 
   // Every file tinygltf reads goes through here: confined to the bundle, size-limited, recorded
@@ -339,12 +350,15 @@ Scene load_gltf_scene(const std::string& path, const SceneLoadOptions& options) 
       nullptr);
   tinygltf::Model model;
   std::string err, warn;
-  std::string ext = fs::path(path).extension().string();
-  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (bytes.size() > options.max_file_bytes || bytes.size() > 0xFFFFFFFFu) throw SceneError(path + ": file too large");
   bool ok = false;
+  const std::string base_dir = fs::path(path).parent_path().string();
   try {
-    ok = ext == ".glb" ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
-                       : loader.LoadASCIIFromFile(&model, &err, &warn, path);
+    // Binary glTF by its magic, whatever the name says.
+    ok = bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0
+             ? loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
+                                           unsigned(bytes.size()), base_dir)
+             : loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), unsigned(bytes.size()), base_dir);
   } catch (const std::exception& e) {
     throw SceneError(path + ": invalid glTF: " + e.what());
   }

@@ -19,5 +19,8 @@ bool is_gltf_path(const std::string& path);
 // Throws SceneError naming the file and the glTF path of the fault, e.g.
 // "a.gltf: meshes[2].primitives[0].indices: accessor 7 reads past the end of bufferView 3".
 Scene load_gltf_scene(const std::string& path, const SceneLoadOptions& options);
+// The same for the file's bytes (a .glb by its "glTF" magic, else JSON); `path` names the file in
+// messages and anchors relative URIs (the fuzz target's entry).
+Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const SceneLoadOptions& options);
 
 }  // namespace tessera
