@@ -193,6 +193,14 @@ TEST_F(GltfSceneTest, BadFilesGetOneErrorNamingTheFileAndTheGltfPath) {
   }
 }
 
+TEST_F(GltfSceneTest, SeparateBuffersAreDependenciesForTheBundle) {
+  fs::create_directories(dir_ / "sub");
+  minimal().write_separate((dir_ / "sub" / "s.gltf").string(), "s data.bin");
+  const Scene s = load_scene((dir_ / "sub" / "s.gltf").string());
+  EXPECT_EQ(s.dependencies, std::vector<std::string>{"s data.bin"});
+  EXPECT_EQ(s.meshes.size(), 1u);
+}
+
 TEST_F(GltfSceneTest, BuffersOutsideTheBundleAreRefused) {
   GltfBuilder b = minimal();
   nlohmann::json d = nlohmann::json::parse(b.text());

@@ -77,6 +77,14 @@ class GltfBuilder {
     return d.dump();
   }
   void write(const std::string& path) const { std::ofstream(path, std::ios::binary) << text(); }
+  // The .gltf at `path` with its buffer beside it as `bin_name` (a separate-files export).
+  void write_separate(const std::string& path, const std::string& bin_name) const {
+    nlohmann::json d = doc;
+    d["buffers"] = {{{"byteLength", bin_.size()}, {"uri", bin_name}}};
+    std::ofstream(path, std::ios::binary) << d.dump();
+    const std::string dir = path.substr(0, path.find_last_of('/') + 1);
+    std::ofstream(dir + bin_name, std::ios::binary) << bin_;
+  }
 
  private:
   static std::string base64(const std::string& in) {
