@@ -590,7 +590,7 @@ void register_farm_commands(CLI::App& app) {
   {
     auto a = std::make_shared<SubmitArgs>();
     CLI::App* cmd = app.add_subcommand("submit", "Render a scene on the farm and write its frames");
-    cmd->add_option("scene", a->scene, "Scene file (JSON, see docs/scene-format.md)")->required();
+    cmd->add_option("scene", a->scene, "Scene file: JSON, or glTF 2.0 (.gltf/.glb); see docs/scene-format.md")->required();
     cmd->add_option("-o,--output", a->output, "Output EXR path; '#' runs become the frame number");
     add_coordinator_option(cmd, &a->coordinator, &a->security);
     cmd->add_option("--frames", a->frames, "Frames A-B (inclusive) or A (default: all)");
