@@ -115,9 +115,22 @@ int TextureDecoder::decode(size_t t, const std::string& where) {
   const std::string ipath = "images[" + std::to_string(tex.source) + "]";
   Texture out;
   out.name = image.name.empty() ? ipath : image.name;
+  const unsigned char* bytes = image.image.data();
+  size_t size = image.image.size();
+  if (image.bufferView >= 0) {
+    if (size_t(image.bufferView) >= model_.bufferViews.size()) fail(ipath + ".bufferView", "does not exist");
+    const tinygltf::BufferView& bv = model_.bufferViews[size_t(image.bufferView)];
+    if (bv.buffer < 0 || size_t(bv.buffer) >= model_.buffers.size()) fail(ipath + ".bufferView", "its buffer does not exist");
+    const auto& buf = model_.buffers[size_t(bv.buffer)].data;
+    if (bv.byteOffset > buf.size() || bv.byteLength > buf.size() - bv.byteOffset) {
+      fail(ipath + ".bufferView", "bufferViews[" + std::to_string(image.bufferView) + "] lies outside its buffer");
+    }
+    bytes = buf.data() + bv.byteOffset;
+    size = bv.byteLength;
+  }
   std::vector<uint8_t> rgb;
   try {
-    rgb = decode_image_rgb8(image.image.data(), image.image.size(), budget_, &out.width, &out.height);
+    rgb = decode_image_rgb8(bytes, size, budget_, &out.width, &out.height);
   } catch (const SceneError& e) {
     fail(ipath, e.what());
   }
