@@ -201,6 +201,34 @@ TEST_F(GltfSceneTest, SeparateBuffersAreDependenciesForTheBundle) {
   EXPECT_EQ(s.meshes.size(), 1u);
 }
 
+TEST_F(GltfSceneTest, JsonSceneIncludesAGltfAndEditsOnTop) {
+  GltfBuilder b = minimal();
+  b.node({{"extensions", {{"KHR_lights_punctual", {{"light", b.light({{"type", "point"}, {"intensity", 683}})}}}}}});
+  fs::create_directories(dir_ / "export");
+  b.write_separate((dir_ / "export" / "s.gltf").string(), "s.bin");
+  std::ofstream(dir_ / "edit.json") << R"({"include": "export/s.gltf",
+    "lights": [{"type": "directional", "direction": [0, -1, 0], "irradiance": 1}],
+    "materials": {"m": {"type": "mirror"}},
+    "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 0.5, "material": "m"}]})";
+  Scene s = load_scene((dir_ / "edit.json").string());
+  EXPECT_DOUBLE_EQ(s.camera.position.z, 5.0);  // the glTF's camera
+  ASSERT_EQ(s.lights.size(), 2u);              // the glTF's point light, then the file's sun
+  EXPECT_EQ(s.lights[0].type, Light::Type::kPoint);
+  EXPECT_EQ(s.lights[1].type, Light::Type::kDirectional);
+  ASSERT_EQ(s.objects.size(), 2u);
+  EXPECT_EQ(s.objects[1].type, SceneObject::Type::kSphere);
+  EXPECT_EQ(s.materials[size_t(s.objects[1].material)].type, Material::Type::kMirror);
+  EXPECT_EQ(s.dependencies, (std::vector<std::string>{"export/s.bin", "export/s.gltf"}));
+  // A camera in the JSON replaces the glTF's.
+  std::ofstream(dir_ / "edit.json") << R"({"include": "export/s.gltf",
+    "camera": {"position": [0, 0, 9], "look_at": [0, 0, 0]}})";
+  s = load_scene((dir_ / "edit.json").string());
+  EXPECT_DOUBLE_EQ(s.camera.position.z, 9.0);
+  std::ofstream(dir_ / "edit.json") << R"({"include": "export/nope.glb"})";
+  EXPECT_NE(error_of((dir_ / "edit.json").string()).find("edit.json: include: "), std::string::npos)
+      << error_of((dir_ / "edit.json").string());
+}
+
 TEST_F(GltfSceneTest, BuffersOutsideTheBundleAreRefused) {
   GltfBuilder b = minimal();
   nlohmann::json d = nlohmann::json::parse(b.text());

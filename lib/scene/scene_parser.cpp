@@ -252,9 +252,41 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
   Scene scene;
   scene.path = path;
 
-  const JsonReader camera = r.at("camera");
-  scene.camera = read_camera_fields(camera, nullptr);
-  camera.reject_unknown();
+  const fs::path dir = fs::path(path).parent_path();
+  // "include": a glTF file's whole scene (camera, lights, materials, objects, animation) as the
+  // base that this file adds to (lights, materials, objects) or replaces (camera, image,
+  // background): hand edits on top of an export, without touching the export.
+  bool included = false;
+  if (auto inc = r.find("include")) {
+    const std::string file = inc->string();
+    if (!is_gltf_path(file)) inc->fail("must name a glTF file (.gltf or .glb)");
+    const fs::path gltf_path = dir / file;
+    if (!options.confine_to.empty()) {
+      const fs::path rel = gltf_path.lexically_normal().lexically_relative(fs::path(options.confine_to).lexically_normal());
+      if (rel.empty() || *rel.begin() == ".." || fs::path(file).is_absolute()) {
+        inc->fail("'" + file + "' is outside the scene bundle (absolute, or climbs out with '..')");
+      }
+    }
+    try {
+      scene = load_gltf_scene(gltf_path.string(), options);
+    } catch (const SceneError& e) {
+      inc->fail(e.what());
+    }
+    scene.path = path;
+    const fs::path gltf_dir = fs::path(file).parent_path();
+    for (auto& d : scene.dependencies) d = (gltf_dir / d).generic_string();
+    scene.dependencies.push_back(file);
+    included = true;
+  }
+
+  if (auto camera = r.find("camera")) {
+    scene.camera = read_camera_fields(*camera, nullptr);
+    camera->reject_unknown();
+    scene.animation.camera.clear();  // an included camera's animation goes with it
+    scene.camera_aspect.reset();
+  } else if (!included) {
+    r.at("camera");
+  }
 
   if (auto img = r.find("image")) {
     ImageSettings& s = scene.image;
@@ -316,11 +348,13 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
     }
   }
 
-  const fs::path dir = fs::path(path).parent_path();
   std::map<std::string, int> object_index;
   std::map<std::string, int> mesh_cache;  // (file + exclusions) -> mesh index
-  uint64_t primitives = 0;
-  for (const auto& o : r.at("objects").array()) {
+  uint64_t primitives = primitive_count(scene);  // an include's objects count too
+  std::vector<JsonReader> objects;
+  if (auto v = r.find("objects")) objects = v->array();
+  else if (!included) r.at("objects");
+  for (const auto& o : objects) {
     std::vector<std::string> exclude;
     SceneObject obj = read_object(o, material_index, &exclude);
     if (obj.type != SceneObject::Type::kMesh && obj.material >= 0 &&
@@ -395,6 +429,7 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
     a.frame_count = int(anim->at("frames").integer_in(1, SceneLimits::kMaxFrames));
     const int last = a.frame_count - 1;
     if (auto cams = anim->find("camera")) {
+      a.camera.clear();  // replaces an included glTF's camera animation
       for (const auto& k : cams->array()) {
         CameraKey key;
         key.frame = int(k.at("frame").integer_in(0, last));
