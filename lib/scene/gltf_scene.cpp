@@ -402,8 +402,7 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
 
   // Meshes: one Scene mesh per glTF mesh (all its triangle primitives), shared by every node
   // that uses it: an instanced mesh is loaded once.
-  size_t dropped_other_modes = 0;
-  uint64_t total_triangles = 0;
+  size_t dropped_other_modes = 0, dropped_degenerate = 0;
   for (size_t mi = 0; mi < model.meshes.size(); ++mi) {
     Mesh mesh;
     const auto& gmesh = model.meshes[mi];
@@ -468,8 +467,10 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
       for (size_t k = 0; k < tri.size(); k += 3) {
         const Vec3d a(mesh.positions[base + tri[k]]), b(mesh.positions[base + tri[k + 1]]),
             c(mesh.positions[base + tri[k + 2]]);
-        if (!is_finite(a) || !is_finite(b) || !is_finite(c)) continue;
-        if (dot(cross(b - a, c - a), cross(b - a, c - a)) == 0.0) continue;
+        if (!is_finite(a) || !is_finite(b) || !is_finite(c) || dot(cross(b - a, c - a), cross(b - a, c - a)) == 0.0) {
+          ++dropped_degenerate;  // NaN/Inf or zero area: no surface
+          continue;
+        }
         mesh.indices.insert(mesh.indices.end(), {base + tri[k], base + tri[k + 1], base + tri[k + 2]});
         mesh.material_ids.push_back(mat);
       }
@@ -477,14 +478,15 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
     for (auto& p : mesh.positions) {
       if (!is_finite(p)) p = Vec3f(0.0f);  // unreferenced now; must not reach Embree's bounds
     }
-    total_triangles += mesh.triangle_count();
     scene.meshes.push_back(std::move(mesh));
   }
   if (dropped_other_modes) {
     spdlog::warn("{}: {} primitives that are not triangles (points, lines, strips, fans) ignored", path,
                  dropped_other_modes);
   }
-  (void)total_triangles;
+  if (dropped_degenerate) {
+    spdlog::warn("{}: dropped {} triangles with a NaN/Inf vertex or zero area", path, dropped_degenerate);
+  }
 
   // The scene to show.
   if (model.scenes.empty()) r.fail("scenes", "the file has no scene");
