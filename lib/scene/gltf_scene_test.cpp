@@ -80,6 +80,26 @@ TEST_F(GltfSceneTest, BlenderExportBecomesCameraLightsMaterialsAndTexture) {
   EXPECT_TRUE(s.dependencies.empty());  // a .glb carries its buffers and images
 }
 
+TEST_F(GltfSceneTest, MaterialsMapToTheWhittedModelByTheNearestRule) {
+  GltfBuilder b = minimal();
+  b.material(nlohmann::json::object());  // glTF defaults: metallic 1, roughness 1: rough metal -> diffuse
+  b.material({{"pbrMetallicRoughness", {{"baseColorFactor", {0.9, 0.8, 0.7, 1}}, {"roughnessFactor", 0}}}});
+  b.material({{"pbrMetallicRoughness", {{"roughnessFactor", 0}, {"metallicFactor", 0}, {"baseColorFactor", {1, 0.5, 1, 1}}}},
+              {"extensions", {{"KHR_materials_transmission", {{"transmissionFactor", 1}}}, {"KHR_materials_ior", {{"ior", 1.33}}}}}});
+  b.material({{"emissiveFactor", {1, 0.5, 0.25}}, {"extensions", {{"KHR_materials_emissive_strength", {{"emissiveStrength", 4}}}}},
+              {"pbrMetallicRoughness", {{"metallicFactor", 0}}}});
+  const Scene s = load_scene(write(b));
+  ASSERT_GE(s.materials.size(), 4u);
+  EXPECT_EQ(s.materials[0].type, Material::Type::kDiffuse);
+  EXPECT_EQ(s.materials[1].type, Material::Type::kMirror);
+  EXPECT_EQ(s.materials[1].reflectance, Rgb(0.9f, 0.8f, 0.7f));
+  EXPECT_EQ(s.materials[2].type, Material::Type::kGlass);
+  EXPECT_EQ(s.materials[2].ior, 1.33);
+  EXPECT_EQ(s.materials[2].transmittance, Rgb(1.0f, 0.5f, 1.0f));
+  EXPECT_EQ(s.materials[3].type, Material::Type::kDiffuse);
+  EXPECT_EQ(s.materials[3].emission, Rgb(4.0f, 2.0f, 1.0f));
+}
+
 TEST_F(GltfSceneTest, InstancesShareOneMeshAndComposeParentTransforms) {
   GltfBuilder b = minimal();
   const int child = b.node({{"mesh", 0}, {"translation", {0, 2, 0}}}, false);
