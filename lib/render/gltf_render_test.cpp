@@ -207,6 +207,26 @@ TEST_F(GltfRenderTest, TexelsAtTheExpectedPixelsAndTextureTransformShiftsThem) {
   }
 }
 
+TEST_F(GltfRenderTest, TexturesCountAgainstTheScenesPixelLimit) {
+  GltfBuilder b;
+  const int m = b.material({{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", b.texture(png_4x4())}}}, {"metallicFactor", 0}}}});
+  b.node({{"mesh", b.mesh(quad(1), kQuadIdx, m, {0, 1, 1, 1, 1, 0, 0, 0})}});
+  b.node({{"camera", b.camera(0.9, 1)}, {"translation", {0, 0, 3}}});
+  b.write((dir_ / "s.gltf").string());
+  SceneLoadOptions o;
+  o.max_texture_pixels = 15;  // the texture has 16
+  try {
+    load_scene((dir_ / "s.gltf").string(), o);
+    FAIL() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("images[0] (from materials[0].pbrMetallicRoughness.baseColorTexture): image of "
+                                         "4x4 pixels exceeds the texture limit (15 pixels in all)"),
+              std::string::npos) << e.what();
+  }
+  o.max_texture_pixels = 16;
+  EXPECT_EQ(load_scene((dir_ / "s.gltf").string(), o).textures.size(), 1u);
+}
+
 TEST_F(GltfRenderTest, AnimationFrameEqualsTheJsonSceneKeyedToThePose) {
   GltfBuilder b;
   b.node({{"mesh", b.mesh(quad(1), kQuadIdx, b.material(kGrey))}});
