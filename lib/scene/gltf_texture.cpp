@@ -137,8 +137,9 @@ int TextureDecoder::decode(size_t t, const std::string& where) {
   budget_ -= uint64_t(out.width) * uint64_t(out.height);
   float lut[256];
   for (int c = 0; c < 256; ++c) lut[c] = srgb_to_linear(uint8_t(c));
-  out.texels.resize(size_t(out.width) * size_t(out.height));
-  for (size_t i = 0; i < out.texels.size(); ++i) out.texels[i] = {lut[rgb[3 * i]], lut[rgb[3 * i + 1]], lut[rgb[3 * i + 2]]};
+  auto texels = std::make_shared<std::vector<Rgb>>(size_t(out.width) * size_t(out.height));
+  for (size_t i = 0; i < texels->size(); ++i) (*texels)[i] = {lut[rgb[3 * i]], lut[rgb[3 * i + 1]], lut[rgb[3 * i + 2]]};
+  out.texels = std::move(texels);
   if (tex.sampler >= 0) {
     if (size_t(tex.sampler) >= model_.samplers.size()) fail(tpath + ".sampler", "does not exist");
     const tinygltf::Sampler& s = model_.samplers[size_t(tex.sampler)];

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -116,7 +117,8 @@ struct Mesh {
 struct Texture {
   std::string name;
   int width = 0, height = 0;
-  std::vector<Rgb> texels;  // row-major, top row first
+  // Row-major, top row first; shared, so each frame's RenderScene copies a pointer, not the image.
+  std::shared_ptr<const std::vector<Rgb>> texels;
   bool nearest = false;     // magnification filter NEAREST; else bilinear
   enum class Wrap { kRepeat, kClamp, kMirror };
   Wrap wrap_s = Wrap::kRepeat, wrap_t = Wrap::kRepeat;
