@@ -350,6 +350,12 @@ int run_submit(const SubmitArgs& a) {
   } catch (const SceneError& e) {
     throw FarmError{kExitBadInput, e.what()};
   }
+  if (a.image.gltf_given()) {
+    // Workers and the coordinator read the bundle's glTF with the defaults: the job's overrides
+    // do not carry these yet, and a farm frame must equal `tessera render`'s.
+    throw FarmError{kExitBadInput, "--camera, --scene-index and --fps are not carried to the farm yet: it renders a "
+                                   "glTF's first camera of its default scene at 24 fps (use tessera render for others)"};
+  }
   int first = 0, last = scene.frame_count() - 1;
   if (!a.frames.empty()) {
     const auto dash = a.frames.find('-');
@@ -584,7 +590,7 @@ void register_farm_commands(CLI::App& app) {
   {
     auto a = std::make_shared<SubmitArgs>();
     CLI::App* cmd = app.add_subcommand("submit", "Render a scene on the farm and write its frames");
-    cmd->add_option("scene", a->scene, "Scene file (JSON, see docs/scene-format.md)")->required();
+    cmd->add_option("scene", a->scene, "Scene file: JSON, or glTF 2.0 (.gltf/.glb); see docs/scene-format.md")->required();
     cmd->add_option("-o,--output", a->output, "Output EXR path; '#' runs become the frame number");
     add_coordinator_option(cmd, &a->coordinator, &a->security);
     cmd->add_option("--frames", a->frames, "Frames A-B (inclusive) or A (default: all)");

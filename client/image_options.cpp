@@ -1,5 +1,7 @@
 #include "image_options.h"
 
+#include "scene/gltf_scene.h"
+
 namespace tessera::cli {
 
 void add_image_options(CLI::App& cmd, ImageOptions& o) {
@@ -14,10 +16,18 @@ void add_image_options(CLI::App& cmd, ImageOptions& o) {
                  "Render to a target error: samples go where the estimated RMSE (linear light) is above this");
   cmd.add_option("--min-spp", o.overrides.min_spp, "With --target-rmse: fewest samples per pixel (default 16)");
   cmd.add_option("--max-spp", o.overrides.max_spp, "With --target-rmse: most samples per pixel (default 1024)");
+  cmd.add_option("--camera", o.gltf.camera, "glTF scenes: the camera to render (camera or node name; default: the first)");
+  cmd.add_option("--scene-index", o.gltf.scene_index, "glTF scenes: the index in the file's scenes (default: its scene)");
+  cmd.add_option("--fps", o.gltf.fps, "glTF scenes: animation frames per second (default 24)");
 }
 
 Scene load_scene_with(const std::string& path, const ImageOptions& o, ImageOverrides* resolved) {
-  Scene scene = load_scene(path);
+  if (o.gltf_given() && !is_gltf_path(path)) {
+    throw SceneError("--camera, --scene-index and --fps apply to glTF scenes (.gltf, .glb) only");
+  }
+  SceneLoadOptions load;
+  load.gltf = o.gltf;
+  Scene scene = load_scene(path, load);
   ImageOverrides overrides = o.overrides;
   if (!o.sampler.empty()) {
     overrides.sampler = sampler_from_name(o.sampler);

@@ -13,9 +13,12 @@ namespace tessera::cli {
 struct ImageOptions {
   ImageOverrides overrides;
   std::string sampler;  // empty: the scene's
+  GltfOptions gltf;     // --camera, --scene-index, --fps: how a glTF scene file is read
+  bool gltf_given() const { return !gltf.camera.empty() || gltf.scene_index >= 0 || gltf.fps != GltfOptions{}.fps; }
 };
 
-// Adds --spp, --width, --height, --max-depth, --seed, --sampler, --target-rmse, --min-spp, --max-spp.
+// Adds --spp, --width, --height, --max-depth, --seed, --sampler, --target-rmse, --min-spp, --max-spp,
+// and the glTF options --camera, --scene-index, --fps.
 void add_image_options(CLI::App& command, ImageOptions& options);
 
 // Loads the scene and applies the overrides; throws SceneError naming the file or flag.

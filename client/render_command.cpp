@@ -144,7 +144,7 @@ int run_render(const RenderArgs& a) {
 void register_render_command(CLI::App& app) {
   auto args = std::make_shared<RenderArgs>();
   CLI::App* cmd = app.add_subcommand("render", "Render a scene in-process to a float OpenEXR file");
-  cmd->add_option("scene", args->scene, "Scene file (JSON, see docs/scene-format.md)")->required();
+  cmd->add_option("scene", args->scene, "Scene file: JSON, or glTF 2.0 (.gltf/.glb); see docs/scene-format.md")->required();
   cmd->add_option("-o,--output", args->output, "Output EXR path; '#' runs become the frame number")->required();
   add_image_options(*cmd, args->image);
   cmd->add_option("--frame", args->frame, "Frame number to render (default 0)");

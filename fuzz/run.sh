@@ -2,7 +2,7 @@
 # Builds the libFuzzer targets with clang (ASan + UBSan) in build-fuzz/ and runs each one for
 # SECONDS (default 30). New inputs go to build-fuzz/fuzz-work/<target>/, crashes to
 # build-fuzz/fuzz-artifacts/<target>/; the committed corpus (fuzz/corpus) is read, not changed.
-#   fuzz/run.sh            # CI: 3 x 30 s
+#   fuzz/run.sh            # CI: 4 x 30 s
 #   fuzz/run.sh 3600       # by hand: an hour each
 #   FUZZ_TARGETS=bundle fuzz/run.sh 600
 # A crash: copy the artifact to fuzz/regressions/<target>/, fix the bug; the replay tests
@@ -12,7 +12,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 secs="${1:-30}"
 build="${TESSERA_FUZZ_BUILD:-build-fuzz}"
-targets=(${FUZZ_TARGETS:-scene_parser bundle tile_decoder})
+targets=(${FUZZ_TARGETS:-scene_parser bundle tile_decoder gltf_scene})
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 

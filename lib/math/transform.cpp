@@ -29,6 +29,15 @@ Transform Transform::rotate_xyz_deg(const Vec3d& deg) {
   return rz * ry * rx;
 }
 
+Transform Transform::affine(const std::array<double, 12>& m) {
+  Transform r;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) r.m_[i][j] = m[size_t(4 * i + j)];
+  }
+  r.t_ = {m[3], m[7], m[11]};
+  return r;
+}
+
 Transform operator*(const Transform& a, const Transform& b) {
   Transform r;
   for (int i = 0; i < 3; ++i) {

@@ -16,6 +16,8 @@ class Transform {
   static Transform scale(const Vec3d& s);
   // Rotation by Euler angles in degrees, applied X first, then Y, then Z (R = Rz Ry Rx).
   static Transform rotate_xyz_deg(const Vec3d& deg);
+  // A general affine matrix, row-major 3x4: p' = M p + t (m[4 i + j] = M_ij, m[4 i + 3] = t_i).
+  static Transform affine(const std::array<double, 12>& m);
   // Composition: (a * b)(p) == a(b(p)).
   friend Transform operator*(const Transform& a, const Transform& b);
 

@@ -27,22 +27,28 @@ struct ShadowQuery {
   float b;
 };
 
-// Calls f(query) for each light that can light the diffuse point, in light order (point,
+// Calls f(query) for each light that can light the diffuse point, in light order (point, spot,
 // directional, area). Shared by the scalar path and the packet path, so both do the same math.
 template <typename F>
 void for_each_shadow_query(const Context& c, const Hit& hit, const Vec3f& n, uint64_t node, F&& f) {
   const RenderScene& s = c.scene;
   const Vec3f n_f = n;  // faces the viewer
-  for (const auto& l : s.point_lights()) {
-    const Vec3f to = l.position - hit.p;
+  // Point and spot lights: one shadow ray to the light's position; a spot scales its intensity
+  // by its cone's falloff (points use theirs as is, so their arithmetic is what it always was).
+  auto toward = [&](const Vec3f& position, const Rgb& intensity, const RenderScene::SpotLight* spot) {
+    const Vec3f to = position - hit.p;
     const float r2 = dot(to, to);
     const float r = std::sqrt(r2);
     const Vec3f w = to / r;
     const float cos_t = dot(n_f, w);
-    if (!(cos_t > 0.0f)) continue;
+    if (!(cos_t > 0.0f)) return;
+    const float cone = spot ? spot->falloff(-w) : 1.0f;
+    if (!(cone > 0.0f)) return;
     const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
-    f(ShadowQuery{{o, w, length(l.position - o)}, l.intensity, cos_t / r2});
-  }
+    f(ShadowQuery{{o, w, length(position - o)}, spot ? intensity * cone : intensity, cos_t / r2});
+  };
+  for (const auto& l : s.point_lights()) toward(l.position, l.intensity, nullptr);
+  for (const auto& l : s.spot_lights()) toward(l.position, l.intensity, &l);  // after points: existing scenes unchanged
   for (const auto& l : s.directional_lights()) {
     const Vec3f w = -l.direction;
     const float cos_t = dot(n_f, w);
@@ -114,7 +120,8 @@ Rgb shade(const Context& c, const Ray& ray, const Hit& hit, int depth, uint64_t 
   const bool can_recurse = depth < s.image().max_depth;
   switch (m.type) {
     case Material::Type::kDiffuse: {
-      const Rgb albedo = m.checker && s.checker_parity(hit, m) ? m.albedo2 : m.albedo;
+      const Rgb albedo = m.albedo_texture >= 0 ? s.textured_albedo(hit, m)
+                         : m.checker && s.checker_parity(hit, m) ? m.albedo2 : m.albedo;
       L += albedo * (direct ? *direct : direct_sum(c, hit, n_facing, node)) * kInvPi;
       break;
     }

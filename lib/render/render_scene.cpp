@@ -11,6 +11,7 @@
 #include "render/sphere.h"
 #include "render/watertight_triangle.h"
 #include "scene/animation.h"
+#include "scene/texture_sample.h"
 
 namespace tessera {
 
@@ -141,6 +142,7 @@ void triangle_occluded(const RTCOccludedFunctionNArguments* args) {
 }
 
 Transform object_transform(const TransformDesc& t) {
+  if (t.matrix) return Transform::affine(*t.matrix);
   return Transform::translate(t.translate) * Transform::rotate_xyz_deg(t.rotate_deg) * Transform::scale(t.scale);
 }
 
@@ -315,6 +317,7 @@ void RenderScene::build(const Scene& scene, int frame) {
   frame_ = frame;
   background_ = scene.background;
   materials_ = scene.materials;
+  textures_ = scene.textures;
   const FrameState state = evaluate_frame(scene, frame);
   const ScreenPlane sp = screen_plane(state.camera, image_.width, image_.height);
   // Render space is world space shifted so the eye is the origin, computed in double and only
@@ -325,8 +328,19 @@ void RenderScene::build(const Scene& scene, int frame) {
   camera_ = {Vec3f(rel(sp.p0)), Vec3f(sp.p1 - sp.p0), Vec3f(sp.p2 - sp.p0)};
 
   for (const Light& l : scene.lights) {
-    if (l.type == Light::Type::kPoint) point_lights_.push_back({Vec3f(rel(l.position)), l.intensity});
-    else directional_lights_.push_back({Vec3f(normalize(l.direction)), l.irradiance});
+    if (l.type == Light::Type::kPoint) {
+      point_lights_.push_back({Vec3f(rel(l.position)), l.intensity});
+    } else if (l.type == Light::Type::kSpot) {
+      // KHR_lights_punctual's falloff: s = clamp(cos_angle * scale + offset, 0, 1), squared,
+      // with scale = 1 / max(0.001, cos(inner) - cos(outer)), offset = -cos(outer) * scale:
+      // 1 inside the inner cone, 0 outside the outer one.
+      const double cos_outer = std::cos(l.outer_cone_rad), cos_inner = std::cos(l.inner_cone_rad);
+      const double scale = 1.0 / std::max(0.001, cos_inner - cos_outer);
+      spot_lights_.push_back({Vec3f(rel(l.position)), l.intensity, Vec3f(normalize(l.direction)), float(scale),
+                              float(-cos_outer * scale)});
+    } else {
+      directional_lights_.push_back({Vec3f(normalize(l.direction)), l.irradiance});
+    }
   }
 
   auto is_glass = [&](uint32_t m) { return materials_[m].type == Material::Type::kGlass; };
@@ -371,6 +385,11 @@ void RenderScene::build(const Scene& scene, int frame) {
           bucket.indices.insert(bucket.indices.end(), {base, base + 1, base + 2});
           bucket.material_ids.push_back(m);
           bucket.sources.push_back({uint32_t(oi), uint32_t(t)});
+          if (materials_[m].albedo_texture >= 0 && !mesh.uvs.empty()) {
+            // Only textured triangles store uv; the others' slots stay 0 (never read).
+            bucket.uvs.resize(6 * (bucket.material_ids.size() - 1), 0.0f);
+            for (uint32_t i : {i0, i1, i2}) bucket.uvs.insert(bucket.uvs.end(), {mesh.uvs[2 * i], mesh.uvs[2 * i + 1]});
+          }
           if (materials_[m].is_emissive()) {
             auto [it, fresh] = light_of_material.try_emplace(m, area_lights_.size());
             if (fresh) area_lights_.push_back({{}, {}, 0.0f, materials_[m].emission});
@@ -383,6 +402,9 @@ void RenderScene::build(const Scene& scene, int frame) {
         break;
       }
     }
+  }
+  for (TriangleBucket& b : triangles_) {
+    if (!b.uvs.empty()) b.uvs.resize(6 * b.material_ids.size(), 0.0f);
   }
   for (AreaLight& L : area_lights_) {
     for (float& c : L.cdf) c /= L.area;
@@ -517,6 +539,11 @@ bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double t
         hit->prim = {PrimRef::Kind::kTriangle, pid, uint32_t(k)};
         hit->u = u;
         hit->v = v;
+        if (!b.uvs.empty()) {
+          const float* t = &b.uvs[6 * size_t(pid)];
+          hit->tex_u = t[0] * w + t[2] * u + t[4] * v;
+          hit->tex_v = t[1] * w + t[3] * u + t[5] * v;
+        }
         return true;
       }
       if (g == sphere_buckets_[k].geom_id) {
@@ -637,6 +664,12 @@ Rgb RenderScene::glass_transmittance_walk(const Ray& original, TraceContext* ctx
     tnear = std::nextafter(rh.ray.tfar, std::numeric_limits<float>::infinity());
   }
   return T;
+}
+
+Rgb RenderScene::textured_albedo(const Hit& hit, const Material& m) const {
+  const auto& t = m.uv_transform;
+  const double u = t[0] * hit.tex_u + t[1] * hit.tex_v + t[2], v = t[3] * hit.tex_u + t[4] * hit.tex_v + t[5];
+  return m.albedo * sample_texture(textures_[size_t(m.albedo_texture)], u, v);
 }
 
 int RenderScene::checker_parity(const Hit& hit, const Material& m) const {

@@ -3,6 +3,7 @@
 // materials. Immutable after construction, so any number of threads may trace it at once.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -34,6 +35,7 @@ struct Hit {
   // Barycentrics of a triangle hit: p = (1-u-v) v0 + u v1 + v v2 (the values p was computed
   // from); 0 for spheres and planes. Read by the ray service (lib/rays), not by shading.
   float u = 0, v = 0;
+  float tex_u = 0, tex_v = 0;  // texture coordinates (triangles of textured materials only)
 };
 
 // How rays meet triangles (docs/accuracy.md, case 4, has the leak counts and costs).
@@ -86,6 +88,17 @@ class RenderScene {
   };
   struct PointLight { Vec3f position; Rgb intensity; };
   struct DirectionalLight { Vec3f direction; Rgb irradiance; };  // direction the light travels
+  // A point light whose intensity falls off with the angle to its axis (see build()).
+  struct SpotLight {
+    Vec3f position;
+    Rgb intensity;
+    Vec3f direction;  // the axis, the way the light travels
+    float cone_scale, cone_offset;
+    float falloff(const Vec3f& w_from_light) const {
+      const float s = std::clamp(dot(direction, w_from_light) * cone_scale + cone_offset, 0.0f, 1.0f);
+      return s * s;
+    }
+  };
 
   // Render-space camera: the eye is the origin; pixel point = p0 + u du + v dv.
   struct Camera { Vec3f p0, du, dv; };
@@ -97,7 +110,10 @@ class RenderScene {
   const Material& material(uint32_t id) const { return materials_[id]; }
   const std::vector<PointLight>& point_lights() const { return point_lights_; }
   const std::vector<DirectionalLight>& directional_lights() const { return directional_lights_; }
+  const std::vector<SpotLight>& spot_lights() const { return spot_lights_; }
   const std::vector<AreaLight>& area_lights() const { return area_lights_; }
+  // A textured diffuse material's albedo at a hit: albedo x the texture at the hit's uv.
+  Rgb textured_albedo(const Hit& hit, const Material& m) const;
   // Checker parity (0 or 1) of a diffuse checker material at a hit.
   int checker_parity(const Hit& hit, const Material& m) const;
   Vec3d origin() const { return origin_; }  // world position of render space's origin (the eye)
@@ -118,6 +134,7 @@ class RenderScene {
     std::vector<uint32_t> indices;
     std::vector<uint32_t> material_ids;
     std::vector<Source> sources;       // per triangle
+    std::vector<float> uvs;  // 6 per triangle (its vertices' uv) when any triangle is textured; else empty
     uint32_t geom_id = RTC_INVALID_GEOMETRY_ID;
   };
   struct SphereBucket {
@@ -197,8 +214,10 @@ class RenderScene {
   Rgb background_;
   RenderOptions options_;
   std::vector<Material> materials_;
+  std::vector<Texture> textures_;
   std::vector<PointLight> point_lights_;
   std::vector<DirectionalLight> directional_lights_;
+  std::vector<SpotLight> spot_lights_;
   std::vector<AreaLight> area_lights_;
   std::vector<Sphere> spheres_;
   std::vector<Plane> planes_;

@@ -36,7 +36,16 @@ CameraDesc lerp_camera(const CameraDesc& a, const CameraDesc& b, double w) {
 }
 
 TransformDesc lerp_transform(const TransformDesc& a, const TransformDesc& b, double w) {
-  return {lerp(a.translate, b.translate, w), lerp(a.rotate_deg, b.rotate_deg, w), lerp(a.scale, b.scale, w)};
+  if (a.matrix || b.matrix) {
+    // Matrix keys come from glTF animations, one per frame (gltf_scene.cpp): a frame is always
+    // exactly at a key, and the element-wise blend is only ever taken at w = 0 or 1.
+    if (w == 0.0 || !b.matrix) return a;
+    if (w == 1.0 || !a.matrix) return b;
+    TransformDesc t = a;
+    for (size_t i = 0; i < 12; ++i) (*t.matrix)[i] = (*a.matrix)[i] * (1 - w) + (*b.matrix)[i] * w;
+    return t;
+  }
+  return {lerp(a.translate, b.translate, w), lerp(a.rotate_deg, b.rotate_deg, w), lerp(a.scale, b.scale, w), {}};
 }
 
 }  // namespace

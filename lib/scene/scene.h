@@ -3,8 +3,10 @@
 // (see animation.h). The renderer converts one frame to camera-relative float geometry.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -68,24 +70,37 @@ struct Material {
   double ior = 1.5;               // glass
   Rgb transmittance{1, 1, 1};     // glass: multiplies each refraction and each shadow-ray crossing
   Rgb emission{0, 0, 0};          // radiance emitted (OBJ Ke); emissive meshes are area lights
+  // diffuse (glTF): albedo x texture (Scene::textures index, -1 none) at the mesh's uv, after
+  // uv' = uv_transform * (u, v, 1), a row-major 2x3 (KHR_texture_transform).
+  int albedo_texture = -1;
+  int uv_set = 0;  // TEXCOORD_n the texture reads (the loader's concern)
+  std::array<double, 6> uv_transform{1, 0, 0, 0, 1, 0};
 
   bool is_emissive() const { return emission.x > 0 || emission.y > 0 || emission.z > 0; }
 };
 
 struct Light {
-  enum class Type { kPoint, kDirectional };
+  enum class Type { kPoint, kDirectional, kSpot };
   Type type = Type::kPoint;
-  Vec3d position{0, 0, 0};   // point
-  Rgb intensity{1, 1, 1};    // point: irradiance at distance r is I cos(theta) / r^2
-  Vec3d direction{0, -1, 0}; // directional: the direction the light travels
+  Vec3d position{0, 0, 0};   // point, spot
+  Rgb intensity{1, 1, 1};    // point, spot: irradiance at distance r is I cos(theta) / r^2 (on the spot's axis)
+  Vec3d direction{0, -1, 0}; // directional, spot: the direction the light travels (unit)
   Rgb irradiance{1, 1, 1};   // directional: irradiance E cos(theta)
+  // spot (glTF KHR_lights_punctual): full intensity within inner_cone_rad of the axis, none
+  // beyond outer_cone_rad, and between them the extension's smooth falloff (render_scene.cpp).
+  double inner_cone_rad = 0;
+  double outer_cone_rad = 0.7853981633974483;
 };
 
 // translate * rotate(X then Y then Z, degrees) * scale, applied to object space.
+// A glTF node's world transform is a general affine matrix (a parent's non-uniform scale shears
+// a rotated child), which no translate/rotate/scale triple can hold: `matrix` (row-major 3x4,
+// p' = M p + t) then replaces the three.
 struct TransformDesc {
   Vec3d translate{0, 0, 0};
   Vec3d rotate_deg{0, 0, 0};
   Vec3d scale{1, 1, 1};
+  std::optional<std::array<double, 12>> matrix;
 };
 
 // Triangle mesh in object space, as loaded from a file.
@@ -93,7 +108,20 @@ struct Mesh {
   std::vector<Vec3f> positions;
   std::vector<uint32_t> indices;        // 3 per triangle
   std::vector<uint32_t> material_ids;   // one per triangle, index into Scene::materials
+  std::vector<float> uvs;               // texture coordinates, 2 per vertex; empty: none
   size_t triangle_count() const { return indices.size() / 3; }
+};
+
+// An image texture, decoded to linear light (glTF base color textures are sRGB-encoded).
+// Texel (x, y) covers uv in [x/W, (x+1)/W) x [y/H, (y+1)/H): v runs down the image, as in glTF.
+struct Texture {
+  std::string name;
+  int width = 0, height = 0;
+  // Row-major, top row first; shared, so each frame's RenderScene copies a pointer, not the image.
+  std::shared_ptr<const std::vector<Rgb>> texels;
+  bool nearest = false;     // magnification filter NEAREST; else bilinear
+  enum class Wrap { kRepeat, kClamp, kMirror };
+  Wrap wrap_s = Wrap::kRepeat, wrap_t = Wrap::kRepeat;
 };
 
 struct SceneObject {
@@ -138,7 +166,11 @@ struct Scene {
   std::vector<Material> materials;
   std::vector<SceneObject> objects;
   std::vector<Mesh> meshes;
+  std::vector<Texture> textures;
   Animation animation;
+  // A glTF camera's aspectRatio: the image's width/height when neither is given, and the other
+  // side when one is (apply_overrides); the vertical field of view is kept exactly either way.
+  std::optional<double> camera_aspect;
   // Every file the scene reads besides itself (meshes and their material libraries), as paths
   // relative to the scene file's directory: a scene bundle is the scene file plus these.
   std::vector<std::string> dependencies;

@@ -9,8 +9,10 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <functional>
+#include <numbers>
 #include <sstream>
 
+#include "scene/gltf_scene.h"
 #include "scene/json_reader.h"
 #include "scene/mesh_loader.h"
 
@@ -250,9 +252,41 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
   Scene scene;
   scene.path = path;
 
-  const JsonReader camera = r.at("camera");
-  scene.camera = read_camera_fields(camera, nullptr);
-  camera.reject_unknown();
+  const fs::path dir = fs::path(path).parent_path();
+  // "include": a glTF file's whole scene (camera, lights, materials, objects, animation) as the
+  // base that this file adds to (lights, materials, objects) or replaces (camera, image,
+  // background): hand edits on top of an export, without touching the export.
+  bool included = false;
+  if (auto inc = r.find("include")) {
+    const std::string file = inc->string();
+    if (!is_gltf_path(file)) inc->fail("must name a glTF file (.gltf or .glb)");
+    const fs::path gltf_path = dir / file;
+    if (!options.confine_to.empty()) {
+      const fs::path rel = gltf_path.lexically_normal().lexically_relative(fs::path(options.confine_to).lexically_normal());
+      if (rel.empty() || *rel.begin() == ".." || fs::path(file).is_absolute()) {
+        inc->fail("'" + file + "' is outside the scene bundle (absolute, or climbs out with '..')");
+      }
+    }
+    try {
+      scene = load_gltf_scene(gltf_path.string(), options);
+    } catch (const SceneError& e) {
+      inc->fail(e.what());
+    }
+    scene.path = path;
+    const fs::path gltf_dir = fs::path(file).parent_path();
+    for (auto& d : scene.dependencies) d = (gltf_dir / d).generic_string();
+    scene.dependencies.push_back(file);
+    included = true;
+  }
+
+  if (auto camera = r.find("camera")) {
+    scene.camera = read_camera_fields(*camera, nullptr);
+    camera->reject_unknown();
+    scene.animation.camera.clear();  // an included camera's animation goes with it
+    scene.camera_aspect.reset();
+  } else if (!included) {
+    r.at("camera");
+  }
 
   if (auto img = r.find("image")) {
     ImageSettings& s = scene.image;
@@ -282,12 +316,21 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
   if (auto lights = r.find("lights")) {
     for (const auto& l : lights->array()) {
       Light light;
-      const std::string type = l.at("type").one_of({"point", "directional"});
-      if (type == "point") {
-        light.type = Light::Type::kPoint;
+      const std::string type = l.at("type").one_of({"point", "spot", "directional"});
+      if (type == "point" || type == "spot") {
+        light.type = type == "point" ? Light::Type::kPoint : Light::Type::kSpot;
         light.position = read_point(l.at("position"));
         light.intensity = l.at("intensity").rgb(kMaxRadiance);
-      } else {
+      }
+      if (type == "spot") {
+        light.direction = read_direction(l.at("direction"));
+        const double outer = l.at("outer_cone_deg").number_in(0.0, 90.0, true);
+        double inner = 0;
+        if (auto v = l.find("inner_cone_deg")) inner = v->number_in(0.0, outer);
+        if (inner >= outer) l.at("inner_cone_deg").fail("must be less than outer_cone_deg");
+        light.inner_cone_rad = inner * std::numbers::pi / 180;
+        light.outer_cone_rad = outer * std::numbers::pi / 180;
+      } else if (type == "directional") {
         light.type = Light::Type::kDirectional;
         light.direction = read_direction(l.at("direction"));
         light.irradiance = l.at("irradiance").rgb(kMaxRadiance);
@@ -305,11 +348,13 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
     }
   }
 
-  const fs::path dir = fs::path(path).parent_path();
   std::map<std::string, int> object_index;
   std::map<std::string, int> mesh_cache;  // (file + exclusions) -> mesh index
-  uint64_t primitives = 0;
-  for (const auto& o : r.at("objects").array()) {
+  uint64_t primitives = primitive_count(scene);  // an include's objects count too
+  std::vector<JsonReader> objects;
+  if (auto v = r.find("objects")) objects = v->array();
+  else if (!included) r.at("objects");
+  for (const auto& o : objects) {
     std::vector<std::string> exclude;
     SceneObject obj = read_object(o, material_index, &exclude);
     if (obj.type != SceneObject::Type::kMesh && obj.material >= 0 &&
@@ -389,6 +434,7 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
     a.frame_count = int(anim->at("frames").integer_in(1, SceneLimits::kMaxFrames));
     const int last = a.frame_count - 1;
     if (auto cams = anim->find("camera")) {
+      a.camera.clear();  // replaces an included glTF's camera animation
       for (const auto& k : cams->array()) {
         CameraKey key;
         key.frame = int(k.at("frame").integer_in(0, last));
@@ -429,6 +475,7 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
 }
 
 Scene load_scene(const std::string& path, const SceneLoadOptions& options) {
+  if (is_gltf_path(path)) return load_gltf_scene(path, options);  // a glTF file is a whole scene
   std::error_code ec;
   if (!fs::exists(path, ec)) throw SceneError(path + ": scene file not found");
   if (!fs::is_regular_file(path, ec)) throw SceneError(path + ": not a regular file");
@@ -448,6 +495,12 @@ void apply_overrides(Scene& scene, const ImageOverrides& o) {
   };
   if (o.width) { check("width", *o.width, 1, SceneLimits::kMaxResolution); scene.image.width = *o.width; }
   if (o.height) { check("height", *o.height, 1, SceneLimits::kMaxResolution); scene.image.height = *o.height; }
+  if (scene.camera_aspect && (o.width.has_value() != o.height.has_value())) {
+    // A glTF camera's aspect ratio fills in the side not given.
+    const double a = *scene.camera_aspect;
+    if (o.width) scene.image.height = std::clamp(int(std::lround(*o.width / a)), 1, SceneLimits::kMaxResolution);
+    else scene.image.width = std::clamp(int(std::lround(*o.height * a)), 1, SceneLimits::kMaxResolution);
+  }
   if (o.spp) { check("spp", *o.spp, 1, SceneLimits::kMaxSpp); scene.image.spp = *o.spp; }
   if (o.max_depth) { check("max-depth", *o.max_depth, 0, SceneLimits::kMaxDepth); scene.image.max_depth = *o.max_depth; }
   if (o.seed) scene.image.seed = *o.seed;

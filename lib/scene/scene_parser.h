@@ -21,6 +21,13 @@ struct ImageOverrides {
   std::optional<int> min_spp, max_spp;
 };
 
+// How a glTF scene file is read (gltf_scene.h); JSON scenes ignore these.
+struct GltfOptions {
+  std::string camera;     // the camera (glTF camera name or its node's name); empty: the first
+  int scene_index = -1;   // glTF `scenes` index; -1: the file's `scene`, else 0
+  double fps = 24;        // frames per second of animation time: frame F is at F / fps seconds
+};
+
 // Limits for scenes from untrusted peers (the coordinator and workers load scenes from bundles).
 struct SceneLoadOptions {
   // When set, every file the scene reads (meshes) must lie inside this directory: a bundle's
@@ -30,6 +37,10 @@ struct SceneLoadOptions {
   // Checked while loading, before an object's mesh is copied, so a scene that instances one big
   // mesh many times is refused before it takes the memory.
   uint64_t max_primitives = 0;
+  GltfOptions gltf;
+  // Most texture pixels (all glTF images together) and most bytes of one file a glTF reads.
+  uint64_t max_texture_pixels = uint64_t(1) << 28;
+  uint64_t max_file_bytes = uint64_t(1) << 31;
 };
 
 // Throws SceneError with a message naming the file, the JSON path and what is allowed.
