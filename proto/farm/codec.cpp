@@ -14,6 +14,7 @@ template <typename T>
 void words_to_le(const std::vector<T>& v, std::string* out) {
   static_assert(sizeof(T) == 4);
   out->resize(v.size() * 4);
+  if (v.empty()) return;  // memcpy from an empty vector's null data() is undefined, even for 0 bytes
   if constexpr (std::endian::native == std::endian::little) {
     std::memcpy(out->data(), v.data(), out->size());
   } else {
@@ -28,6 +29,7 @@ template <typename T>
 void le_to_words(const std::string& s, std::vector<T>* v) {
   static_assert(sizeof(T) == 4);
   v->resize(s.size() / 4);
+  if (v->empty()) return;  // as above: no memcpy to a null data()
   if constexpr (std::endian::native == std::endian::little) {
     std::memcpy(v->data(), s.data(), v->size() * 4);
   } else {
