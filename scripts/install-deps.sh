@@ -9,6 +9,7 @@ BUILD_PKGS=(
   libembree-dev libtbb-dev libopenexr-dev libspdlog-dev libcli11-dev
   nlohmann-json3-dev libassimp-dev libsqlite3-dev libpng-dev libssl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  libhwy-dev  # Google Highway: SIMD (render/triangle_cluster_simd.cpp)
   libtinygltf-dev libjpeg-dev  # glTF scenes (lib/scene/gltf_*): tinygltf parses (header only, compiled in), libpng/libjpeg decode textures
 )
 # Independent checkers used by the tests (oiiotool/idiff, exrheader, Python gRPC client).

@@ -9,6 +9,7 @@
 #include "render/plane.h"
 #include "render/ray_log.h"
 #include "render/sphere.h"
+#include "render/triangle_cluster.h"
 #include "render/watertight_triangle.h"
 #include "scene/animation.h"
 #include "scene/texture_sample.h"
@@ -64,8 +65,10 @@ void set_padded_bounds(RTCBounds* b, const Vec3f& lo, const Vec3f& hi, const Ren
   b->upper_z = std::nextafter(hi.z + pad, inf);
 }
 
-// Writes lane i's new closest hit, as Embree's own primitives would.
-void record_hit(const RTCIntersectFunctionNArguments* args, unsigned i, float t, const Vec3f& ng, float u, float v) {
+// Writes lane i's new closest hit, as Embree's own primitives would; `prim` is the primitive id
+// the hit reports (a clustered triangle reports its own index, not its cluster's).
+void record_hit(const RTCIntersectFunctionNArguments* args, unsigned i, float t, const Vec3f& ng, float u, float v,
+                uint32_t prim) {
   const unsigned N = args->N;
   RTCRayN_tfar(RTCRayHitN_RayN(args->rayhit, N), N, i) = t;
   RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, N);
@@ -74,7 +77,7 @@ void record_hit(const RTCIntersectFunctionNArguments* args, unsigned i, float t,
   RTCHitN_Ng_z(hit, N, i) = ng.z;
   RTCHitN_u(hit, N, i) = u;
   RTCHitN_v(hit, N, i) = v;
-  RTCHitN_primID(hit, N, i) = args->primID;
+  RTCHitN_primID(hit, N, i) = prim;
   RTCHitN_geomID(hit, N, i) = args->geomID;
   RTCHitN_instID(hit, N, i, 0) = args->context->instID[0];
 }
@@ -83,58 +86,76 @@ const Vec3f* triangle_vertices(const TriangleGeomData* data, uint32_t prim) {
   return &data->bucket->positions[3 * size_t(prim)];  // buckets store 3 unshared vertices each
 }
 
-void triangle_bounds(const RTCBoundsFunctionArguments* args) {
+// A user primitive is a cluster of up to 8 triangles (render/triangle_cluster.h).
+void cluster_bounds(const RTCBoundsFunctionArguments* args) {
   const auto* data = static_cast<const TriangleGeomData*>(args->geometryUserPtr);
-  const Vec3f* v = triangle_vertices(data, args->primID);
-  set_padded_bounds(args->bounds_o, vmin(v[0], vmin(v[1], v[2])), vmax(v[0], vmax(v[1], v[2])), *data->scene);
+  const TriangleCluster& c = data->bucket->clusters[args->primID];
+  set_padded_bounds(args->bounds_o, c.lower, c.upper, *data->scene);
 }
 
-// The watertight test for lane i; false when the lane is masked out, leaves this very triangle
-// (a flat primitive cannot be met again: excluded exactly, like planes and spheres), or misses.
-bool triangle_lane(const TriangleGeomData* data, const RenderScene::TraceContext* ctx, RTCRayN* ray, unsigned N,
-                   unsigned i, uint32_t prim, TriangleHit* th) {
-  if (!(RTCRayN_mask(ray, N, i) & data->mask)) return false;
+// The watertight test of lane i against a cluster: the mask of its triangles hit, or 0 when the
+// lane is masked out. The triangle the ray leaves is left out (a flat primitive cannot be met
+// again: excluded exactly, like planes and spheres).
+uint32_t cluster_lane(const TriangleGeomData* data, const TriangleCluster& c, const TraceContext* ctx, RTCRayN* ray,
+                      unsigned N, unsigned i, TriangleHit th[TriangleCluster::kSize]) {
+  if (!(RTCRayN_mask(ray, N, i) & data->mask)) return 0;
   const PrimRef& from = from_of(ctx, ray, N, i);
-  if (from.kind == PrimRef::Kind::kTriangle && from.geom == data->bucket_index && from.id == prim) return false;
+  int skip = -1;
+  if (from.kind == PrimRef::Kind::kTriangle && from.geom == data->bucket_index) {
+    for (uint32_t k = 0; k < c.count; ++k) {
+      if (c.tri[k] == from.id) skip = int(k);
+    }
+  }
   const Vec3f o(RTCRayN_org_x(ray, N, i), RTCRayN_org_y(ray, N, i), RTCRayN_org_z(ray, N, i));
   const Vec3f d(RTCRayN_dir_x(ray, N, i), RTCRayN_dir_y(ray, N, i), RTCRayN_dir_z(ray, N, i));
-  const Vec3f* v = triangle_vertices(data, prim);
-  return intersect_triangle_watertight(o, ray_shear(d), v[0], v[1], v[2], RTCRayN_tnear(ray, N, i),
-                                       RTCRayN_tfar(ray, N, i), th);
+  return intersect_cluster(c, o, ray_shear(d), RTCRayN_tnear(ray, N, i), RTCRayN_tfar(ray, N, i), skip, th);
 }
 
-void triangle_intersect(const RTCIntersectFunctionNArguments* args) {
+void cluster_intersect(const RTCIntersectFunctionNArguments* args) {
   const auto* data = static_cast<const TriangleGeomData*>(args->geometryUserPtr);
   const auto* ctx = reinterpret_cast<const TraceContext*>(args->context);
+  const TriangleCluster& c = data->bucket->clusters[args->primID];
   const unsigned N = args->N;
   RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, N);
   RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, N);
   for (unsigned i = 0; i < N; ++i) {
-    TriangleHit th;
-    if (!args->valid[i] || !triangle_lane(data, ctx, ray, N, i, args->primID, &th)) continue;
-    // An exact tie with the hit found so far (a ray through a shared edge or vertex) goes to the
-    // lower (geometry, primitive) id, so the result does not depend on traversal order (packet
-    // or single ray, BVH layout).
-    if (th.t == RTCRayN_tfar(ray, N, i) && RTCHitN_geomID(hit, N, i) != RTC_INVALID_GEOMETRY_ID &&
-        std::pair(RTCHitN_geomID(hit, N, i), RTCHitN_primID(hit, N, i)) < std::pair(args->geomID, args->primID)) {
-      continue;
+    if (!args->valid[i]) continue;
+    TriangleHit th[TriangleCluster::kSize];
+    // The cluster's hits in lane order, each as if its triangle were tested alone after the
+    // ones before it: nearer than the nearest so far, and on an exact tie (a ray through a
+    // shared edge or vertex) to the lower (geometry, triangle) id, so the result depends neither
+    // on traversal order (packet or single ray, BVH layout) nor on how triangles are clustered.
+    for (uint32_t m = cluster_lane(data, c, ctx, ray, N, i, th); m != 0; m &= m - 1) {
+      const int k = __builtin_ctz(m);
+      const float tfar = RTCRayN_tfar(ray, N, i);
+      if (th[k].t > tfar) continue;
+      if (th[k].t == tfar && RTCHitN_geomID(hit, N, i) != RTC_INVALID_GEOMETRY_ID &&
+          std::pair(RTCHitN_geomID(hit, N, i), RTCHitN_primID(hit, N, i)) < std::pair(args->geomID, c.tri[k])) {
+        continue;
+      }
+      const Vec3f* v = triangle_vertices(data, c.tri[k]);
+      record_hit(args, i, th[k].t, cross(v[1] - v[0], v[2] - v[0]), th[k].u, th[k].v, c.tri[k]);
     }
-    const Vec3f* v = triangle_vertices(data, args->primID);
-    record_hit(args, i, th.t, cross(v[1] - v[0], v[2] - v[0]), th.u, th.v);
   }
 }
 
-void triangle_occluded(const RTCOccludedFunctionNArguments* args) {
+void cluster_occluded(const RTCOccludedFunctionNArguments* args) {
   const auto* data = static_cast<const TriangleGeomData*>(args->geometryUserPtr);
   const auto* ctx = reinterpret_cast<const TraceContext*>(args->context);
+  const TriangleCluster& c = data->bucket->clusters[args->primID];
   const unsigned N = args->N;
   RTCRayN* ray = args->ray;
   for (unsigned i = 0; i < N; ++i) {
-    TriangleHit th;
-    if (!args->valid[i] || !triangle_lane(data, ctx, ray, N, i, args->primID, &th)) continue;
+    if (!args->valid[i]) continue;
+    TriangleHit th[TriangleCluster::kSize];
+    const uint32_t m = cluster_lane(data, c, ctx, ray, N, i, th);
+    if (m == 0) continue;
     if (ctx->glass && data->mask == kGlassMask) {
       // A shadow ray collecting glass crossings (see sphere_occluded): record, go on.
-      add_glass_hit(&ctx->glass[RTCRayN_id(ray, N, i)], th.t, data->bucket->material_ids[args->primID]);
+      for (uint32_t r = m; r != 0; r &= r - 1) {
+        const int k = __builtin_ctz(r);
+        add_glass_hit(&ctx->glass[RTCRayN_id(ray, N, i)], th[k].t, data->bucket->material_ids[c.tri[k]]);
+      }
       continue;
     }
     RTCRayN_tfar(ray, N, i) = -std::numeric_limits<float>::infinity();
@@ -201,7 +222,7 @@ void sphere_intersect(const RTCIntersectFunctionNArguments* args) {
     const double t = sphere_root(s, index, from_of(ctx, ray, N, i), o, d, RTCRayN_tnear(ray, N, i),
                                  RTCRayN_tfar(ray, N, i));
     if (t < 0) continue;
-    record_hit(args, i, float(t), Vec3f(o + d * t - s.center), 0.0f, 0.0f);
+    record_hit(args, i, float(t), Vec3f(o + d * t - s.center), 0.0f, 0.0f, args->primID);
   }
 }
 
@@ -431,8 +452,9 @@ void RenderScene::build(const Scene& scene, int frame) {
     if (b.material_ids.empty()) continue;
     if (options_.triangles == TriangleTest::kWatertight) {
       triangle_data_[k] = {this, &b, uint32_t(k), k == 0 ? kOpaqueMask : kGlassMask};
-      b.geom_id = attach_user_geometry(s, b.material_ids.size(), &triangle_data_[k], triangle_bounds,
-                                       triangle_intersect, triangle_occluded, triangle_data_[k].mask);
+      b.clusters = build_triangle_clusters(b.positions.data(), b.material_ids.size());
+      b.geom_id = attach_user_geometry(s, b.clusters.size(), &triangle_data_[k], cluster_bounds, cluster_intersect,
+                                       cluster_occluded, triangle_data_[k].mask);
       continue;
     }
     const size_t nv = b.positions.size();

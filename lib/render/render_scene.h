@@ -11,6 +11,7 @@
 
 #include "render/embree_device.h"
 #include "render/ray.h"
+#include "render/triangle_cluster.h"
 #include "scene/scene.h"
 
 namespace tessera {
@@ -41,8 +42,9 @@ struct Hit {
 // How rays meet triangles (docs/accuracy.md, case 4, has the leak counts and costs).
 enum class TriangleTest : uint8_t {
   // Default. Woop, Benthin and Wald's watertight test with double edge functions
-  // (render/watertight_triangle.h), as Embree user geometry: no ray passes between the
-  // triangles of a closed mesh, at edges or vertices.
+  // (render/watertight_triangle.h), as Embree user geometry in clusters of 8 tested in SIMD
+  // (render/triangle_cluster.h): no ray passes between the triangles of a closed mesh, at edges
+  // or vertices.
   kWatertight,
   // Embree's RTC_SCENE_FLAG_ROBUST (Pluecker) test: closed along shared edges, but a ray aimed
   // at a shared vertex can miss the whole fan. About 2x faster per triangle-bound ray.
@@ -135,6 +137,7 @@ class RenderScene {
     std::vector<uint32_t> material_ids;
     std::vector<Source> sources;       // per triangle
     std::vector<float> uvs;  // 6 per triangle (its vertices' uv) when any triangle is textured; else empty
+    std::vector<TriangleCluster> clusters;  // the watertight test's Embree primitives (triangle_cluster.h)
     uint32_t geom_id = RTC_INVALID_GEOMETRY_ID;
   };
   struct SphereBucket {

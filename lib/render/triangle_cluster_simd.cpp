@@ -1,0 +1,92 @@
+// intersect_cluster (render/triangle_cluster.h): the watertight test on a cluster's triangles,
+// as many at once as the CPU's double-precision vectors hold (2 with SSE4, 4 with AVX2, 8 with
+// AVX-512), compiled for each of those targets by Google Highway and picked at run time, so one
+// binary (the worker image) uses what the machine has. Highway rather than intrinsics: the same
+// source serves every target, and the test file runs each one against the scalar test.
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "render/triangle_cluster_simd.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+
+#include "render/triangle_cluster.h"
+
+HWY_BEFORE_NAMESPACE();
+namespace tessera {
+namespace HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+// Line for line the arithmetic of intersect_triangle_watertight, on Lanes(dd) triangles.
+uint32_t IntersectCluster(const TriangleCluster& c, const Vec3f& o, const RayShear& s, float tnear, float tfar,
+                          int skip, TriangleHit* hit) {
+  const hn::ScalableTag<double> dd;
+  const hn::Rebind<float, decltype(dd)> df;  // as many floats as dd has doubles
+  const size_t N = hn::Lanes(dd);
+  const auto ox = hn::Set(df, o[s.kx]), oy = hn::Set(df, o[s.ky]), oz = hn::Set(df, o[s.kz]);
+  const auto sx = hn::Set(df, s.sx), sy = hn::Set(df, s.sy), sz = hn::Set(df, s.sz);
+  const auto zero = hn::Zero(dd);
+  const auto one = hn::Set(dd, 1.0);
+  const auto lo = hn::Set(dd, double(tnear)), hi = hn::Set(dd, double(tfar));
+  uint32_t mask = 0;
+  alignas(64) float t_out[TriangleCluster::kSize], u_out[TriangleCluster::kSize], v_out[TriangleCluster::kSize];
+  for (size_t j = 0; j < size_t(TriangleCluster::kSize); j += N) {
+    // Vertex k sheared into ray space: x, y (float, as the scalar test) and z before scaling.
+    auto shear = [&](int k, hn::Vec<decltype(dd)>* x, hn::Vec<decltype(dd)>* y, hn::Vec<decltype(df)>* z) {
+      const auto X = hn::Sub(hn::LoadU(df, &c.v[k][s.kx][j]), ox);
+      const auto Y = hn::Sub(hn::LoadU(df, &c.v[k][s.ky][j]), oy);
+      const auto Z = hn::Sub(hn::LoadU(df, &c.v[k][s.kz][j]), oz);
+      *x = hn::PromoteTo(dd, hn::Sub(X, hn::Mul(sx, Z)));
+      *y = hn::PromoteTo(dd, hn::Sub(Y, hn::Mul(sy, Z)));
+      *z = Z;
+    };
+    hn::Vec<decltype(dd)> ax, ay, bx, by, cx, cy;
+    hn::Vec<decltype(df)> Az, Bz, Cz;
+    shear(0, &ax, &ay, &Az);
+    shear(1, &bx, &by, &Bz);
+    shear(2, &cx, &cy, &Cz);
+    // Products of two floats are exact in double; each difference is rounded once.
+    const auto U = hn::Sub(hn::Mul(cx, by), hn::Mul(cy, bx));
+    const auto V = hn::Sub(hn::Mul(ax, cy), hn::Mul(ay, cx));
+    const auto W = hn::Sub(hn::Mul(bx, ay), hn::Mul(by, ax));
+    const auto neg = hn::Or(hn::Or(hn::Lt(U, zero), hn::Lt(V, zero)), hn::Lt(W, zero));
+    const auto pos = hn::Or(hn::Or(hn::Gt(U, zero), hn::Gt(V, zero)), hn::Gt(W, zero));
+    const auto det = hn::Add(hn::Add(U, V), W);
+    const auto az = hn::PromoteTo(dd, hn::Mul(sz, Az));
+    const auto bz = hn::PromoteTo(dd, hn::Mul(sz, Bz));
+    const auto cz = hn::PromoteTo(dd, hn::Mul(sz, Cz));
+    const auto inv = hn::Div(one, det);
+    const auto tf = hn::DemoteTo(df, hn::Mul(hn::Add(hn::Add(hn::Mul(U, az), hn::Mul(V, bz)), hn::Mul(W, cz)), inv));
+    const auto td = hn::PromoteTo(dd, tf);  // exact: compares as the float t does, NaN fails
+    const auto ok = hn::AndNot(hn::And(neg, pos),
+                               hn::And(hn::Ne(det, zero), hn::And(hn::Ge(td, lo), hn::Le(td, hi))));
+    uint8_t bits[8] = {};
+    hn::StoreMaskBits(dd, ok, bits);
+    mask |= uint32_t(bits[0]) << j;
+    hn::StoreU(tf, df, t_out + j);
+    hn::StoreU(hn::DemoteTo(df, hn::Mul(V, inv)), df, u_out + j);
+    hn::StoreU(hn::DemoteTo(df, hn::Mul(W, inv)), df, v_out + j);
+  }
+  mask &= (1u << c.count) - 1u;
+  if (skip >= 0) mask &= ~(1u << unsigned(skip));
+  for (uint32_t m = mask; m != 0; m &= m - 1) {
+    const int k = __builtin_ctz(m);
+    hit[k] = {t_out[k], u_out[k], v_out[k]};
+  }
+  return mask;
+}
+
+}  // namespace HWY_NAMESPACE
+}  // namespace tessera
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace tessera {
+
+HWY_EXPORT(IntersectCluster);
+
+uint32_t intersect_cluster(const TriangleCluster& c, const Vec3f& o, const RayShear& s, float tnear, float tfar,
+                           int skip, TriangleHit hit[TriangleCluster::kSize]) {
+  return HWY_DYNAMIC_DISPATCH(IntersectCluster)(c, o, s, tnear, tfar, skip, hit);
+}
+
+}  // namespace tessera
+#endif  // HWY_ONCE
