@@ -100,80 +100,132 @@ Rgb direct_sum(const Context& c, const Hit& hit, const Vec3f& n, uint64_t node) 
   return sum;
 }
 
-Rgb shade(const Context& c, const Ray& ray, const Hit& hit, int depth, uint64_t node, const Rgb* direct);
+// What a hit sends on: the reflection (path node 2k) and refraction (2k + 1) rays of a mirror or
+// glass hit, and the Fresnel weight between them. Shared by the scalar and the packet path, so
+// both trace the same rays and weigh them with the same arithmetic.
+struct Secondary {
+  bool reflect = false, refract = false;
+  Ray reflected, refracted;
+  float R = 0;  // glass: Fresnel reflectance
+};
 
-Rgb radiance(const Context& c, const Ray& ray, const PrimRef& from, int depth, uint64_t node) {
-  Hit hit;
-  if (!c.scene.intersect(ray, from, &hit)) return c.scene.background();
-  return shade(c, ray, hit, depth, node, nullptr);
+Secondary plan_secondary(const Context& c, const Ray& ray, const Hit& hit, int depth) {
+  Secondary out;
+  const Material& m = c.scene.material(hit.material);
+  if (m.type == Material::Type::kDiffuse || depth >= c.scene.image().max_depth) return out;
+  // The normal says which side is outside; shading happens on the side the ray came from.
+  const bool front = dot(ray.d, hit.n) < 0.0f;
+  const Vec3f n_facing = front ? hit.n : -hit.n;
+  if (m.type == Material::Type::kMirror) {
+    const Vec3f w = normalize(reflect(ray.d, n_facing));
+    out.reflect = true;
+    out.reflected = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
+    return out;
+  }
+  // Glass. Outside is vacuum/air (index 1).
+  const float eta_i = front ? 1.0f : float(m.ior), eta_t = front ? float(m.ior) : 1.0f;
+  const float cos_i = -dot(ray.d, n_facing);
+  float cos_t = 0.0f;
+  out.R = fresnel_dielectric(cos_i, eta_i, eta_t, &cos_t);
+  if (out.R > 0.0f) {
+    const Vec3f w = normalize(reflect(ray.d, n_facing));
+    out.reflect = true;
+    out.reflected = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
+  }
+  if (out.R < 1.0f) {
+    const Vec3f w = refract(ray.d, n_facing, eta_i / eta_t, cos_i, cos_t);
+    out.refract = true;
+    out.refracted = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
+  }
+  return out;
 }
 
-// Radiance leaving `hit` back along `ray`. `direct` (optional): the hit's direct_sum, already
-// traced (by the packet path).
-Rgb shade(const Context& c, const Ray& ray, const Hit& hit, int depth, uint64_t node, const Rgb* direct) {
+// Radiance leaving `hit` back along `ray`, from the hit's direct lighting (diffuse; before
+// albedo/pi) and the radiance its secondary rays brought back (mirror, glass).
+Rgb shade(const Context& c, const Ray& ray, const Hit& hit, const Rgb& direct, const Secondary& sec,
+          const Rgb& reflected, const Rgb& refracted) {
   const RenderScene& s = c.scene;
   const Material& m = s.material(hit.material);
-  // Shading happens on the side the ray came from; emitters are seen from their front only.
+  // Emitters are seen from their front only.
   const bool front = dot(ray.d, hit.n) < 0.0f;
   Rgb L = front ? m.emission : Rgb(0.0f);
-  const Vec3f n_facing = front ? hit.n : -hit.n;
-  const bool can_recurse = depth < s.image().max_depth;
   switch (m.type) {
     case Material::Type::kDiffuse: {
       const Rgb albedo = m.albedo_texture >= 0 ? s.textured_albedo(hit, m)
                          : m.checker && s.checker_parity(hit, m) ? m.albedo2 : m.albedo;
-      L += albedo * (direct ? *direct : direct_sum(c, hit, n_facing, node)) * kInvPi;
+      L += albedo * direct * kInvPi;
       break;
     }
-    case Material::Type::kMirror: {
-      if (!can_recurse) break;
-      const Vec3f w = normalize(reflect(ray.d, n_facing));
-      ++c.counts->secondary;
-      L += m.reflectance * radiance(c, {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w}, hit.prim, depth + 1, 2 * node);
+    case Material::Type::kMirror:
+      if (sec.reflect) L += m.reflectance * reflected;
       break;
-    }
-    case Material::Type::kGlass: {
-      if (!can_recurse) break;
-      // Outside is vacuum/air (index 1); the normal says which side is outside.
-      const float eta_i = front ? 1.0f : float(m.ior), eta_t = front ? float(m.ior) : 1.0f;
-      const float cos_i = -dot(ray.d, n_facing);
-      float cos_t = 0.0f;
-      const float R = fresnel_dielectric(cos_i, eta_i, eta_t, &cos_t);
-      if (R > 0.0f) {
-        const Vec3f w = normalize(reflect(ray.d, n_facing));
-        ++c.counts->secondary;
-        L += radiance(c, {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w}, hit.prim, depth + 1, 2 * node) * R;
-      }
-      if (R < 1.0f) {
-        const Vec3f w = refract(ray.d, n_facing, eta_i / eta_t, cos_i, cos_t);
-        ++c.counts->secondary;
-        L += m.transmittance *
-             radiance(c, {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w}, hit.prim, depth + 1, 2 * node + 1) *
-             (1.0f - R);
-      }
+    case Material::Type::kGlass:
+      if (sec.reflect) L += reflected * sec.R;
+      if (sec.refract) L += m.transmittance * refracted * (1.0f - sec.R);
       break;
-    }
   }
   return L;
 }
 
-}  // namespace
-
-Rgb trace_radiance(const RenderScene& scene, const Ray& ray, const PixelSampler& sampler, RayCounts* counts) {
-  const Context c{scene, sampler, counts};
-  return radiance(c, ray, PrimRef{}, 0, 1);
+Rgb radiance(const Context& c, const Ray& ray, const PrimRef& from, int depth, uint64_t node) {
+  Hit hit;
+  if (!c.scene.intersect(ray, from, &hit)) return c.scene.background();
+  const bool diffuse = c.scene.material(hit.material).type == Material::Type::kDiffuse;
+  const Vec3f n_facing = dot(ray.d, hit.n) < 0.0f ? hit.n : -hit.n;
+  const Rgb direct = diffuse ? direct_sum(c, hit, n_facing, node) : Rgb(0.0f);
+  const Secondary sec = plan_secondary(c, ray, hit, depth);
+  Rgb reflected(0.0f), refracted(0.0f);
+  if (sec.reflect) {
+    ++c.counts->secondary;
+    reflected = radiance(c, sec.reflected, hit.prim, depth + 1, 2 * node);
+  }
+  if (sec.refract) {
+    ++c.counts->secondary;
+    refracted = radiance(c, sec.refracted, hit.prim, depth + 1, 2 * node + 1);
+  }
+  return shade(c, ray, hit, direct, sec, reflected, refracted);
 }
 
-void trace_radiance_packet(const RenderScene& scene, const Ray* rays, const PixelSampler* samplers, int n,
-                           RayCounts* counts, Rgb* out) {
-  constexpr int P = RenderScene::kPacket;
-  const PrimRef none[P] = {};
+// The packet path: n <= P rays of one pixel's samples at the same path node (`node`: 1 for camera
+// rays, 2k / 2k + 1 for the reflection / refraction children of node k), traced as one packet.
+// Their shadow rays go in packets per light, and their children in one packet per child node, so
+// a pixel's samples stay together down the tree. Every lane gets exactly the scalar radiance():
+// the same rays (plan_secondary), the same shadow queries and sums in light order, the same
+// shading arithmetic (shade), only traced together.
+//
+// Its arrays live in one frame per depth, made once per thread: a packet's hits, rays and
+// results are over 3 KB, and zero-filling them on every call (their members have default
+// initializers) cost more than the packet's Embree traversal (measured on the Whitted scene).
+struct PacketFrame {
+  static constexpr int P = RenderScene::kPacket;
   Hit hits[P];
   bool found[P];
-  scene.intersect_packet(rays, none, n, hits, found);
+  Rgb direct[P];
+  Secondary sec[P];
+  Rgb child_L[2][P];
+  Ray r[P];  // a shadow or child packet's rays, their origin primitives and samplers
+  PrimRef f[P];
+  Rgb T[P];
+  const PixelSampler* smp[P];
+  int lane_of[P];
+};
+
+std::vector<PacketFrame>& packet_frames() {
+  static thread_local std::vector<PacketFrame> frames;
+  return frames;
+}
+
+void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* from, const PixelSampler* const* samplers,
+                     int n, int depth, uint64_t node, RayCounts* counts, Rgb* out) {
+  constexpr int P = RenderScene::kPacket;
+  PacketFrame& fr = packet_frames()[size_t(depth)];  // sized by trace_radiance_packet
+  Hit* hits = fr.hits;
+  bool* found = fr.found;
+  scene.intersect_packet(rays, from, n, hits, found);
 
   // The shadow rays of every diffuse hit, grouped by light (light-major: the rays to one light
-  // from the samples of one pixel are coherent), traced in packets of P.
+  // from the samples of one pixel are coherent), traced in packets of P. The thread's scratch
+  // vectors are done with before the recursion below reuses them.
   struct Query {
     ShadowQuery q;
     PrimRef from;
@@ -184,15 +236,14 @@ void trace_radiance_packet(const RenderScene& scene, const Ray* rays, const Pixe
   static thread_local std::vector<Query> queries;
   static thread_local std::vector<int> order;
   queries.clear();
-  Vec3f n_facing[P];
   for (int i = 0; i < n; ++i) {
     if (!found[i]) continue;
     const Material& m = scene.material(hits[i].material);
     if (m.type != Material::Type::kDiffuse) continue;
-    n_facing[i] = dot(rays[i].d, hits[i].n) < 0.0f ? hits[i].n : -hits[i].n;
-    const Context c{scene, samplers[i], counts};
+    const Vec3f n_facing = dot(rays[i].d, hits[i].n) < 0.0f ? hits[i].n : -hits[i].n;
+    const Context c{scene, *samplers[i], counts};
     int light = 0;
-    for_each_shadow_query(c, hits[i], n_facing[i], 1, [&](const ShadowQuery& q) {
+    for_each_shadow_query(c, hits[i], n_facing, node, [&](const ShadowQuery& q) {
       queries.push_back({q, hits[i].prim, i, light++, Rgb(0.0f)});
     });
   }
@@ -208,29 +259,77 @@ void trace_radiance_packet(const RenderScene& scene, const Ray* rays, const Pixe
   }
   for (size_t k = 0; k < order.size(); k += P) {
     const int m = int(std::min<size_t>(P, order.size() - k));
-    Ray r[P];
-    PrimRef from[P];
-    Rgb T[P];
+    Ray* r = fr.r;
+    PrimRef* f = fr.f;
+    Rgb* T = fr.T;
     for (int j = 0; j < m; ++j) {
       r[j] = queries[order[k + j]].q.ray;
-      from[j] = queries[order[k + j]].from;
+      f[j] = queries[order[k + j]].from;
     }
-    scene.transmittance_packet(r, from, m, T);
+    scene.transmittance_packet(r, f, m, T);
     for (int j = 0; j < m; ++j) queries[order[k + j]].T = T[j];
   }
-
-  // Per lane, sum in light order exactly as direct_sum does, then shade.
+  // Per lane, sum in light order exactly as direct_sum does.
+  Rgb* direct = fr.direct;
   size_t qi = 0;
   for (int i = 0; i < n; ++i) {
-    const Context c{scene, samplers[i], counts};
+    direct[i] = Rgb(0.0f);
+    for (; qi < queries.size() && queries[qi].lane == i; ++qi) {
+      direct[i] += queries[qi].T * queries[qi].q.a * queries[qi].q.b;
+    }
+  }
+
+  // Children: one packet of the lanes' reflection rays, one of their refraction rays.
+  Secondary* sec = fr.sec;
+  for (int k = 0; k < 2; ++k) {
+    Ray* r = fr.r;
+    PrimRef* f = fr.f;
+    const PixelSampler** smp = fr.smp;
+    int* lane_of = fr.lane_of;
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+      if (!found[i]) continue;
+      if (k == 0) sec[i] = plan_secondary({scene, *samplers[i], counts}, rays[i], hits[i], depth);
+      if (!(k == 0 ? sec[i].reflect : sec[i].refract)) continue;
+      r[m] = k == 0 ? sec[i].reflected : sec[i].refracted;
+      f[m] = hits[i].prim;
+      smp[m] = samplers[i];
+      lane_of[m++] = i;
+    }
+    if (m == 0) continue;
+    counts->secondary += uint64_t(m);
+    Rgb L[P];
+    radiance_packet(scene, r, f, smp, m, depth + 1, 2 * node + uint64_t(k), counts, L);
+    for (int j = 0; j < m; ++j) fr.child_L[k][lane_of[j]] = L[j];
+  }
+
+  for (int i = 0; i < n; ++i) {
     if (!found[i]) {
       out[i] = scene.background();
       continue;
     }
-    Rgb sum(0.0f);
-    for (; qi < queries.size() && queries[qi].lane == i; ++qi) sum += queries[qi].T * queries[qi].q.a * queries[qi].q.b;
-    out[i] = shade(c, rays[i], hits[i], 0, 1, &sum);
+    const Context c{scene, *samplers[i], counts};
+    out[i] = shade(c, rays[i], hits[i], direct[i], sec[i], fr.child_L[0][i], fr.child_L[1][i]);
   }
+}
+
+}  // namespace
+
+Rgb trace_radiance(const RenderScene& scene, const Ray& ray, const PixelSampler& sampler, RayCounts* counts) {
+  const Context c{scene, sampler, counts};
+  return radiance(c, ray, PrimRef{}, 0, 1);
+}
+
+void trace_radiance_packet(const RenderScene& scene, const Ray* rays, const PixelSampler* samplers, int n,
+                           RayCounts* counts, Rgb* out) {
+  constexpr int P = RenderScene::kPacket;
+  const PrimRef none[P] = {};
+  const PixelSampler* smp[P];
+  for (int i = 0; i < n; ++i) smp[i] = &samplers[i];
+  auto& frames = packet_frames();
+  // One frame per depth 0..max_depth, made before the recursion holds references into them.
+  if (frames.size() < size_t(scene.image().max_depth) + 1) frames.resize(size_t(scene.image().max_depth) + 1);
+  radiance_packet(scene, rays, none, smp, n, 0, 1, counts, out);
 }
 
 }  // namespace tessera

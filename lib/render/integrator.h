@@ -13,8 +13,10 @@ namespace tessera {
 Rgb trace_radiance(const RenderScene& scene, const Ray& ray, const PixelSampler& sampler, RayCounts* counts);
 
 // The same for n <= RenderScene::kPacket camera rays (lane i with samplers[i]), traced as one
-// packet, their direct-lighting shadow rays in packets too; reflections and refractions go on
-// ray by ray. Pack rays as a pure function of the pixel (see RenderScene::intersect_packet).
+// packet; their shadow rays go in packets per light, and their reflection and refraction rays in
+// one packet per node of the path tree, all the way down. Lane i's result is bit-identical to
+// trace_radiance(rays[i], samplers[i]). Pack rays as a pure function of the pixel (see
+// RenderScene::intersect_packet).
 void trace_radiance_packet(const RenderScene& scene, const Ray* rays, const PixelSampler* samplers, int n,
                            RayCounts* counts, Rgb* out);
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "math/next_float.h"
 #include "math/vec3.h"
 
 namespace tessera {
@@ -33,8 +34,8 @@ inline Vec3f offset_ray_origin(const Vec3f& p, const Vec3f& p_err, const Vec3f& 
   if (dot(w, n) < 0) offset = -offset;
   Vec3f po = p + offset;
   for (int i = 0; i < 3; ++i) {
-    if (offset[i] > 0) po[i] = std::nextafter(po[i], std::numeric_limits<float>::infinity());
-    else if (offset[i] < 0) po[i] = std::nextafter(po[i], -std::numeric_limits<float>::infinity());
+    if (offset[i] > 0) po[i] = next_float_up(po[i]);
+    else if (offset[i] < 0) po[i] = next_float_down(po[i]);
   }
   return po;
 }

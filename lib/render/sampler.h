@@ -70,10 +70,13 @@ class PixelSampler {
   // are progressive: sample s is the same whatever the pixel's final sample count.
   PixelSampler() = default;
   PixelSampler(SamplerKind kind, uint64_t seed, int frame, int px, int py, uint32_t sample, uint32_t spp)
-      : kind_(kind), sample_(sample), spp_(spp) {
-    pixel_key_ = hash_combine(hash_combine(hash_combine(mix64(seed), uint64_t(uint32_t(frame))),
-                                           uint64_t(uint32_t(px))),
-                              uint64_t(uint32_t(py)));
+      : PixelSampler(kind, pixel_key(seed, frame, px, py), sample, spp) {}
+  // The same from the pixel's key, computed once for all of a pixel's samples.
+  PixelSampler(SamplerKind kind, uint64_t pixel_key, uint32_t sample, uint32_t spp)
+      : kind_(kind), sample_(sample), spp_(spp), pixel_key_(pixel_key) {}
+  static constexpr uint64_t pixel_key(uint64_t seed, int frame, int px, int py) {
+    return hash_combine(hash_combine(hash_combine(mix64(seed), uint64_t(uint32_t(frame))), uint64_t(uint32_t(px))),
+                        uint64_t(uint32_t(py)));
   }
 
   // A 2D point in [0,1)^2 for the decision named by `dim`.

@@ -34,13 +34,14 @@ void render_samples(const RenderScene& scene, int x, int y, uint32_t from, uint3
   const ImageSettings& img = scene.image();
   const auto& cam = scene.camera();
   PixelSampler samplers[RenderScene::kPacket];
+  const uint64_t pixel_key = PixelSampler::pixel_key(img.seed, scene.frame(), x, y);
   for (uint32_t s0 = from; s0 < to;) {
     const uint32_t packet_end = std::min<uint32_t>(to, (s0 / RenderScene::kPacket + 1) * RenderScene::kPacket);
     const int n = int(packet_end - s0);
     Ray r[RenderScene::kPacket];
     Rgb Ls[RenderScene::kPacket];
     for (int i = 0; i < n; ++i) {
-      samplers[i] = PixelSampler(img.sampler, img.seed, scene.frame(), x, y, s0 + uint32_t(i), uint32_t(img.spp));
+      samplers[i] = PixelSampler(img.sampler, pixel_key, s0 + uint32_t(i), uint32_t(img.spp));
       float su, sv;
       samplers[i].pixel_offset(&su, &sv);
       const float u = (float(x) + su) / float(img.width);

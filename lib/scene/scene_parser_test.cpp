@@ -208,7 +208,7 @@ TEST(SceneParser, TheDocumentedFullExampleParses) {
 }
 
 TEST(SceneParser, ShowcaseScenesParse) {
-  for (const char* name : {"whitted", "cornell", "bunny"}) {
+  for (const char* name : {"whitted", "cornell", "bunny", "armadillo"}) {
     SCOPED_TRACE(name);
     const Scene s = load_scene(std::string(TESSERA_SOURCE_DIR) + "/scenes/" + name + ".json");
     EXPECT_FALSE(s.objects.empty());

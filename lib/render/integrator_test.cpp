@@ -1,0 +1,66 @@
+// The packet integrator against the scalar one: the same samples traced one ray at a time
+// (trace_radiance: rtcIntersect1/rtcOccluded1, recursion per ray) and a pixel's samples together
+// (trace_radiance_packet: Embree packets for camera, shadow, reflection and refraction rays)
+// must give the same radiance, bit for bit, and count the same rays.
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <string>
+
+#include "render/integrator.h"
+#include "scene/scene_parser.h"
+
+namespace tessera {
+namespace {
+
+class IntegratorPacketTest : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(IntegratorPacketTest, PacketRadianceEqualsScalarRadianceBitForBit) {
+  Scene scene = load_scene(std::string(TESSERA_SOURCE_DIR) + "/scenes/" + GetParam());
+  scene.image.width = 48;
+  scene.image.height = 27;
+  const RenderScene rs(scene, 0);
+  const ImageSettings& img = rs.image();
+  const auto& cam = rs.camera();
+  constexpr int P = RenderScene::kPacket;
+  RayCounts scalar_counts, packet_counts;
+  uint64_t secondary_lanes = 0;
+  for (int y = 0; y < img.height; ++y) {
+    for (int x = 0; x < img.width; ++x) {
+      // 3 to 8 samples: partly filled packets too.
+      const int n = 3 + (x + y) % 6;
+      PixelSampler samplers[P];
+      Ray rays[P];
+      for (int i = 0; i < n; ++i) {
+        samplers[i] = PixelSampler(img.sampler, img.seed, 0, x, y, uint32_t(i), uint32_t(n));
+        float su, sv;
+        samplers[i].pixel_offset(&su, &sv);
+        rays[i] = {Vec3f(0.0f), normalize(cam.p0 + cam.du * ((float(x) + su) / float(img.width)) +
+                                          cam.dv * ((float(y) + sv) / float(img.height)))};
+      }
+      Rgb packet[P];
+      const uint64_t before = packet_counts.secondary;
+      trace_radiance_packet(rs, rays, samplers, n, &packet_counts, packet);
+      secondary_lanes += packet_counts.secondary - before;
+      for (int i = 0; i < n; ++i) {
+        const Rgb scalar = trace_radiance(rs, rays[i], samplers[i], &scalar_counts);
+        for (int c = 0; c < 3; ++c) {
+          ASSERT_EQ(std::bit_cast<uint32_t>(packet[i][c]), std::bit_cast<uint32_t>(scalar[c]))
+              << "pixel " << x << "," << y << " sample " << i << " channel " << c;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(packet_counts.shadow, scalar_counts.shadow);
+  EXPECT_EQ(packet_counts.secondary, scalar_counts.secondary);
+  EXPECT_GT(secondary_lanes, 100u) << "the scene must send reflection or refraction rays";
+}
+
+INSTANTIATE_TEST_SUITE_P(Showcase, IntegratorPacketTest, ::testing::Values("whitted.json", "cornell.json", "bunny.json"),
+                         [](const auto& info) {
+                           const std::string name = info.param;
+                           return name.substr(0, name.find('.'));
+                         });
+
+}  // namespace
+}  // namespace tessera
