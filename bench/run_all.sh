@@ -6,7 +6,9 @@
 #   speed_error   time, Mrays/s, RMSE, relMSE and the renderer's estimated RMSE against spp, per
 #                 sampler, for the three showcase scenes; target-error renders against uniform spp
 #                 at equal measured error; a log-log PNG per scene (gnuplot)
-#   ray_ceiling   the renderer's Mrays/s against bare Embree on its own rays (single, 8-, 16-wide)
+#   ray_ceiling   the renderer's Mrays/s against bare Embree on its own rays (single, 8-, 16-wide) and
+#                 against the packet ceiling with Embree's robust triangles (Whitted, Cornell, bunny,
+#                 armadillo); the watertight test's frame time against Embree's robust test
 #   povray        POV-Ray 3.7 on the same Whitted scene: error and samples/s of both
 #   farm          bench/farm/run.sh (farm overhead, coordinator at scale), when it exists
 #
@@ -121,6 +123,31 @@ if want ray_ceiling; then
       "$BUILD/bench/ray_ceiling/ray_ceiling" --scene "$file" --width $CW --height $CH --spp $CSPP \
         --reps $REPS "${args[@]}" --markdown "$SUMMARY" >"$OUT/ray_ceiling_${scene}_depth$depth.json"
     done
+  done
+fi
+
+if want ray_ceiling; then
+  # Issue 14, goal 3: the watertight test (the default) against Embree's robust test, frame time
+  # of the whole renderer and bare Embree's single rays against its packets, same frame.
+  echo "== watertight triangles against Embree's robust test (${CW}x${CH}, $CSPP spp, depth 0, 1 thread)" >&2
+  {
+    echo -e "\n### Watertight triangles against Embree's robust test (1 thread, best of $REPS, depth 0)\n"
+    echo "| scene | renderer frame s, watertight | renderer frame s, embree-robust | ratio (goal <= 1.15) | watertight bare single / 8-wide / 16-wide Mrays/s | packets at least as fast as single rays |"
+    echo "|---|---:|---:|---:|---|---|"
+  } >>"$SUMMARY"
+  for scene in bunny armadillo; do
+    "$BUILD/bench/ray_ceiling/ray_ceiling" --scene "scenes/$scene.json" --width $CW --height $CH --spp $CSPP \
+      --reps $REPS --max-depth 0 --triangles embree-robust >"$OUT/ray_ceiling_${scene}_depth0_robust.json"
+    python3 - "$OUT/ray_ceiling_${scene}_depth0.json" "$OUT/ray_ceiling_${scene}_depth0_robust.json" >>"$SUMMARY" <<'PY'
+import json, sys
+w, r = (json.load(open(f)) for f in sys.argv[1:3])
+ratio = w["seconds"]["renderer"] / r["seconds"]["renderer"]
+m = w["mrays_per_s"]
+packets = max(m["packet8"], m["packet16"]) >= m["single"]
+print(f"| {w['scene']} | {w['seconds']['renderer']:.4f} | {r['seconds']['renderer']:.4f} | **{ratio:.2f}** "
+      f"({'met' if ratio <= 1.15 else 'not met'}) | {m['single']:.2f} / {m['packet8']:.2f} / {m['packet16']:.2f} | "
+      f"{'yes' if packets else 'no'} |")
+PY
   done
 fi
 

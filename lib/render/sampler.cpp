@@ -53,6 +53,24 @@ struct SobolDim1Bytes {
 };
 constexpr SobolDim1Bytes kSobolDim1Bytes;
 
+// The same tables bit-reversed (reversal distributes over XOR), for the scramble below, which
+// works on reversed words.
+struct SobolDim1BytesReversed {
+  uint32_t lo[256], hi[256];
+  constexpr SobolDim1BytesReversed() : lo(), hi() {
+    auto rev = [](uint32_t x) {
+      uint32_t r = 0;
+      for (int b = 0; b < 32; ++b) r |= ((x >> b) & 1u) << (31 - b);
+      return r;
+    };
+    for (int b = 0; b < 256; ++b) {
+      lo[b] = rev(kSobolDim1Bytes.lo[b]);
+      hi[b] = rev(kSobolDim1Bytes.hi[b]);
+    }
+  }
+};
+constexpr SobolDim1BytesReversed kSobolDim1BytesReversed;
+
 }  // namespace
 
 uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed) {
@@ -78,10 +96,12 @@ void owen_sobol_2d(uint32_t index, uint64_t seed, float* u, float* v) {
   // a stream (its half of 65536); two table
   // lookups replace a loop over 32 bits.
   const uint32_t i = nested_uniform_scramble(index, uint32_t(seed)) & 0xffffu;
-  const uint32_t x = reverse_bits(i);
-  const uint32_t y = kSobolDim1Bytes.lo[i & 0xffu] ^ kSobolDim1Bytes.hi[i >> 8];
-  *u = to_unit_float(nested_uniform_scramble(x, uint32_t(h)));
-  *v = to_unit_float(nested_uniform_scramble(y, uint32_t(h >> 32)));
+  // x = reverse(i) and y = the Pascal-matrix dimension, each scrambled by
+  // nested_uniform_scramble(w, s) = reverse(LK(reverse(w), s)): reverse(x) is i itself, and
+  // reverse(y) comes from the reversed tables, so two of the four reversals fall away.
+  const uint32_t y_reversed = kSobolDim1BytesReversed.lo[i & 0xffu] ^ kSobolDim1BytesReversed.hi[i >> 8];
+  *u = to_unit_float(reverse_bits(laine_karras_permutation(i, uint32_t(h))));
+  *v = to_unit_float(reverse_bits(laine_karras_permutation(y_reversed, uint32_t(h >> 32))));
 }
 
 uint32_t cmj_permute(uint32_t i, uint32_t l, uint32_t p) {
