@@ -228,13 +228,12 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
   // vectors are done with before the recursion below reuses them.
   struct Query {
     ShadowQuery q;
-    PrimRef from;
     int lane;
     int light;
-    Rgb T;
   };
   static thread_local std::vector<Query> queries;
   static thread_local std::vector<int> order;
+  static thread_local std::vector<Rgb> transmittance;  // by query
   queries.clear();
   for (int i = 0; i < n; ++i) {
     if (!found[i]) continue;
@@ -243,11 +242,10 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
     const Vec3f n_facing = dot(rays[i].d, hits[i].n) < 0.0f ? hits[i].n : -hits[i].n;
     const Context c{scene, *samplers[i], counts};
     int light = 0;
-    for_each_shadow_query(c, hits[i], n_facing, node, [&](const ShadowQuery& q) {
-      queries.push_back({q, hits[i].prim, i, light++, Rgb(0.0f)});
-    });
+    for_each_shadow_query(c, hits[i], n_facing, node, [&](const ShadowQuery& q) { queries.push_back({q, i, light++}); });
   }
   counts->shadow += queries.size();
+  transmittance.resize(queries.size());
   order.resize(queries.size());
   for (size_t k = 0; k < order.size(); ++k) order[k] = int(k);
   // Stable insertion sort by light (a handful of elements; std::stable_sort would allocate).
@@ -264,10 +262,10 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
     Rgb* T = fr.T;
     for (int j = 0; j < m; ++j) {
       r[j] = queries[order[k + j]].q.ray;
-      f[j] = queries[order[k + j]].from;
+      f[j] = hits[queries[order[k + j]].lane].prim;
     }
     scene.transmittance_packet(r, f, m, T);
-    for (int j = 0; j < m; ++j) queries[order[k + j]].T = T[j];
+    for (int j = 0; j < m; ++j) transmittance[size_t(order[k + j])] = T[j];
   }
   // Per lane, sum in light order exactly as direct_sum does.
   Rgb* direct = fr.direct;
@@ -275,7 +273,7 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
   for (int i = 0; i < n; ++i) {
     direct[i] = Rgb(0.0f);
     for (; qi < queries.size() && queries[qi].lane == i; ++qi) {
-      direct[i] += queries[qi].T * queries[qi].q.a * queries[qi].q.b;
+      direct[i] += transmittance[qi] * queries[qi].q.a * queries[qi].q.b;
     }
   }
 
@@ -289,7 +287,13 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
     int m = 0;
     for (int i = 0; i < n; ++i) {
       if (!found[i]) continue;
-      if (k == 0) sec[i] = plan_secondary({scene, *samplers[i], counts}, rays[i], hits[i], depth);
+      if (k == 0) {
+        if (scene.material(hits[i].material).type == Material::Type::kDiffuse) {
+          sec[i].reflect = sec[i].refract = false;  // what plan_secondary says, without building it
+          continue;
+        }
+        sec[i] = plan_secondary({scene, *samplers[i], counts}, rays[i], hits[i], depth);
+      }
       if (!(k == 0 ? sec[i].reflect : sec[i].refract)) continue;
       r[m] = k == 0 ? sec[i].reflected : sec[i].refracted;
       f[m] = hits[i].prim;

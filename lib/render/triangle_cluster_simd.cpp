@@ -50,14 +50,16 @@ uint32_t IntersectCluster(const TriangleCluster& c, const Vec3f& o, const RayShe
     const auto neg = hn::Or(hn::Or(hn::Lt(U, zero), hn::Lt(V, zero)), hn::Lt(W, zero));
     const auto pos = hn::Or(hn::Or(hn::Gt(U, zero), hn::Gt(V, zero)), hn::Gt(W, zero));
     const auto det = hn::Add(hn::Add(U, V), W);
+    const auto inside = hn::AndNot(hn::And(neg, pos), hn::Ne(det, zero));
+    // Most clusters a ray reaches hold no triangle it crosses: stop before the division.
+    if (hn::AllFalse(dd, inside)) continue;
     const auto az = hn::PromoteTo(dd, hn::Mul(sz, Az));
     const auto bz = hn::PromoteTo(dd, hn::Mul(sz, Bz));
     const auto cz = hn::PromoteTo(dd, hn::Mul(sz, Cz));
     const auto inv = hn::Div(one, det);
     const auto tf = hn::DemoteTo(df, hn::Mul(hn::Add(hn::Add(hn::Mul(U, az), hn::Mul(V, bz)), hn::Mul(W, cz)), inv));
     const auto td = hn::PromoteTo(dd, tf);  // exact: compares as the float t does, NaN fails
-    const auto ok = hn::AndNot(hn::And(neg, pos),
-                               hn::And(hn::Ne(det, zero), hn::And(hn::Ge(td, lo), hn::Le(td, hi))));
+    const auto ok = hn::And(inside, hn::And(hn::Ge(td, lo), hn::Le(td, hi)));
     uint8_t bits[8] = {};
     hn::StoreMaskBits(dd, ok, bits);
     mask |= uint32_t(bits[0]) << j;
