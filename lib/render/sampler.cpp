@@ -86,8 +86,9 @@ void sobol_2d(uint32_t index, uint32_t* x, uint32_t* y) {
   *y = v;
 }
 
-void owen_sobol_2d(uint32_t index, uint64_t seed, float* u, float* v) {
-  const uint64_t h = mix64(seed);
+void owen_sobol_2d(uint32_t index, uint64_t seed, float* u, float* v) { owen_sobol_2d(index, OwenSeeds(seed), u, v); }
+
+void owen_sobol_2d(uint32_t index, const OwenSeeds& seeds, float* u, float* v) {
   // Only the low 16 bits of the shuffled index are used: the bits above them are the same for
   // every index of a stream below 2^16 (the shuffle flips a bit by the bits above it), and by
   // linearity they only XOR a constant into the point, a digital shift, which the Owen scramble
@@ -95,13 +96,13 @@ void owen_sobol_2d(uint32_t index, uint64_t seed, float* u, float* v) {
   // of the net). 16 bits cover 2^16 samples per stream, twice what SceneLimits::kMaxSpp allows
   // a stream (its half of 65536); two table
   // lookups replace a loop over 32 bits.
-  const uint32_t i = nested_uniform_scramble(index, uint32_t(seed)) & 0xffffu;
+  const uint32_t i = nested_uniform_scramble(index, seeds.index) & 0xffffu;
   // x = reverse(i) and y = the Pascal-matrix dimension, each scrambled by
   // nested_uniform_scramble(w, s) = reverse(LK(reverse(w), s)): reverse(x) is i itself, and
   // reverse(y) comes from the reversed tables, so two of the four reversals fall away.
   const uint32_t y_reversed = kSobolDim1BytesReversed.lo[i & 0xffu] ^ kSobolDim1BytesReversed.hi[i >> 8];
-  *u = to_unit_float(reverse_bits(laine_karras_permutation(i, uint32_t(h))));
-  *v = to_unit_float(reverse_bits(laine_karras_permutation(y_reversed, uint32_t(h >> 32))));
+  *u = to_unit_float(reverse_bits(laine_karras_permutation(i, seeds.x)));
+  *v = to_unit_float(reverse_bits(laine_karras_permutation(y_reversed, seeds.y)));
 }
 
 uint32_t cmj_permute(uint32_t i, uint32_t l, uint32_t p) {

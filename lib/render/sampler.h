@@ -51,6 +51,14 @@ constexpr uint32_t stream_count(uint32_t stream, uint32_t n) { return stream == 
 uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed);
 void sobol_2d(uint32_t index, uint32_t* x, uint32_t* y);
 void owen_sobol_2d(uint32_t index, uint64_t seed, float* u, float* v);
+// The three 32-bit seeds owen_sobol_2d derives from its 64-bit one (index shuffle, x, y), for
+// callers that draw many points under one seed.
+struct OwenSeeds {
+  uint32_t index, x, y;
+  constexpr explicit OwenSeeds(uint64_t seed)
+      : index(uint32_t(seed)), x(uint32_t(mix64(seed))), y(uint32_t(mix64(seed) >> 32)) {}
+};
+void owen_sobol_2d(uint32_t index, const OwenSeeds& seeds, float* u, float* v);
 
 // Kensler, "Correlated Multi-Jittered Sampling" (Pixar Tech Memo 13-01, 2013): sample s of
 // n stratified 2D samples, for any n, under the random pattern p. permute() is his
@@ -74,6 +82,11 @@ class PixelSampler {
   // The same from the pixel's key, computed once for all of a pixel's samples.
   PixelSampler(SamplerKind kind, uint64_t pixel_key, uint32_t sample, uint32_t spp)
       : kind_(kind), sample_(sample), spp_(spp), pixel_key_(pixel_key) {}
+  // One key per (pixel, dimension, stream): independent patterns per stream, and different
+  // ones per dimension (decorrelating dimensions, "padding").
+  static constexpr uint64_t dimension_key(uint64_t pixel_key, uint64_t dim, uint32_t stream) {
+    return hash_combine(hash_combine(pixel_key, dim), stream);
+  }
   static constexpr uint64_t pixel_key(uint64_t seed, int frame, int px, int py) {
     return hash_combine(hash_combine(hash_combine(mix64(seed), uint64_t(uint32_t(frame))), uint64_t(uint32_t(px))),
                         uint64_t(uint32_t(py)));
@@ -82,9 +95,7 @@ class PixelSampler {
   // A 2D point in [0,1)^2 for the decision named by `dim`.
   void get_2d(uint64_t dim, float* u, float* v) const {
     const uint32_t stream = sample_stream(sample_);
-    // One key per (pixel, dimension, stream): independent patterns per stream, and different
-    // ones per dimension (decorrelating dimensions, "padding").
-    const uint64_t key = hash_combine(hash_combine(pixel_key_, dim), stream);
+    const uint64_t key = dimension_key(pixel_key_, dim, stream);
     switch (kind_) {
       case SamplerKind::kSobol:
         owen_sobol_2d(stream_index(sample_), key, u, v);
@@ -117,6 +128,30 @@ class PixelSampler {
   uint32_t sample_ = 0;
   uint32_t spp_ = 0;
   uint64_t pixel_key_ = 0;
+};
+
+// The pixel-area positions of one pixel's samples: PixelSampler::pixel_offset, bit for bit, with
+// the Sobol scramble's seeds derived once per pixel and stream instead of once per sample (five
+// 64-bit hashes a camera ray; the sampler was a tenth of a primary-ray-bound frame).
+class CameraSampler {
+ public:
+  CameraSampler(SamplerKind kind, uint64_t pixel_key, uint32_t spp)
+      : kind_(kind), spp_(spp), pixel_key_(pixel_key),
+        seeds_{OwenSeeds(PixelSampler::dimension_key(pixel_key, 0, 0)),
+               OwenSeeds(PixelSampler::dimension_key(pixel_key, 0, 1))} {}
+  void pixel_offset(uint32_t sample, float* u, float* v) const {
+    if (kind_ == SamplerKind::kSobol) {
+      owen_sobol_2d(stream_index(sample), seeds_[sample_stream(sample)], u, v);
+      return;
+    }
+    PixelSampler(kind_, pixel_key_, sample, spp_).pixel_offset(u, v);
+  }
+
+ private:
+  SamplerKind kind_;
+  uint32_t spp_;
+  uint64_t pixel_key_;
+  OwenSeeds seeds_[2];
 };
 
 }  // namespace tessera

@@ -148,6 +148,22 @@ TEST(Sampler, OwenSobolEqualsItsDefinitionBitForBit) {
   }
 }
 
+TEST(Sampler, CameraSamplerGivesEachSamplersPixelOffsetsBitForBit) {
+  for (SamplerKind kind : {SamplerKind::kSobol, SamplerKind::kCmj, SamplerKind::kIndependent, SamplerKind::kCenter}) {
+    for (int px : {0, 17, 1919}) {
+      const uint64_t key = PixelSampler::pixel_key(5, 3, px, 7);
+      const CameraSampler camera(kind, key, 64);
+      for (uint32_t s = 0; s < 64; ++s) {
+        float u0, v0, u1, v1;
+        PixelSampler(kind, 5, 3, px, 7, s, 64).pixel_offset(&u0, &v0);
+        camera.pixel_offset(s, &u1, &v1);
+        ASSERT_EQ(u0, u1) << int(kind) << " " << px << " " << s;
+        ASSERT_EQ(v0, v1) << int(kind) << " " << px << " " << s;
+      }
+    }
+  }
+}
+
 TEST(Sampler, StreamsAreIndependentPatternsAndSamplesDoNotDependOnSpp) {
   // Even samples form stream 0, odd ones stream 1, each its own scrambled net; a progressive
   // sampler gives sample s the same value whatever the final spp (an adaptive pixel that stops at

@@ -35,6 +35,7 @@ void render_samples(const RenderScene& scene, int x, int y, uint32_t from, uint3
   const auto& cam = scene.camera();
   PixelSampler samplers[RenderScene::kPacket];
   const uint64_t pixel_key = PixelSampler::pixel_key(img.seed, scene.frame(), x, y);
+  const CameraSampler camera(img.sampler, pixel_key, uint32_t(img.spp));
   for (uint32_t s0 = from; s0 < to;) {
     const uint32_t packet_end = std::min<uint32_t>(to, (s0 / RenderScene::kPacket + 1) * RenderScene::kPacket);
     const int n = int(packet_end - s0);
@@ -47,7 +48,7 @@ void render_samples(const RenderScene& scene, int x, int y, uint32_t from, uint3
     alignas(32) float su[RenderScene::kPacket] = {}, sv[RenderScene::kPacket] = {};
     for (int i = 0; i < n; ++i) {
       samplers[i] = PixelSampler(img.sampler, pixel_key, s0 + uint32_t(i), uint32_t(img.spp));
-      samplers[i].pixel_offset(&su[i], &sv[i]);
+      camera.pixel_offset(s0 + uint32_t(i), &su[i], &sv[i]);
     }
     alignas(32) float dx[RenderScene::kPacket], dy[RenderScene::kPacket], dz[RenderScene::kPacket];
     for (int i = 0; i < RenderScene::kPacket; ++i) {
