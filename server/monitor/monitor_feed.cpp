@@ -1,0 +1,285 @@
+#include "monitor_feed.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cstring>
+
+namespace tessera::server {
+
+namespace {
+
+int64_t steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
+}
+
+double seconds_between(TimePoint a, TimePoint b) { return std::chrono::duration<double>(b - a).count(); }
+
+double variance_sum(const std::string& bytes, int64_t* pixels) {
+  double sum = 0;
+  const size_t n = bytes.size() / sizeof(float);
+  for (size_t i = 0; i < n; ++i) {
+    float v;
+    std::memcpy(&v, bytes.data() + i * sizeof(float), sizeof v);
+    sum += double(v);
+  }
+  *pixels += int64_t(n);
+  return sum;
+}
+
+}  // namespace
+
+double MonitorFeed::now_s() { return double(steady_ns()) * 1e-9; }
+
+MonitorFeed::MonitorFeed(Coordinator& coordinator) : coordinator_(coordinator) { coordinator.add_observer(this); }
+
+void MonitorFeed::tile_finished(const TileKey& key, const TileOutput& out, WorkerId) {
+  const int64_t now = steady_ns();
+  if (now > active_until_.load(std::memory_order_relaxed)) return;  // no browser open: no cost
+  std::lock_guard lock(pending_mu_);
+  if (pending_.size() >= kMaxPending) {
+    ++dropped_;
+    return;
+  }
+  pending_.push_back({key, out.payload, double(now) * 1e-9});
+}
+
+void MonitorFeed::worker_faulted(const JobId& job, const WorkerStats& w, std::string_view reason, int, bool) {
+  std::lock_guard lock(faults_mu_);
+  WorkerFaults& f = faults_[w.info.name];
+  ++f.faults;
+  f.last_reason = "job " + job + ": " + std::string(reason);
+}
+
+FarmSnapshot MonitorFeed::catch_up(const std::optional<JobId>& preview_job) {
+  const int64_t now = steady_ns();
+  const bool was_idle = now > active_until_.exchange(
+                                  now + std::chrono::duration_cast<std::chrono::nanoseconds>(kActiveFor).count());
+  FarmSnapshot snap = coordinator_.snapshot();
+  std::deque<Pending> pending;
+  {
+    std::lock_guard lock(pending_mu_);
+    pending.swap(pending_);
+    if (dropped_) spdlog::warn("monitor: {} finished tiles were not shown (the preview fell behind)", dropped_);
+    dropped_ = 0;
+  }
+  std::vector<JobId> to_seed;
+  {
+    std::lock_guard lock(mu_);
+    if (was_idle) {
+      jobs_.clear();
+      previews_.clear();
+    }
+    for (const Pending& p : pending) decode_locked(p.key, *p.payload, p.arrived);
+    // Jobs that left memory leave the feed; previews nobody looked at lately too.
+    std::set<JobId> resident;
+    for (const JobSnapshot& j : snap.jobs) resident.insert(j.id);
+    std::erase_if(jobs_, [&](const auto& kv) { return !resident.count(kv.first); });
+    const auto stale = Clock::now() - kActiveFor;
+    std::erase_if(previews_, [&](const auto& kv) { return !resident.count(kv.first) || kv.second.asked < stale; });
+    for (const JobSnapshot& j : snap.jobs) {
+      JobFeed& f = jobs_[j.id];
+      if (!f.seeded) to_seed.push_back(j.id);
+    }
+    if (preview_job && resident.count(*preview_job)) {
+      auto it = previews_.find(*preview_job);
+      if (it == previews_.end()) {
+        if (previews_.size() >= kMaxPreviews) {
+          // The preview looked at longest ago makes room.
+          auto oldest = previews_.begin();
+          for (auto p = previews_.begin(); p != previews_.end(); ++p) {
+            if (p->second.asked < oldest->second.asked) oldest = p;
+          }
+          previews_.erase(oldest);
+        }
+        const JobSnapshot& j = *std::find_if(snap.jobs.begin(), snap.jobs.end(),
+                                             [&](const JobSnapshot& s) { return s.id == *preview_job; });
+        Preview& p = previews_[j.id];
+        p.width = j.spec.width;
+        p.height = j.spec.height;
+        p.tile_size = j.spec.tile_size;
+        it = previews_.find(j.id);
+      }
+      it->second.asked = Clock::now();
+      if (!it->second.seeded && std::find(to_seed.begin(), to_seed.end(), *preview_job) == to_seed.end()) {
+        to_seed.push_back(*preview_job);
+      }
+    }
+  }
+  // The coordinator's mutex is taken here, ours is not (lock order: see the header).
+  for (const JobId& id : to_seed) {
+    const auto tiles = coordinator_.finished_tiles(id);
+    std::lock_guard lock(mu_);
+    const double t = now_s();
+    for (const auto& [key, out] : tiles) {
+      if (out.payload) decode_locked(key, *out.payload, t);
+    }
+    if (auto it = jobs_.find(id); it != jobs_.end()) it->second.seeded = true;
+    if (auto it = previews_.find(id); it != previews_.end()) it->second.seeded = true;
+  }
+  return snap;
+}
+
+void MonitorFeed::decode_locked(const TileKey& key, const std::string& payload, double arrived) {
+  auto job = jobs_.find(key.job);
+  auto preview = previews_.find(key.job);
+  const bool want_stats = job != jobs_.end() && !job->second.tiles_seen[key.frame].count(key.tile);
+  FrameCanvas* canvas = nullptr;
+  if (preview != previews_.end()) {
+    auto& frames = preview->second.frames;
+    auto it = frames.find(key.frame);
+    if (it == frames.end() && (frames.size() < kMaxFrames || key.frame > frames.begin()->first)) {
+      if (frames.size() >= kMaxFrames) frames.erase(frames.begin());  // the oldest frame makes room
+      it = frames.emplace(key.frame, FrameCanvas(preview->second.width, preview->second.height,
+                                                 preview->second.tile_size)).first;
+    }
+    if (it != frames.end() && !it->second.has(key.tile)) canvas = &it->second;
+  }
+  if (!want_stats && !canvas) return;
+  tessera::v1::TileData tile;
+  if (!tile.ParseFromString(payload)) {
+    spdlog::warn("monitor: job {} frame {} tile {} does not parse; not shown", key.job, key.frame, key.tile);
+    return;
+  }
+  if (canvas) {
+    if (std::string err = canvas->add(tile); !err.empty()) {
+      spdlog::warn("monitor: job {} frame {}: {}; not shown", key.job, key.frame, err);
+    }
+  }
+  if (want_stats) {
+    JobFeed& f = job->second;
+    f.tiles_seen[key.frame].insert(key.tile);
+    FrameStats& fs = f.frames[key.frame];
+    if (fs.tiles == 0 || arrived < fs.first_seen) fs.first_seen = arrived;
+    fs.last_seen = std::max(fs.last_seen, arrived);
+    ++fs.tiles;
+    fs.tile_seconds += tile.seconds();
+    int64_t pixels = 0;
+    const double v = variance_sum(tile.variance(), &pixels);
+    fs.variance_sum += v;
+    fs.pixels += pixels;
+    f.variance_sum += v;
+    f.pixels += pixels;
+  }
+}
+
+nlohmann::json MonitorFeed::job_json_locked(const JobSnapshot& s) const {
+  using nlohmann::json;
+  const double elapsed = seconds_between(s.submitted, s.ended ? *s.ended : Clock::now());
+  json j{{"id", s.id},
+         {"name", s.spec.name},
+         {"owner", s.spec.owner},
+         {"state", job_state_name(s.state)},
+         {"priority", s.spec.priority},
+         {"first_frame", s.spec.first_frame},
+         {"last_frame", s.spec.last_frame},
+         {"frames_done", s.frames_done.size()},
+         {"width", s.spec.width},
+         {"height", s.spec.height},
+         {"spp", s.spec.spp},
+         {"tile_size", s.spec.tile_size},
+         {"tiles_per_frame", s.tiles_per_frame},
+         {"tiles_total", s.tiles_total},
+         {"tiles_done", s.tiles_done},
+         {"tiles_leased", s.tiles_leased},
+         {"progress", s.tiles_total ? double(s.tiles_done) / double(s.tiles_total) : 0.0},
+         {"elapsed_seconds", elapsed},
+         {"rays", s.rays},
+         {"mrays_per_second", elapsed > 0 ? double(s.rays) / elapsed / 1e6 : 0.0},
+         {"error", s.error},
+         {"blocklisted", s.blocklisted}};
+  // ETA: the rest of the tiles at the job's average pace so far.
+  j["eta_seconds"] = (s.state == JobState::kRunning && s.tiles_done > 0)
+                         ? json(elapsed * double(s.tiles_total - s.tiles_done) / double(s.tiles_done))
+                         : json(nullptr);
+  auto f = jobs_.find(s.id);
+  j["estimated_rmse"] = (f != jobs_.end() && f->second.pixels > 0)
+                            ? json(std::sqrt(f->second.variance_sum / double(f->second.pixels)))
+                            : json(nullptr);
+  return j;
+}
+
+nlohmann::json MonitorFeed::farm() {
+  using nlohmann::json;
+  const FarmSnapshot snap = catch_up();
+  json jobs = json::array(), workers = json::array();
+  {
+    std::lock_guard lock(mu_);
+    // Newest first: the job just submitted is the one looked for.
+    for (auto it = snap.jobs.rbegin(); it != snap.jobs.rend(); ++it) jobs.push_back(job_json_locked(*it));
+  }
+  std::map<std::string, std::vector<std::string>> blocklisted;  // worker name -> jobs
+  for (const JobSnapshot& j : snap.jobs) {
+    for (const std::string& w : j.blocklisted) blocklisted[w].push_back(j.id);
+  }
+  std::lock_guard lock(faults_mu_);
+  for (const WorkerStats& w : snap.workers) {
+    const double connected = seconds_between(w.connected, Clock::now());
+    const auto f = faults_.find(w.info.name);
+    workers.push_back({{"id", w.id},
+                       {"name", w.info.name},
+                       {"peer", w.info.peer},
+                       {"threads", w.info.threads},
+                       {"embree_isa", w.info.embree_isa},
+                       {"state", w.in_flight > 0 ? "rendering" : "idle"},
+                       {"tiles_held", w.in_flight},
+                       {"tiles_done", w.tiles_done},
+                       {"tiles_per_second", connected > 0 ? double(w.tiles_done) / connected : 0.0},
+                       {"mrays_per_second", w.seconds > 0 ? double(w.rays) / w.seconds / 1e6 : 0.0},
+                       {"connected_seconds", connected},
+                       {"faults", f == faults_.end() ? 0 : f->second.faults},
+                       {"last_fault", f == faults_.end() ? "" : f->second.last_reason},
+                       {"blocklisted_for", blocklisted[w.info.name]}});
+  }
+  return json{{"jobs", jobs}, {"workers", workers}, {"tiles_queued", snap.tiles_queued}};
+}
+
+std::optional<nlohmann::json> MonitorFeed::job(const std::string& id, std::optional<int> frame) {
+  using nlohmann::json;
+  const FarmSnapshot snap = catch_up(id);
+  const auto s = std::find_if(snap.jobs.begin(), snap.jobs.end(), [&](const JobSnapshot& j) { return j.id == id; });
+  if (s == snap.jobs.end()) return std::nullopt;
+  std::lock_guard lock(mu_);
+  json j = job_json_locked(*s);
+  json frames = json::array();
+  if (auto f = jobs_.find(id); f != jobs_.end()) {
+    for (const auto& [n, fs] : f->second.frames) {
+      frames.push_back({{"frame", n},
+                        {"tiles", fs.tiles},
+                        {"complete", fs.tiles == s->tiles_per_frame},
+                        {"wall_seconds", fs.last_seen - fs.first_seen},
+                        {"tile_seconds", fs.tile_seconds},
+                        {"estimated_rmse", fs.pixels > 0 ? json(fs.estimated_rmse()) : json(nullptr)}});
+    }
+  }
+  j["frames"] = frames;
+  json preview = nullptr;
+  if (auto p = previews_.find(id); p != previews_.end() && !p->second.frames.empty()) {
+    auto c = frame ? p->second.frames.find(*frame) : std::prev(p->second.frames.end());
+    if (c != p->second.frames.end()) {
+      json frames_shown = json::array();
+      for (const auto& [n, canvas] : p->second.frames) frames_shown.push_back(n);
+      preview = {{"frame", c->first},
+                 {"frames", frames_shown},
+                 {"tiles_done", c->second.tiles_done()},
+                 {"tiles_x", c->second.tiles_x()},
+                 {"tiles_y", c->second.tiles_y()},
+                 {"tile_workers", c->second.worker_of()},
+                 {"workers", c->second.workers()}};
+    }
+  }
+  j["preview"] = preview;
+  return j;
+}
+
+std::optional<std::string> MonitorFeed::preview(const std::string& id, std::optional<int> frame,
+                                                const color::ToneMapSettings& tonemap) {
+  catch_up(id);
+  std::lock_guard lock(mu_);
+  auto p = previews_.find(id);
+  if (p == previews_.end() || p->second.frames.empty()) return std::nullopt;
+  auto c = frame ? p->second.frames.find(*frame) : std::prev(p->second.frames.end());
+  if (c == p->second.frames.end()) return std::nullopt;
+  return c->second.png(tonemap);
+}
+
+}  // namespace tessera::server
