@@ -2,6 +2,9 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <cstring>
 
 namespace tessera::server {
@@ -43,8 +46,18 @@ void MonitorFeed::tile_finished(const TileKey& key, const TileOutput& out, Worke
   pending_.push_back({key, out.payload, double(now) * 1e-9});
 }
 
+void MonitorFeed::job_state_changed(const JobId& id, JobState state) {
+  if (!job_ended(state)) return;
+  std::lock_guard lock(events_mu_);
+  ended_.push_back(id);
+  if (ended_.size() > kRecentEnded) {
+    ended_status_.erase(ended_.front());
+    ended_.pop_front();
+  }
+}
+
 void MonitorFeed::worker_faulted(const JobId& job, const WorkerStats& w, std::string_view reason, int, bool) {
-  std::lock_guard lock(faults_mu_);
+  std::lock_guard lock(events_mu_);
   WorkerFaults& f = faults_[w.info.name];
   ++f.faults;
   f.last_reason = "job " + job + ": " + std::string(reason);
@@ -73,16 +86,16 @@ FarmSnapshot MonitorFeed::catch_up(const std::optional<JobId>& preview_job) {
     // Jobs that left memory leave the feed; previews nobody looked at lately too.
     std::set<JobId> resident;
     for (const JobSnapshot& j : snap.jobs) resident.insert(j.id);
-    std::erase_if(jobs_, [&](const auto& kv) { return !resident.count(kv.first); });
     const auto stale = Clock::now() - kActiveFor;
-    std::erase_if(previews_, [&](const auto& kv) { return !resident.count(kv.first) || kv.second.asked < stale; });
+    std::erase_if(previews_, [&](const auto& kv) { return kv.second.asked < stale; });
+    std::erase_if(jobs_, [&](const auto& kv) { return !resident.count(kv.first) && !previews_.count(kv.first); });
     for (const JobSnapshot& j : snap.jobs) {
       JobFeed& f = jobs_[j.id];
       if (!f.seeded) to_seed.push_back(j.id);
     }
-    if (preview_job && resident.count(*preview_job)) {
+    if (preview_job) {
       auto it = previews_.find(*preview_job);
-      if (it == previews_.end()) {
+      if (it == previews_.end() && resident.count(*preview_job)) {
         if (previews_.size() >= kMaxPreviews) {
           // The preview looked at longest ago makes room.
           auto oldest = previews_.begin();
@@ -99,9 +112,12 @@ FarmSnapshot MonitorFeed::catch_up(const std::optional<JobId>& preview_job) {
         p.tile_size = j.spec.tile_size;
         it = previews_.find(j.id);
       }
-      it->second.asked = Clock::now();
-      if (!it->second.seeded && std::find(to_seed.begin(), to_seed.end(), *preview_job) == to_seed.end()) {
-        to_seed.push_back(*preview_job);
+      if (it != previews_.end()) {
+        it->second.asked = Clock::now();
+        if (!it->second.seeded && resident.count(*preview_job) &&
+            std::find(to_seed.begin(), to_seed.end(), *preview_job) == to_seed.end()) {
+          to_seed.push_back(*preview_job);
+        }
       }
     }
   }
@@ -162,39 +178,60 @@ void MonitorFeed::decode_locked(const TileKey& key, const std::string& payload, 
   }
 }
 
-nlohmann::json MonitorFeed::job_json_locked(const JobSnapshot& s) const {
+nlohmann::json MonitorFeed::job_json_locked(const tessera::v1::JobStatus& s, const std::string& owner) const {
   using nlohmann::json;
-  const double elapsed = seconds_between(s.submitted, s.ended ? *s.ended : Clock::now());
-  json j{{"id", s.id},
-         {"name", s.spec.name},
-         {"owner", s.spec.owner},
-         {"state", job_state_name(s.state)},
-         {"priority", s.spec.priority},
-         {"first_frame", s.spec.first_frame},
-         {"last_frame", s.spec.last_frame},
-         {"frames_done", s.frames_done.size()},
-         {"width", s.spec.width},
-         {"height", s.spec.height},
-         {"spp", s.spec.spp},
-         {"tile_size", s.spec.tile_size},
-         {"tiles_per_frame", s.tiles_per_frame},
-         {"tiles_total", s.tiles_total},
-         {"tiles_done", s.tiles_done},
-         {"tiles_leased", s.tiles_leased},
-         {"progress", s.tiles_total ? double(s.tiles_done) / double(s.tiles_total) : 0.0},
+  // "JOB_STATE_RUNNING" -> "running", the names job_state_name() gives.
+  std::string state = tessera::v1::JobState_Name(s.state()).substr(std::string_view("JOB_STATE_").size());
+  for (char& c : state) c = char(std::tolower(static_cast<unsigned char>(c)));
+  const double elapsed = s.elapsed_seconds();
+  json j{{"id", s.job_id()},
+         {"name", s.name()},
+         {"owner", owner},
+         {"state", state},
+         {"priority", s.priority()},
+         {"first_frame", s.first_frame()},
+         {"last_frame", s.last_frame()},
+         {"frames_done", s.frames_done_size()},
+         {"width", s.width()},
+         {"height", s.height()},
+         {"spp", s.spp()},
+         {"tile_size", s.tile_size()},
+         {"tiles_per_frame", s.tiles_per_frame()},
+         {"tiles_total", s.tiles_total()},
+         {"tiles_done", s.tiles_done()},
+         {"tiles_leased", s.tiles_leased()},
+         {"progress", s.tiles_total() ? double(s.tiles_done()) / double(s.tiles_total()) : 0.0},
          {"elapsed_seconds", elapsed},
-         {"rays", s.rays},
-         {"mrays_per_second", elapsed > 0 ? double(s.rays) / elapsed / 1e6 : 0.0},
-         {"error", s.error},
-         {"blocklisted", s.blocklisted}};
+         {"rays", s.rays()},
+         {"mrays_per_second", elapsed > 0 ? double(s.rays()) / elapsed / 1e6 : 0.0},
+         {"error", s.error()},
+         {"blocklisted", std::vector<std::string>(s.blocklisted_workers().begin(), s.blocklisted_workers().end())}};
   // ETA: the rest of the tiles at the job's average pace so far.
-  j["eta_seconds"] = (s.state == JobState::kRunning && s.tiles_done > 0)
-                         ? json(elapsed * double(s.tiles_total - s.tiles_done) / double(s.tiles_done))
+  j["eta_seconds"] = (s.state() == tessera::v1::JOB_STATE_RUNNING && s.tiles_done() > 0)
+                         ? json(elapsed * double(s.tiles_total() - s.tiles_done()) / double(s.tiles_done()))
                          : json(nullptr);
-  auto f = jobs_.find(s.id);
+  auto f = jobs_.find(s.job_id());
   j["estimated_rmse"] = (f != jobs_.end() && f->second.pixels > 0)
                             ? json(std::sqrt(f->second.variance_sum / double(f->second.pixels)))
                             : json(nullptr);
+  return j;
+}
+
+std::optional<nlohmann::json> MonitorFeed::ended_job(const JobId& id) {
+  {
+    std::lock_guard lock(events_mu_);
+    if (auto it = ended_status_.find(id); it != ended_status_.end()) return it->second;
+  }
+  tessera::v1::JobStatus status;
+  if (!coordinator_.get_job(id, &status).ok()) return std::nullopt;
+  const std::string owner = coordinator_.job_owner(id).value_or("");
+  nlohmann::json j;
+  {
+    std::lock_guard lock(mu_);
+    j = job_json_locked(status, owner);
+  }
+  std::lock_guard lock(events_mu_);
+  if (std::find(ended_.begin(), ended_.end(), id) != ended_.end()) ended_status_[id] = j;
   return j;
 }
 
@@ -202,16 +239,31 @@ nlohmann::json MonitorFeed::farm() {
   using nlohmann::json;
   const FarmSnapshot snap = catch_up();
   json jobs = json::array(), workers = json::array();
+  std::set<JobId> listed;
   {
     std::lock_guard lock(mu_);
     // Newest first: the job just submitted is the one looked for.
-    for (auto it = snap.jobs.rbegin(); it != snap.jobs.rend(); ++it) jobs.push_back(job_json_locked(*it));
+    for (auto it = snap.jobs.rbegin(); it != snap.jobs.rend(); ++it) {
+      tessera::v1::JobStatus status;
+      coordinator_.status_of(*it, &status);
+      jobs.push_back(job_json_locked(status, it->spec.owner));
+      listed.insert(it->id);
+    }
+  }
+  std::vector<JobId> recent;
+  {
+    std::lock_guard lock(events_mu_);
+    recent.assign(ended_.rbegin(), ended_.rend());
+  }
+  for (const JobId& id : recent) {
+    if (listed.count(id)) continue;
+    if (auto j = ended_job(id)) jobs.push_back(std::move(*j));
   }
   std::map<std::string, std::vector<std::string>> blocklisted;  // worker name -> jobs
   for (const JobSnapshot& j : snap.jobs) {
     for (const std::string& w : j.blocklisted) blocklisted[w].push_back(j.id);
   }
-  std::lock_guard lock(faults_mu_);
+  std::lock_guard lock(events_mu_);
   for (const WorkerStats& w : snap.workers) {
     const double connected = seconds_between(w.connected, Clock::now());
     const auto f = faults_.find(w.info.name);
@@ -237,15 +289,27 @@ std::optional<nlohmann::json> MonitorFeed::job(const std::string& id, std::optio
   using nlohmann::json;
   const FarmSnapshot snap = catch_up(id);
   const auto s = std::find_if(snap.jobs.begin(), snap.jobs.end(), [&](const JobSnapshot& j) { return j.id == id; });
-  if (s == snap.jobs.end()) return std::nullopt;
+  json j;
+  if (s == snap.jobs.end()) {
+    auto ended = ended_job(id);  // left memory: its status from the database, what the feed saw of it
+    if (!ended) return std::nullopt;
+    j = std::move(*ended);
+  }
   std::lock_guard lock(mu_);
-  json j = job_json_locked(*s);
+  if (s != snap.jobs.end()) {
+    tessera::v1::JobStatus status;
+    coordinator_.status_of(*s, &status);
+    j = job_json_locked(status, s->spec.owner);
+  } else if (auto f = jobs_.find(id); f != jobs_.end() && f->second.pixels > 0) {
+    j["estimated_rmse"] = std::sqrt(f->second.variance_sum / double(f->second.pixels));
+  }
+  const int tiles_per_frame = j["tiles_per_frame"].get<int>();
   json frames = json::array();
   if (auto f = jobs_.find(id); f != jobs_.end()) {
     for (const auto& [n, fs] : f->second.frames) {
       frames.push_back({{"frame", n},
                         {"tiles", fs.tiles},
-                        {"complete", fs.tiles == s->tiles_per_frame},
+                        {"complete", fs.tiles == tiles_per_frame},
                         {"wall_seconds", fs.last_seen - fs.first_seen},
                         {"tile_seconds", fs.tile_seconds},
                         {"estimated_rmse", fs.pixels > 0 ? json(fs.estimated_rmse()) : json(nullptr)}});

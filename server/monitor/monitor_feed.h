@@ -10,7 +10,8 @@
 // the tiles the coordinator still holds (frames not yet delivered to their client).
 //
 // Pixels are kept only for the jobs whose preview was asked for in the last kActiveFor (at most
-// kMaxPreviews jobs, kMaxFrames frames each); statistics, a few numbers a frame, for every job.
+// kMaxPreviews jobs, kMaxFrames frames each), also after the job left the coordinator's memory,
+// so the finished frame stays on its page; statistics, a few numbers a frame, for every job.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -53,6 +54,7 @@ class MonitorFeed : public SchedulerListener {
   void tile_finished(const TileKey& key, const TileOutput& out, WorkerId) override;
   void worker_faulted(const JobId&, const WorkerStats& w, std::string_view reason, int faults,
                       bool blocklisted) override;
+  void job_state_changed(const JobId& id, JobState state) override;
 
  private:
   struct Pending {
@@ -83,7 +85,11 @@ class MonitorFeed : public SchedulerListener {
   // still holds. After a pause it first forgets what it knew (it missed tiles meanwhile).
   FarmSnapshot catch_up(const std::optional<JobId>& preview_job = std::nullopt);
   void decode_locked(const TileKey& key, const std::string& payload, double arrived);
-  nlohmann::json job_json_locked(const JobSnapshot& s) const;
+  // A job as the pages show it (the coordinator's JobStatus, plus ETA, rates and what the feed
+  // measured).
+  nlohmann::json job_json_locked(const tessera::v1::JobStatus& s, const std::string& owner) const;
+  // The status of a job that left the coordinator's memory (read once from its database).
+  std::optional<nlohmann::json> ended_job(const JobId& id);
   static double now_s();
 
   Coordinator& coordinator_;
@@ -98,8 +104,13 @@ class MonitorFeed : public SchedulerListener {
   std::mutex mu_;  // jobs_, previews_
   std::map<JobId, JobFeed> jobs_;
   std::map<JobId, Preview> previews_;
-  std::mutex faults_mu_;
+  std::mutex events_mu_;
   std::map<std::string, WorkerFaults> faults_;  // by worker name; counted whether active or not
+  // Jobs that ended lately, newest last: they stay on the page after they leave the
+  // coordinator's memory (which a job whose frames were all delivered does at once).
+  static constexpr size_t kRecentEnded = 20;
+  std::deque<JobId> ended_;
+  std::map<JobId, nlohmann::json> ended_status_;  // cached: an ended job does not change
 };
 
 }  // namespace tessera::server

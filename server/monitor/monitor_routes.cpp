@@ -75,13 +75,15 @@ std::optional<int> int_param(const httplib::Request& req, const char* name, Stat
 }  // namespace
 
 void MonitorRoutes::install(httplib::Server& server) const {
+  // The handlers outlive this call: they share a copy of the routes' references and settings.
+  const auto self = std::make_shared<const MonitorRoutes>(*this);
   // Who is calling, as ClientServiceImpl::authenticate decides it.
-  auto authenticate = [this](const httplib::Request& req, Caller* caller) {
+  auto authenticate = [self](const httplib::Request& req, Caller* caller) {
     std::optional<std::string_view> header;
     const std::string value = req.get_header_value("Authorization");
     if (req.has_header("Authorization")) header = value;
     std::string token_name;
-    Status s = auth.check_authorization(header, PeerRole::kClient, &token_name);
+    Status s = self->auth.check_authorization(header, PeerRole::kClient, &token_name);
     if (!s.ok()) return s;
     caller->identity = certificate_identity(req);
     if (caller->identity.empty() && !token_name.empty()) caller->identity = "token:" + token_name;
@@ -89,11 +91,11 @@ void MonitorRoutes::install(httplib::Server& server) const {
       caller->identity = req.remote_addr.find(':') == std::string::npos ? "ipv4:" + req.remote_addr
                                                                          : "ipv6:[" + req.remote_addr + "]";
     }
-    caller->admin = admins.count(caller->identity) > 0;
+    caller->admin = self->admins.count(caller->identity) > 0;
     return s;
   };
-  auto authorize = [this](const std::string& job, const Caller& caller, const char* action) {
-    const std::optional<std::string> owner = coordinator.job_owner(job);
+  auto authorize = [self](const std::string& job, const Caller& caller, const char* action) {
+    const std::optional<std::string> owner = self->coordinator.job_owner(job);
     if (!owner) return Status(StatusCode::NOT_FOUND, "no job '" + job + "' on this coordinator");
     Status s = check_job_access(job, *owner, caller, action);
     if (!s.ok()) spdlog::warn("monitor: {} refused: {}", caller.identity, s.error_message());
@@ -129,18 +131,18 @@ void MonitorRoutes::install(httplib::Server& server) const {
   server.Get(R"(/static/([A-Za-z0-9_.-]+))",
              [page](const httplib::Request& req, httplib::Response& res) { page(req.matches[1].str(), res); });
 
-  server.Get("/api/whoami", [=, this](const httplib::Request& req, httplib::Response& res) {
+  server.Get("/api/whoami", [=](const httplib::Request& req, httplib::Response& res) {
     Caller caller;
     if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
     send_json(res, 200,
-              {{"identity", caller.identity}, {"admin", caller.admin}, {"token_required", !auth.open(PeerRole::kClient)}});
+              {{"identity", caller.identity}, {"admin", caller.admin}, {"token_required", !self->auth.open(PeerRole::kClient)}});
   });
-  server.Get("/api/farm", [=, this](const httplib::Request& req, httplib::Response& res) {
+  server.Get("/api/farm", [=](const httplib::Request& req, httplib::Response& res) {
     Caller caller;
     if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
-    send_json(res, 200, feed.farm());
+    send_json(res, 200, self->feed.farm());
   });
-  server.Get(kJobRoute, [=, this](const httplib::Request& req, httplib::Response& res) {
+  server.Get(kJobRoute, [=](const httplib::Request& req, httplib::Response& res) {
     Caller caller;
     const std::string id = req.matches[1];
     if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
@@ -148,11 +150,11 @@ void MonitorRoutes::install(httplib::Server& server) const {
     Status bad;
     const auto frame = int_param(req, "frame", &bad);
     if (!bad.ok()) return send_error(res, bad);
-    auto j = feed.job(id, frame);
+    auto j = self->feed.job(id, frame);
     if (!j) return send_error(res, Status(StatusCode::NOT_FOUND, "job " + id + " is no longer in the coordinator's memory"));
     send_json(res, 200, *j);
   });
-  server.Get(std::string(kJobRoute) + "/preview.png", [=, this](const httplib::Request& req, httplib::Response& res) {
+  server.Get(std::string(kJobRoute) + "/preview.png", [=](const httplib::Request& req, httplib::Response& res) {
     Caller caller;
     const std::string id = req.matches[1];
     if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
@@ -170,7 +172,7 @@ void MonitorRoutes::install(httplib::Server& server) const {
     if (!bad.ok()) return send_error(res, bad);
     std::optional<std::string> png;
     try {
-      png = feed.preview(id, frame, tonemap);
+      png = self->feed.preview(id, frame, tonemap);
     } catch (const std::exception& e) {
       return send_error(res, Status(StatusCode::INTERNAL, std::string("cannot encode the preview: ") + e.what()));
     }
@@ -178,7 +180,7 @@ void MonitorRoutes::install(httplib::Server& server) const {
     res.set_header("Cache-Control", "no-store");
     res.set_content(std::move(*png), "image/png");
   });
-  server.Post(std::string(kJobRoute) + "/cancel", [=, this](const httplib::Request& req, httplib::Response& res) {
+  server.Post(std::string(kJobRoute) + "/cancel", [=](const httplib::Request& req, httplib::Response& res) {
     Caller caller;
     json body;
     const std::string id = req.matches[1];
@@ -186,11 +188,11 @@ void MonitorRoutes::install(httplib::Server& server) const {
     if (Status s = json_body(req, &body); !s.ok()) return send_error(res, s);
     if (Status s = authorize(id, caller, "cancel"); !s.ok()) return send_error(res, s);
     tessera::v1::JobStatus status;
-    if (Status s = coordinator.cancel(id, &status); !s.ok()) return send_error(res, s);
+    if (Status s = self->coordinator.cancel(id, &status); !s.ok()) return send_error(res, s);
     spdlog::info("monitor: {} cancelled job {}", caller.identity, id);
     send_json(res, 200, {{"id", id}, {"state", "cancelled"}});
   });
-  server.Post(std::string(kJobRoute) + "/priority", [=, this](const httplib::Request& req, httplib::Response& res) {
+  server.Post(std::string(kJobRoute) + "/priority", [=](const httplib::Request& req, httplib::Response& res) {
     Caller caller;
     json body;
     const std::string id = req.matches[1];
@@ -205,15 +207,15 @@ void MonitorRoutes::install(httplib::Server& server) const {
     }
     if (Status s = authorize(id, caller, "change the priority of"); !s.ok()) return send_error(res, s);
     tessera::v1::JobStatus status;
-    if (Status s = coordinator.set_priority(id, int(p), &status); !s.ok()) return send_error(res, s);
+    if (Status s = self->coordinator.set_priority(id, int(p), &status); !s.ok()) return send_error(res, s);
     spdlog::info("monitor: {} set the priority of job {} to {}", caller.identity, id, p);
     send_json(res, 200, {{"id", id}, {"priority", status.priority()}});
   });
-  if (metrics) {
-    server.Get("/metrics", [=, this](const httplib::Request& req, httplib::Response& res) {
+  if (self->metrics) {
+    server.Get("/metrics", [=](const httplib::Request& req, httplib::Response& res) {
       Caller caller;
       if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
-      res.set_content(metrics->scrape(), "text/plain; version=0.0.4; charset=utf-8");
+      res.set_content(self->metrics->scrape(), "text/plain; version=0.0.4; charset=utf-8");
     });
   }
 }
