@@ -63,17 +63,35 @@ void MonitorFeed::worker_faulted(const JobId& job, const WorkerStats& w, std::st
   f.last_reason = "job " + job + ": " + std::string(reason);
 }
 
+void MonitorFeed::job_submitted(const JobSnapshot& s) {
+  if (steady_ns() > active_until_.load(std::memory_order_relaxed)) return;
+  std::lock_guard lock(pending_mu_);
+  pending_jobs_.emplace_back(s.id, Geometry{s.spec.width, s.spec.height, s.spec.tile_size});
+}
+
 FarmSnapshot MonitorFeed::catch_up(const std::optional<JobId>& preview_job) {
   const int64_t now = steady_ns();
   const bool was_idle = now > active_until_.exchange(
                                   now + std::chrono::duration_cast<std::chrono::nanoseconds>(kActiveFor).count());
   FarmSnapshot snap = coordinator_.snapshot();
   std::deque<Pending> pending;
+  std::vector<std::pair<JobId, Geometry>> submitted;
   {
     std::lock_guard lock(pending_mu_);
     pending.swap(pending_);
+    submitted.swap(pending_jobs_);
     if (dropped_) spdlog::warn("monitor: {} finished tiles were not shown (the preview fell behind)", dropped_);
     dropped_ = 0;
+  }
+  std::set<JobId> keep;  // jobs whose statistics stay: in memory, or ended lately
+  {
+    std::lock_guard lock(events_mu_);
+    keep.insert(ended_.begin(), ended_.end());
+  }
+  std::set<JobId> live;
+  for (const JobSnapshot& j : snap.jobs) {
+    keep.insert(j.id);
+    if (!job_ended(j.state)) live.insert(j.id);
   }
   std::vector<JobId> to_seed;
   {
@@ -81,44 +99,27 @@ FarmSnapshot MonitorFeed::catch_up(const std::optional<JobId>& preview_job) {
     if (was_idle) {
       jobs_.clear();
       previews_.clear();
+      geometry_.clear();
     }
-    for (const Pending& p : pending) decode_locked(p.key, *p.payload, p.arrived);
-    // Jobs that left memory leave the feed; previews nobody looked at lately too.
-    std::set<JobId> resident;
-    for (const JobSnapshot& j : snap.jobs) resident.insert(j.id);
-    const auto stale = Clock::now() - kActiveFor;
-    std::erase_if(previews_, [&](const auto& kv) { return kv.second.asked < stale; });
-    std::erase_if(jobs_, [&](const auto& kv) { return !resident.count(kv.first) && !previews_.count(kv.first); });
+    for (auto& [id, g] : submitted) geometry_[id] = g;
+    for (const JobSnapshot& j : snap.jobs) geometry_[j.id] = {j.spec.width, j.spec.height, j.spec.tile_size};
+    for (const Pending& p : pending) decode_locked(p.key, *p.payload, p.arrived, true);
+    // Live jobs keep their previews while a page is open; other previews stay kActiveFor after
+    // their page was last looked at (so a job that just finished still shows its frame).
+    const auto t = Clock::now();
+    for (auto& [id, p] : previews_) {
+      if (live.count(id) || (preview_job && id == *preview_job)) p.asked = t;
+    }
+    if (preview_job && !previews_.count(*preview_job) && keep.count(*preview_job)) {
+      if (Preview* p = preview_locked(*preview_job)) p->asked = t;
+    }
+    std::erase_if(previews_, [&](const auto& kv) { return kv.second.asked < t - kActiveFor; });
+    std::erase_if(jobs_, [&](const auto& kv) { return !keep.count(kv.first) && !previews_.count(kv.first); });
+    std::erase_if(geometry_, [&](const auto& kv) { return !keep.count(kv.first) && !jobs_.count(kv.first); });
     for (const JobSnapshot& j : snap.jobs) {
-      JobFeed& f = jobs_[j.id];
-      if (!f.seeded) to_seed.push_back(j.id);
-    }
-    if (preview_job) {
-      auto it = previews_.find(*preview_job);
-      if (it == previews_.end() && resident.count(*preview_job)) {
-        if (previews_.size() >= kMaxPreviews) {
-          // The preview looked at longest ago makes room.
-          auto oldest = previews_.begin();
-          for (auto p = previews_.begin(); p != previews_.end(); ++p) {
-            if (p->second.asked < oldest->second.asked) oldest = p;
-          }
-          previews_.erase(oldest);
-        }
-        const JobSnapshot& j = *std::find_if(snap.jobs.begin(), snap.jobs.end(),
-                                             [&](const JobSnapshot& s) { return s.id == *preview_job; });
-        Preview& p = previews_[j.id];
-        p.width = j.spec.width;
-        p.height = j.spec.height;
-        p.tile_size = j.spec.tile_size;
-        it = previews_.find(j.id);
-      }
-      if (it != previews_.end()) {
-        it->second.asked = Clock::now();
-        if (!it->second.seeded && resident.count(*preview_job) &&
-            std::find(to_seed.begin(), to_seed.end(), *preview_job) == to_seed.end()) {
-          to_seed.push_back(*preview_job);
-        }
-      }
+      const bool stats = !jobs_[j.id].seeded;
+      auto p = previews_.find(j.id);
+      if (stats || (p != previews_.end() && !p->second.seeded)) to_seed.push_back(j.id);
     }
   }
   // The coordinator's mutex is taken here, ours is not (lock order: see the header).
@@ -127,7 +128,7 @@ FarmSnapshot MonitorFeed::catch_up(const std::optional<JobId>& preview_job) {
     std::lock_guard lock(mu_);
     const double t = now_s();
     for (const auto& [key, out] : tiles) {
-      if (out.payload) decode_locked(key, *out.payload, t);
+      if (out.payload) decode_locked(key, *out.payload, t, live.count(id) > 0);
     }
     if (auto it = jobs_.find(id); it != jobs_.end()) it->second.seeded = true;
     if (auto it = previews_.find(id); it != previews_.end()) it->second.seeded = true;
@@ -135,18 +136,40 @@ FarmSnapshot MonitorFeed::catch_up(const std::optional<JobId>& preview_job) {
   return snap;
 }
 
-void MonitorFeed::decode_locked(const TileKey& key, const std::string& payload, double arrived) {
-  auto job = jobs_.find(key.job);
-  auto preview = previews_.find(key.job);
-  const bool want_stats = job != jobs_.end() && !job->second.tiles_seen[key.frame].count(key.tile);
+MonitorFeed::Preview* MonitorFeed::preview_locked(const JobId& id) {
+  if (auto it = previews_.find(id); it != previews_.end()) return &it->second;
+  const auto g = geometry_.find(id);
+  if (g == geometry_.end()) return nullptr;
+  if (previews_.size() >= kMaxPreviews) {
+    // The preview looked at longest ago makes room.
+    auto oldest = previews_.begin();
+    for (auto p = previews_.begin(); p != previews_.end(); ++p) {
+      if (p->second.asked < oldest->second.asked) oldest = p;
+    }
+    previews_.erase(oldest);
+  }
+  Preview& p = previews_[id];
+  p.geometry = g->second;
+  p.asked = Clock::now();
+  return &p;
+}
+
+void MonitorFeed::decode_locked(const TileKey& key, const std::string& payload, double arrived, bool may_preview) {
+  JobFeed& job = jobs_[key.job];
+  const bool want_stats = !job.tiles_seen[key.frame].count(key.tile);
   FrameCanvas* canvas = nullptr;
-  if (preview != previews_.end()) {
-    auto& frames = preview->second.frames;
+  Preview* preview = may_preview ? preview_locked(key.job) : nullptr;
+  if (!preview) {
+    auto it = previews_.find(key.job);
+    if (it != previews_.end()) preview = &it->second;
+  }
+  if (preview) {
+    auto& frames = preview->frames;
     auto it = frames.find(key.frame);
     if (it == frames.end() && (frames.size() < kMaxFrames || key.frame > frames.begin()->first)) {
       if (frames.size() >= kMaxFrames) frames.erase(frames.begin());  // the oldest frame makes room
-      it = frames.emplace(key.frame, FrameCanvas(preview->second.width, preview->second.height,
-                                                 preview->second.tile_size)).first;
+      const Geometry& g = preview->geometry;
+      it = frames.emplace(key.frame, FrameCanvas(g.width, g.height, g.tile_size)).first;
     }
     if (it != frames.end() && !it->second.has(key.tile)) canvas = &it->second;
   }
@@ -162,7 +185,7 @@ void MonitorFeed::decode_locked(const TileKey& key, const std::string& payload, 
     }
   }
   if (want_stats) {
-    JobFeed& f = job->second;
+    JobFeed& f = job;
     f.tiles_seen[key.frame].insert(key.tile);
     FrameStats& fs = f.frames[key.frame];
     if (fs.tiles == 0 || arrived < fs.first_seen) fs.first_seen = arrived;

@@ -9,9 +9,11 @@
 // thread that answers the next request. Coming back after a pause, the feed starts over from
 // the tiles the coordinator still holds (frames not yet delivered to their client).
 //
-// Pixels are kept only for the jobs whose preview was asked for in the last kActiveFor (at most
-// kMaxPreviews jobs, kMaxFrames frames each), also after the job left the coordinator's memory,
-// so the finished frame stays on its page; statistics, a few numbers a frame, for every job.
+// Pixels (12 bytes a pixel) are kept while a page is open for the live jobs, and for kActiveFor
+// after a job page was last looked at (so a job that just finished, and left the coordinator's
+// memory with its frames delivered, still shows its frame): at most kMaxPreviews jobs,
+// kMaxFrames frames each. Statistics, a few numbers a frame, for every job in memory and the
+// last kRecentEnded that ended.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -35,7 +37,7 @@ class MonitorFeed : public SchedulerListener {
  public:
   static constexpr std::chrono::seconds kActiveFor{30};
   static constexpr size_t kMaxPreviews = 8;
-  static constexpr size_t kMaxFrames = 4;
+  static constexpr size_t kMaxFrames = 2;
   static constexpr size_t kMaxPending = 200000;  // tiles queued for decoding; beyond: dropped
 
   explicit MonitorFeed(Coordinator& coordinator);  // registers itself as an observer
@@ -55,6 +57,7 @@ class MonitorFeed : public SchedulerListener {
   void worker_faulted(const JobId&, const WorkerStats& w, std::string_view reason, int faults,
                       bool blocklisted) override;
   void job_state_changed(const JobId& id, JobState state) override;
+  void job_submitted(const JobSnapshot& s) override;
 
  private:
   struct Pending {
@@ -69,8 +72,11 @@ class MonitorFeed : public SchedulerListener {
     double variance_sum = 0;
     int64_t pixels = 0;
   };
-  struct Preview {
+  struct Geometry {
     int width = 0, height = 0, tile_size = 0;
+  };
+  struct Preview {
+    Geometry geometry;
     std::map<int, FrameCanvas> frames;
     bool seeded = false;
     std::chrono::steady_clock::time_point asked;
@@ -84,7 +90,11 @@ class MonitorFeed : public SchedulerListener {
   // and, for jobs (and the preview of `preview_job`) not seen yet, the tiles the coordinator
   // still holds. After a pause it first forgets what it knew (it missed tiles meanwhile).
   FarmSnapshot catch_up(const std::optional<JobId>& preview_job = std::nullopt);
-  void decode_locked(const TileKey& key, const std::string& payload, double arrived);
+  // Adds a finished tile to its job's statistics and to its preview; `may_preview` creates the
+  // preview when the job has none (tiles of live jobs: a page opened later still shows them).
+  void decode_locked(const TileKey& key, const std::string& payload, double arrived, bool may_preview);
+  // The job's preview, made when its geometry is known (evicting the one looked at longest ago).
+  Preview* preview_locked(const JobId& id);
   // A job as the pages show it (the coordinator's JobStatus, plus ETA, rates and what the feed
   // measured).
   nlohmann::json job_json_locked(const tessera::v1::JobStatus& s, const std::string& owner) const;
@@ -97,6 +107,7 @@ class MonitorFeed : public SchedulerListener {
 
   std::mutex pending_mu_;  // taken under the coordinator's mutex: nothing else is done under it
   std::deque<Pending> pending_;
+  std::vector<std::pair<JobId, Geometry>> pending_jobs_;  // submitted while active
   int64_t dropped_ = 0;
 
   // Lock order: the coordinator's mutex, then these. So none is held while calling the
@@ -104,6 +115,7 @@ class MonitorFeed : public SchedulerListener {
   std::mutex mu_;  // jobs_, previews_
   std::map<JobId, JobFeed> jobs_;
   std::map<JobId, Preview> previews_;
+  std::map<JobId, Geometry> geometry_;  // frame size and tile size of the jobs the feed knows
   std::mutex events_mu_;
   std::map<std::string, WorkerFaults> faults_;  // by worker name; counted whether active or not
   // Jobs that ended lately, newest last: they stay on the page after they leave the
