@@ -16,6 +16,15 @@ prometheus::Counter& counter(prometheus::Registry& r, const char* name, const ch
   return BuildCounter().Name(name).Help(help).Register(r).Add({});
 }
 
+prometheus::Histogram& histogram(prometheus::Registry& r, const char* name, const char* help,
+                                 const prometheus::Histogram::BucketBoundaries& buckets) {
+  return BuildHistogram().Name(name).Help(help).Register(r).Add({}, buckets);
+}
+
+prometheus::Family<prometheus::Gauge>& gauges(prometheus::Registry& r, const char* name, const char* help) {
+  return BuildGauge().Name(name).Help(help).Register(r);
+}
+
 // Powers of two from `lo`: a tile takes milliseconds to minutes, a store batch a fraction of a
 // millisecond (tmpfs) to seconds (a slow disk's fsync).
 prometheus::Histogram::BucketBoundaries powers_of_two(double lo, int n) {
@@ -31,11 +40,8 @@ FarmMetrics::FarmMetrics(Coordinator& coordinator, JobStore* jobs)
       tiles_completed_(counter(registry_, "tessera_tiles_completed_total", "Tiles whose result was accepted")),
       rays_(counter(registry_, "tessera_rays_traced_total",
                     "Rays traced for accepted tiles (camera, shadow and secondary)")),
-      tile_seconds_(BuildHistogram()
-                        .Name("tessera_tile_render_seconds")
-                        .Help("Wall time a worker spent rendering an accepted tile")
-                        .Register(registry_)
-                        .Add({}, powers_of_two(0.001, 17))),
+      tile_seconds_(histogram(registry_, "tessera_tile_render_seconds",
+                              "Wall time a worker spent rendering an accepted tile", powers_of_two(0.001, 17))),
       lease_expiries_(counter(registry_, "tessera_lease_expiries_total",
                               "Leases whose worker went silent past the lease timeout (tile requeued)")),
       speculative_copies_(counter(registry_, "tessera_speculative_copies_total",
@@ -46,11 +52,9 @@ FarmMetrics::FarmMetrics(Coordinator& coordinator, JobStore* jobs)
                       "Bad results and render failures reported against workers")),
       blocklistings_(counter(registry_, "tessera_worker_blocklistings_total",
                              "Times a worker was blocklisted for a job after too many faults")),
-      store_write_seconds_(BuildHistogram()
-                               .Name("tessera_store_write_seconds")
-                               .Help("Time to make one batch of writes durable (tile segment, fsyncs, SQLite commit)")
-                               .Register(registry_)
-                               .Add({}, powers_of_two(0.0001, 16))),
+      store_write_seconds_(histogram(registry_, "tessera_store_write_seconds",
+                                     "Time to make one batch of writes durable (tile segment, fsyncs, SQLite commit)",
+                                     powers_of_two(0.0001, 16))),
       store_bytes_(counter(registry_, "tessera_store_written_bytes_total", "Tile bytes written to the tile store")),
       store_failures_(counter(registry_, "tessera_store_write_failures_total",
                               "Store batches that failed (full disk, I/O error) and are retried")),
@@ -58,25 +62,14 @@ FarmMetrics::FarmMetrics(Coordinator& coordinator, JobStore* jobs)
                                    "Bytes of new scene bundles stored by the coordinator")),
       bundle_served_bytes_(counter(registry_, "tessera_bundle_served_bytes_total",
                                    "Bytes of scene bundles sent to workers")),
-      jobs_(BuildGauge().Name("tessera_jobs").Help("Jobs in the coordinator's memory, by state").Register(registry_)),
-      tiles_(BuildGauge()
-                 .Name("tessera_tiles")
-                 .Help("Tiles of the jobs in memory: queued (waiting for a worker), leased (being rendered), done")
-                 .Register(registry_)),
-      workers_(BuildGauge()
-                   .Name("tessera_workers_connected")
-                   .Help("Workers connected, by the Embree ISA their kernels use")
-                   .Register(registry_)),
-      watch_backlog_(BuildGauge()
-                         .Name("tessera_watch_backlog_messages")
-                         .Help("Messages queued for clients' watch streams and not yet sent")
-                         .Register(registry_)
+      jobs_(gauges(registry_, "tessera_jobs", "Jobs in the coordinator's memory, by state")),
+      tiles_(gauges(registry_, "tessera_tiles",
+                    "Tiles of the jobs in memory: queued (waiting for a worker), leased (being rendered), done")),
+      workers_(gauges(registry_, "tessera_workers_connected", "Workers connected, by the Embree ISA their kernels use")),
+      watch_backlog_(gauges(registry_, "tessera_watch_backlog_messages",
+                            "Messages queued for clients' watch streams and not yet sent")
                          .Add({})),
-      store_queued_(BuildGauge()
-                        .Name("tessera_store_queued_writes")
-                        .Help("Writes waiting for the store's next batch")
-                        .Register(registry_)
-                        .Add({})) {
+      store_queued_(gauges(registry_, "tessera_store_queued_writes", "Writes waiting for the store's next batch").Add({})) {
   coordinator.add_observer(this);
   if (jobs) jobs->set_batch_observer([this](double s, uint64_t bytes) { store_batch(s, bytes); });
   // Every state is exported from the first scrape on, at 0 when empty, so a query for one

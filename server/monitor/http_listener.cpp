@@ -9,6 +9,10 @@ namespace tessera::server {
 
 namespace {
 
+// Open pages (each holds at most one connection: requests are sequential), scrapers and API
+// scripts at once before the next one waits. Idle threads cost nothing but their stacks.
+constexpr size_t kThreads = 16;
+
 void require_readable(const std::string& path, const char* what) {
   if (!std::ifstream(path)) throw std::runtime_error(std::string("--http-listen: cannot read the TLS ") + what + " " + path);
 }
@@ -44,9 +48,13 @@ HttpListener::HttpListener(const std::string& address, const HttpTls& tls) {
     server_ = std::move(ssl);
     tls_ = true;
   }
-  // A browser that went away must not hold one of the pool's threads for long.
+  // cpp-httplib serves each connection on a thread of a fixed pool, also while a kept-alive
+  // connection waits for its next request. Pages poll once a second: a short keep-alive still
+  // reuses the connection between two polls, and a browser that went away frees its thread soon.
+  server_->set_keep_alive_timeout(2);
   server_->set_read_timeout(10, 0);
   server_->set_write_timeout(10, 0);
+  server_->new_task_queue = [] { return new httplib::ThreadPool(kThreads); };
 }
 
 HttpListener::~HttpListener() { stop(); }

@@ -51,7 +51,7 @@ void send_error(httplib::Response& res, const Status& s) {
 // "cn:NAME" of a verified TLS client certificate (mutual TLS), as client_identity() in gRPC.
 std::string certificate_identity(const httplib::Request& req) {
   if (!req.ssl) return {};
-  X509* cert = SSL_get_peer_certificate(req.ssl);
+  X509* cert = SSL_get1_peer_certificate(req.ssl);
   if (!cert) return {};
   char cn[256] = {};
   const int n = X509_NAME_get_text_by_NID(X509_get_subject_name(cert), NID_commonName, cn, sizeof cn);
@@ -113,6 +113,17 @@ void MonitorRoutes::install(httplib::Server& server) const {
     return Status::OK;
   };
 
+  // The caller may do `action` to the job the route names: returns its id, or nothing after
+  // answering with the refusal.
+  auto job_request = [=](const httplib::Request& req, httplib::Response& res, const char* action, Caller* caller) {
+    const std::string id = req.matches[1];
+    Status s = authenticate(req, caller);
+    if (s.ok()) s = authorize(id, *caller, action);
+    if (s.ok()) return std::optional<std::string>(id);
+    send_error(res, s);
+    return std::optional<std::string>();
+  };
+
   server.set_post_routing_handler([](const httplib::Request&, httplib::Response& res) {
     res.set_header("X-Content-Type-Options", "nosniff");
     res.set_header("Content-Security-Policy", "default-src 'self'; img-src 'self' blob: data:; frame-ancestors 'none'");
@@ -144,21 +155,19 @@ void MonitorRoutes::install(httplib::Server& server) const {
   });
   server.Get(kJobRoute, [=](const httplib::Request& req, httplib::Response& res) {
     Caller caller;
-    const std::string id = req.matches[1];
-    if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
-    if (Status s = authorize(id, caller, "watch"); !s.ok()) return send_error(res, s);
+    const auto id = job_request(req, res, "watch", &caller);
+    if (!id) return;
     Status bad;
     const auto frame = int_param(req, "frame", &bad);
     if (!bad.ok()) return send_error(res, bad);
-    auto j = self->feed.job(id, frame);
-    if (!j) return send_error(res, Status(StatusCode::NOT_FOUND, "job " + id + " is no longer in the coordinator's memory"));
+    auto j = self->feed.job(*id, frame);
+    if (!j) return send_error(res, Status(StatusCode::NOT_FOUND, "job " + *id + " is no longer in the coordinator's memory"));
     send_json(res, 200, *j);
   });
   server.Get(std::string(kJobRoute) + "/preview.png", [=](const httplib::Request& req, httplib::Response& res) {
     Caller caller;
-    const std::string id = req.matches[1];
-    if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
-    if (Status s = authorize(id, caller, "watch"); !s.ok()) return send_error(res, s);
+    const auto id = job_request(req, res, "watch", &caller);
+    if (!id) return;
     Status bad;
     const auto frame = int_param(req, "frame", &bad);
     color::ToneMapSettings tonemap;
@@ -172,31 +181,30 @@ void MonitorRoutes::install(httplib::Server& server) const {
     if (!bad.ok()) return send_error(res, bad);
     std::optional<std::string> png;
     try {
-      png = self->feed.preview(id, frame, tonemap);
+      png = self->feed.preview(*id, frame, tonemap);
     } catch (const std::exception& e) {
       return send_error(res, Status(StatusCode::INTERNAL, std::string("cannot encode the preview: ") + e.what()));
     }
-    if (!png) return send_error(res, Status(StatusCode::NOT_FOUND, "no finished tile of that frame of job " + id + " in memory"));
+    if (!png) return send_error(res, Status(StatusCode::NOT_FOUND, "no finished tile of that frame of job " + *id + " in memory"));
     res.set_header("Cache-Control", "no-store");
     res.set_content(std::move(*png), "image/png");
   });
   server.Post(std::string(kJobRoute) + "/cancel", [=](const httplib::Request& req, httplib::Response& res) {
     Caller caller;
     json body;
-    const std::string id = req.matches[1];
-    if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
+    const auto id = job_request(req, res, "cancel", &caller);
+    if (!id) return;
     if (Status s = json_body(req, &body); !s.ok()) return send_error(res, s);
-    if (Status s = authorize(id, caller, "cancel"); !s.ok()) return send_error(res, s);
     tessera::v1::JobStatus status;
-    if (Status s = self->coordinator.cancel(id, &status); !s.ok()) return send_error(res, s);
-    spdlog::info("monitor: {} cancelled job {}", caller.identity, id);
-    send_json(res, 200, {{"id", id}, {"state", "cancelled"}});
+    if (Status s = self->coordinator.cancel(*id, &status); !s.ok()) return send_error(res, s);
+    spdlog::info("monitor: {} cancelled job {}", caller.identity, *id);
+    send_json(res, 200, {{"id", *id}, {"state", "cancelled"}});
   });
   server.Post(std::string(kJobRoute) + "/priority", [=](const httplib::Request& req, httplib::Response& res) {
     Caller caller;
     json body;
-    const std::string id = req.matches[1];
-    if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
+    const auto id = job_request(req, res, "change the priority of", &caller);
+    if (!id) return;
     if (Status s = json_body(req, &body); !s.ok()) return send_error(res, s);
     if (!body.contains("priority") || !body["priority"].is_number_integer()) {
       return send_error(res, Status(StatusCode::INVALID_ARGUMENT, "priority: an integer is required, e.g. {\"priority\": 5}"));
@@ -205,11 +213,10 @@ void MonitorRoutes::install(httplib::Server& server) const {
     if (p < INT32_MIN || p > INT32_MAX) {
       return send_error(res, Status(StatusCode::INVALID_ARGUMENT, "priority: " + std::to_string(p) + " is out of range"));
     }
-    if (Status s = authorize(id, caller, "change the priority of"); !s.ok()) return send_error(res, s);
     tessera::v1::JobStatus status;
-    if (Status s = self->coordinator.set_priority(id, int(p), &status); !s.ok()) return send_error(res, s);
-    spdlog::info("monitor: {} set the priority of job {} to {}", caller.identity, id, p);
-    send_json(res, 200, {{"id", id}, {"priority", status.priority()}});
+    if (Status s = self->coordinator.set_priority(*id, int(p), &status); !s.ok()) return send_error(res, s);
+    spdlog::info("monitor: {} set the priority of job {} to {}", caller.identity, *id, p);
+    send_json(res, 200, {{"id", *id}, {"priority", status.priority()}});
   });
   if (self->metrics) {
     server.Get("/metrics", [=](const httplib::Request& req, httplib::Response& res) {

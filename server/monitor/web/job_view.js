@@ -97,6 +97,7 @@ export function bind(currentJob) {
   const result = document.getElementById('action-result');
   const act = async (what, body) => {
     result.textContent = '';
+    result.className = '';
     try {
       await api.postJson(`api/jobs/${currentJob()}/${what}`, body);
       result.textContent = what === 'cancel' ? 'cancelled' : 'priority set';
