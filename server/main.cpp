@@ -181,21 +181,28 @@ int main(int argc, char** argv) {
   spdlog::info("tessera-server 0.1.0: data in {}, heartbeat {} ms, lease timeout {} ms", data_dir, heartbeat_ms,
                lease_timeout_ms);
   security.log_posture(listen, auth);
-  // The machine-readable line tests and scripts wait for.
-  std::printf("listening on %s:%d\n", host.c_str(), port);
+  int http_port = 0;
   if (http) {
-    int http_port = 0;
     try {
       http_port = http->start();
     } catch (const std::exception& e) {
       std::cerr << "tessera-server: " << e.what() << "\n";
+      coordinator.stop();
+      server->Shutdown();
       return 1;
     }
+  }
+  // The machine-readable line tests and scripts wait for.
+  std::printf("listening on %s:%d\n", host.c_str(), port);
+  if (http) {
     const std::string http_host = http_listen.substr(0, http_listen.rfind(':'));
     // After the gRPC line: scripts that wait for "listening on" get the gRPC port.
     std::printf("monitor on %s://%s:%d/\n", http->tls() ? "https" : "http", http_host.c_str(), http_port);
     const bool loopback = http_host == "127.0.0.1" || http_host == "localhost" || http_host == "[::1]";
-    if (!http->tls() && !auth.open(PeerRole::kClient) && !loopback) {
+    if (!loopback && auth.open(PeerRole::kClient)) {
+      spdlog::warn("the monitor on {} has no client token: anyone who reaches it can see and cancel jobs",
+                   http_listen);
+    } else if (!loopback && !http->tls()) {
       spdlog::warn("the monitor on {} checks client tokens over plain HTTP: tokens cross the network in "
                    "clear; use TLS (--tls-cert) or a reverse proxy with TLS", http_listen);
     }
