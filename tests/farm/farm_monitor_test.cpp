@@ -236,6 +236,14 @@ TEST(MonitorBrowser, ChromiumShowsTheJobTheWorkersTheFinishedFrameAndCancels) {
     args.insert(args.end(), auth.begin(), auth.end());
     return args;
   };
+  // The page is open (past its login) before the jobs are submitted: it sees them render.
+  const fs::path out = farm.dir() / "browser";
+  fs::create_directories(out);
+  Process browser({"/usr/bin/python3", source("tests/farm/monitor_browser.py").string(),
+                   "http://127.0.0.1:" + std::to_string(port) + "/", token, out.string()},
+                  farm.dir() / "browser.log");
+  for (int i = 0; i < 1200 && !fs::exists(out / "ready") && browser.running(); ++i) std::this_thread::sleep_for(50ms);
+  ASSERT_TRUE(fs::exists(out / "ready")) << browser.log();
   auto done_cli = farm.cli_async(with({"submit", kScene.string(), "--frames", "0", "--name", "monitored", "-o",
                                        (farm.dir() / "out" / "frame_####.exr").string()}),
                                  "submit-done.log");
@@ -246,12 +254,8 @@ TEST(MonitorBrowser, ChromiumShowsTheJobTheWorkersTheFinishedFrameAndCancels) {
                                    "submit-cancel.log");
   const std::string cancel_job = wait_job_id(*cancel_cli);
   ASSERT_FALSE(cancel_job.empty()) << cancel_cli->log();
-
-  const fs::path out = farm.dir() / "browser";
-  fs::create_directories(out);
-  Process browser({"/usr/bin/python3", source("tests/farm/monitor_browser.py").string(),
-                   "http://127.0.0.1:" + std::to_string(port) + "/", token, done_job, cancel_job, out.string()},
-                  farm.dir() / "browser.log");
+  write(out / "jobs.json.tmp", json{{"done", done_job}, {"cancel", cancel_job}}.dump());
+  fs::rename(out / "jobs.json.tmp", out / "jobs.json");
   ASSERT_EQ(browser.wait(150s), 0) << browser.log() << "\n" << farm.server().log();
   const std::string log = browser.log();
   const json report = json::parse(log.substr(log.rfind("\n{") == std::string::npos ? 0 : log.rfind("\n{") + 1));

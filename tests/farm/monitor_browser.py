@@ -1,9 +1,11 @@
 #!/usr/bin/python3
 """Drives the coordinator's web monitor in headless Chromium (chromium-driver + python3-selenium).
 
-Usage: monitor_browser.py URL TOKEN JOB_DONE JOB_CANCEL OUT_DIR
+Usage: monitor_browser.py URL TOKEN OUT_DIR
 
-Opens URL, gives TOKEN to the login form (the farm requires one), then:
+Opens URL, gives TOKEN to the login form (the farm requires one), writes OUT_DIR/ready once the
+farm page shows, and waits for OUT_DIR/jobs.json ({"done": JOB_DONE, "cancel": JOB_CANCEL}: the
+test submits the jobs once the page is open, so the page sees them render). Then:
   1. reads job JOB_DONE's row and the workers' rows from the farm page;
   2. opens JOB_DONE's page, waits until it says the job is done and the preview holds every
      tile of the frame, and writes the pixels the browser decoded from the preview image
@@ -16,6 +18,7 @@ Prints one JSON object with what it read. Exits non-zero, saying why, on any fai
 """
 import base64
 import json
+import os
 import sys
 import time
 
@@ -26,7 +29,7 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support import expected_conditions as ec
 from selenium.webdriver.support.ui import WebDriverWait
 
-url, token, job_done, job_cancel, out_dir = sys.argv[1:6]
+url, token, out_dir = sys.argv[1:4]
 
 
 def fail(message, driver=None):
@@ -61,6 +64,17 @@ try:
     report["asked_for_token"] = True
     driver.find_element(By.ID, "token").send_keys(token)
     driver.find_element(By.CSS_SELECTOR, "#login button").click()
+
+    wait.until(ec.visibility_of_element_located((By.ID, "farm")))
+    open(out_dir + "/ready", "w").close()
+    deadline = time.time() + 60
+    while not os.path.exists(out_dir + "/jobs.json"):
+        if time.time() > deadline:
+            fail("no jobs.json from the test after 60 s", driver)
+        time.sleep(0.05)
+    with open(out_dir + "/jobs.json") as f:
+        jobs = json.load(f)
+    job_done, job_cancel = jobs["done"], jobs["cancel"]
 
     # 1. The farm page: the job and both workers.
     row = wait.until(ec.presence_of_element_located((By.CSS_SELECTOR, 'tr[data-job="%s"]' % job_done)))
