@@ -201,7 +201,7 @@ TEST(MonitorPrometheus, PrometheusScrapesTilesCompletedEqualToTheJobsTiles) {
   httplib::Client api("127.0.0.1", prom_port);
   double seen = -1;
   std::string last;
-  for (int i = 0; i < 300 && seen != tiles; ++i) {
+  for (int i = 0; i < 600 && seen != tiles; ++i) {  // up to a minute: Prometheus starts, then scrapes each second
     std::this_thread::sleep_for(100ms);
     auto q = api.Get("/api/v1/query?query=tessera_tiles_completed_total");
     if (!q || q->status != 200) continue;
