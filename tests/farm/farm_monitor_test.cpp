@@ -179,6 +179,41 @@ TEST(MonitorHttp, TlsServesHttpsWithTheCoordinatorsCertificate) {
   EXPECT_TRUE(!no || no->status != 200);
 }
 
+TEST(MonitorHttp, MutualTlsRequiresAClientCertificateWhoseNameIsTheCaller) {
+  Farm farm;
+  const std::string d = farm.dir().string();
+  const std::string key = "-newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes";
+  const std::string q = " 2>>openssl.log";
+  for (const std::string& cmd :
+       {"openssl req -x509 " + key + " -keyout ca.key -out ca.pem -days 2 -subj '/CN=Monitor Test CA'" + q,
+        "openssl req " + key + " -keyout server.key -out server.csr -subj /CN=localhost" + q,
+        "printf 'subjectAltName=IP:127.0.0.1\\n' > server.ext && openssl x509 -req -in server.csr -CA ca.pem -CAkey "
+        "ca.key -CAcreateserial -days 2 -out server.pem -extfile server.ext" + q,
+        "openssl req " + key + " -keyout client.key -out client.csr -subj /CN=render-ops" + q,
+        "printf 'extendedKeyUsage=clientAuth\\n' > client.ext && openssl x509 -req -in client.csr -CA ca.pem -CAkey "
+        "ca.key -CAcreateserial -days 2 -out client.pem -extfile client.ext" + q}) {
+    ASSERT_EQ(std::system(("cd " + d + " && " + cmd).c_str()), 0) << cmd;
+  }
+  farm.start_server({"--http-listen", "127.0.0.1:0", "--tls-cert", d + "/server.pem", "--tls-key", d + "/server.key",
+                     "--tls-ca", d + "/ca.pem", "--admin", "cn:render-ops"});
+  const int port = http_port(farm);
+  // Without a client certificate the handshake fails: no answer at all.
+  httplib::SSLClient anonymous("127.0.0.1", port);
+  anonymous.set_ca_cert_path((d + "/ca.pem").c_str());
+  anonymous.enable_server_certificate_verification(true);
+  auto refused = anonymous.Get("/api/farm");
+  EXPECT_FALSE(refused && refused->status == 200);
+  // With one, the certificate's CN is the caller, as on the gRPC side.
+  httplib::SSLClient ops("127.0.0.1", port, d + "/client.pem", d + "/client.key");
+  ops.set_ca_cert_path((d + "/ca.pem").c_str());
+  ops.enable_server_certificate_verification(true);
+  auto me = ops.Get("/api/whoami");
+  ASSERT_TRUE(me) << httplib::to_string(me.error());
+  ASSERT_EQ(me->status, 200) << me->body;
+  EXPECT_EQ(json::parse(me->body).at("identity"), "cn:render-ops");
+  EXPECT_TRUE(json::parse(me->body).at("admin").get<bool>());
+}
+
 TEST(MonitorPrometheus, PrometheusScrapesTilesCompletedEqualToTheJobsTiles) {
   if (!fs::exists("/usr/bin/prometheus")) GTEST_SKIP() << "/usr/bin/prometheus not installed (Debian prometheus)";
   Farm farm;
