@@ -1,4 +1,4 @@
-// `tessera submit | watch | status | cancel | workers`: the render farm's client side.
+// `tessera submit | watch | status | cancel | priority | workers`: the render farm's client side.
 // Exit codes: 0 done, 1 failure (network, I/O), 2 bad input (scene, arguments), 3 job cancelled.
 #include <spdlog/spdlog.h>
 #include <unistd.h>
@@ -415,6 +415,7 @@ struct JobArgs {
   bool error_channels = false;
   double preview_every = 0;
   color::OutputOptions color;
+  int priority = 0;  // `tessera priority`
 };
 
 int run_watch(const JobArgs& a) {
@@ -514,6 +515,20 @@ int run_cancel(const JobArgs& a) {
   }
   std::printf("job %s: %s (%lld/%lld tiles were done)\n", st.job_id().c_str(), state_name(st.state()),
               (long long)st.tiles_done(), (long long)st.tiles_total());
+  return 0;
+}
+
+int run_priority(const JobArgs& a) {
+  FarmClient client = connect(a.coordinator, a.security);
+  v1::SetJobPriorityRequest req;
+  req.set_job_id(a.job);
+  req.set_priority(a.priority);
+  v1::JobStatus st;
+  auto ctx = client.context();
+  grpc::Status s = client.stub().SetJobPriority(ctx.get(), req, &st);
+  if (!s.ok()) throw job_error(client, s, "changing the priority of job " + a.job);
+  std::printf("job %s: priority %d (%s, %lld/%lld tiles done)\n", st.job_id().c_str(), st.priority(),
+              state_name(st.state()), (long long)st.tiles_done(), (long long)st.tiles_total());
   return 0;
 }
 
@@ -634,6 +649,14 @@ void register_farm_commands(CLI::App& app) {
     cmd->add_option("job", a->job, "Job id")->required();
     add_coordinator_option(cmd, &a->coordinator, &a->security);
     cmd->callback([a] { guarded("cancel", [&] { return run_cancel(*a); }); });
+  }
+  {
+    auto a = std::make_shared<JobArgs>();
+    CLI::App* cmd = app.add_subcommand("priority", "Change a queued or running job's priority (higher runs first)");
+    cmd->add_option("job", a->job, "Job id")->required();
+    cmd->add_option("priority", a->priority, "The new priority")->required();
+    add_coordinator_option(cmd, &a->coordinator, &a->security);
+    cmd->callback([a] { guarded("priority", [&] { return run_priority(*a); }); });
   }
   {
     auto a = std::make_shared<JobArgs>();

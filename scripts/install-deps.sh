@@ -11,10 +11,13 @@ BUILD_PKGS=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libhwy-dev  # Google Highway: SIMD (render/triangle_cluster_simd.cpp)
   libtinygltf-dev libjpeg-dev  # glTF scenes (lib/scene/gltf_*): tinygltf parses (header only, compiled in), libpng/libjpeg decode textures
+  libcpp-httplib-dev prometheus-cpp-dev  # the coordinator's HTTP side (server/monitor, server/metrics): HTTP(S), Prometheus metrics
 )
 # Independent checkers used by the tests (oiiotool/idiff, exrheader, Python gRPC client).
 CHECK_PKGS=(openimageio-tools openexr python3-grpcio python3-grpc-tools python3-numpy python3-yaml)
 CHECK_PKGS+=(openssl clang libclang-rt-14-dev)  # TLS tests make a throwaway CA; fuzz/run.sh (libFuzzer)
+# tests/farm/farm_monitor_test: a real Prometheus scraping /metrics, the monitor in headless Chromium.
+CHECK_PKGS+=(prometheus chromium chromium-driver python3-selenium)
 # Used by the benchmarks in bench/ only (pngquant is a GPL comparator, run, never linked).
 BENCH_PKGS=(bc time pngquant gnuplot-nox povray)
 

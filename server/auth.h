@@ -17,6 +17,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -41,6 +42,10 @@ class Authenticator {
   // OK, or UNAUTHENTICATED saying what was missing or wrong (never echoing the token). For a
   // named client token, `*name` is set to its name (left empty for the shared token).
   grpc::Status check(const grpc::ServerContextBase& ctx, PeerRole role, std::string* name = nullptr) const;
+  // The same check on the value of an `authorization` header ("Bearer TOKEN"; nullopt when the
+  // request had none): the HTTP monitor checks its requests with it (issue 16).
+  grpc::Status check_authorization(std::optional<std::string_view> value, PeerRole role,
+                                   std::string* name = nullptr) const;
 
  private:
   using Digest = std::array<unsigned char, 32>;

@@ -50,6 +50,7 @@ void BundleStore::put(const std::string& sha256, const std::string& bytes) {
     }
   }
   fs::rename(tmp, file_of(sha256));
+  bytes_stored_ += bytes.size();
 }
 
 void BundleStore::put_file(const std::string& sha256, const fs::path& uploaded) {
@@ -66,6 +67,7 @@ void BundleStore::put_file(const std::string& sha256, const fs::path& uploaded) 
   farm::extract_bundle(bytes, dir_ / sha256);  // validates structure and paths
   if (fs::exists(file_of(sha256))) return;
   fs::rename(uploaded, file_of(sha256));
+  bytes_stored_ += bytes.size();
 }
 
 std::optional<std::string> BundleStore::read(const std::string& sha256) const {
@@ -74,7 +76,9 @@ std::optional<std::string> BundleStore::read(const std::string& sha256) const {
   if (!in) return std::nullopt;
   std::ostringstream ss;
   ss << in.rdbuf();
-  return ss.str();
+  std::string bytes = ss.str();
+  bytes_served_ += bytes.size();
+  return bytes;
 }
 
 fs::path BundleStore::scene_path(const std::string& sha256) {

@@ -5,6 +5,8 @@
 // crash are removed at start.
 #pragma once
 
+#include <atomic>
+#include <cstdint>
 #include <filesystem>
 #include <mutex>
 #include <optional>
@@ -28,10 +30,14 @@ class BundleStore {
   // The scene file of a stored bundle (extracted on demand).
   std::filesystem::path scene_path(const std::string& sha256);
   const std::filesystem::path& dir() const { return dir_; }
+  // Since start: bytes of new bundles stored, and bytes read back for workers (metrics).
+  uint64_t bytes_stored() const { return bytes_stored_.load(std::memory_order_relaxed); }
+  uint64_t bytes_served() const { return bytes_served_.load(std::memory_order_relaxed); }
 
  private:
   std::filesystem::path file_of(const std::string& sha256) const { return dir_ / (sha256 + ".bundle"); }
   std::filesystem::path dir_;
+  mutable std::atomic<uint64_t> bytes_stored_{0}, bytes_served_{0};
   std::mutex mu_;  // serializes extraction of the same bundle by concurrent submits
 };
 

@@ -233,6 +233,14 @@ grpc::ServerUnaryReactor* ClientServiceImpl::CancelJob(grpc::CallbackServerConte
   return reply(ctx, coord_.cancel(req->job_id(), resp));
 }
 
+grpc::ServerUnaryReactor* ClientServiceImpl::SetJobPriority(grpc::CallbackServerContext* ctx,
+                                                            const v1::SetJobPriorityRequest* req, v1::JobStatus* resp) {
+  Caller caller;
+  if (Status s = authenticate(*ctx, &caller); !s.ok()) return reply(ctx, std::move(s));
+  if (Status s = authorize(req->job_id(), caller, "change the priority of"); !s.ok()) return reply(ctx, std::move(s));
+  return reply(ctx, coord_.set_priority(req->job_id(), req->priority(), resp));
+}
+
 grpc::ServerUnaryReactor* ClientServiceImpl::ListWorkers(grpc::CallbackServerContext* ctx,
                                                          const v1::ListWorkersRequest*,
                                                          v1::ListWorkersResponse* resp) {

@@ -42,6 +42,8 @@ class ClientServiceImpl final : public tessera::v1::ClientService::CallbackServi
                                      tessera::v1::ListJobsResponse*) override;
   grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext*, const tessera::v1::CancelJobRequest*,
                                       tessera::v1::JobStatus*) override;
+  grpc::ServerUnaryReactor* SetJobPriority(grpc::CallbackServerContext*, const tessera::v1::SetJobPriorityRequest*,
+                                           tessera::v1::JobStatus*) override;
   grpc::ServerUnaryReactor* ListWorkers(grpc::CallbackServerContext*, const tessera::v1::ListWorkersRequest*,
                                         tessera::v1::ListWorkersResponse*) override;
 

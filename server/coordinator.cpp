@@ -328,6 +328,46 @@ Status Coordinator::cancel(const std::string& id, v1::JobStatus* out) {
   });
 }
 
+Status Coordinator::set_priority(const std::string& id, int priority, v1::JobStatus* out) {
+  return locked([&] {
+    switch (scheduler_.set_priority(id, priority)) {
+      case Scheduler::PriorityResult::kUnknownJob:
+        return Status(StatusCode::NOT_FOUND, "no job '" + id + "' in this coordinator's queue");
+      case Scheduler::PriorityResult::kAlreadyEnded:
+        return Status(StatusCode::FAILED_PRECONDITION,
+                      "job " + id + " has ended (" + job_state_name(scheduler_.job(id)->state) +
+                          "): its priority no longer matters");
+      case Scheduler::PriorityResult::kChanged:
+        break;
+    }
+    status_proto(*scheduler_.job(id), out);
+    dispatch_locked();
+    return Status::OK;
+  });
+}
+
+void Coordinator::add_observer(SchedulerListener* observer) {
+  std::lock_guard lock(mu_);  // the expiry thread already runs
+  observers_.push_back(observer);
+}
+
+FarmSnapshot Coordinator::snapshot() {
+  FarmSnapshot f = locked([&] {
+    FarmSnapshot f;
+    f.jobs = scheduler_.jobs();
+    f.workers = scheduler_.workers();
+    f.tiles_queued = scheduler_.queued_tiles();
+    for (const auto& [job, sink] : watchers_) f.watch_backlog += sink->queued();
+    return f;
+  });
+  if (jobs_store_) f.store = jobs_store_->stats();  // its own lock
+  return f;
+}
+
+std::vector<std::pair<TileKey, TileOutput>> Coordinator::finished_tiles(const std::string& id) {
+  return locked([&] { return scheduler_.finished_tiles(id); });
+}
+
 Status Coordinator::ack_frame(const std::string& id, int frame) {
   Status s = locked([&] {
     switch (scheduler_.acknowledge_frame(id, frame)) {
@@ -635,6 +675,8 @@ void Coordinator::dispatch_locked() {
 // Scheduler events (under mu_)
 
 void Coordinator::job_submitted(const JobSnapshot& s) {
+  notify([&](SchedulerListener& o) { o.job_submitted(s); });
+
   if (jobs_store_) jobs_store_->job_submitted(s);
   awaiting_first_tile_[s.id] = s.submitted;
   spdlog::info("job {} submitted: '{}', frames {}-{}, {}x{} {} spp, {} tiles of {} px, priority {}", s.id,
@@ -643,6 +685,8 @@ void Coordinator::job_submitted(const JobSnapshot& s) {
 }
 
 void Coordinator::job_state_changed(const JobId& id, JobState state) {
+  notify([&](SchedulerListener& o) { o.job_state_changed(id, state); });
+
   auto s = scheduler_.job(id);
   if (jobs_store_) jobs_store_->job_updated(*s);
   if (job_ended(state)) {
@@ -671,12 +715,16 @@ void Coordinator::job_state_changed(const JobId& id, JobState state) {
 }
 
 void Coordinator::tile_leased(const Assignment& a) {
+  notify([&](SchedulerListener& o) { o.tile_leased(a); });
+
   if (jobs_store_) jobs_store_->lease_issued(a.lease, std::to_string(a.lease.worker));
   spdlog::debug("lease {} job {} frame {} tile {} to worker {}{}", a.lease.id, a.lease.tile.job, a.lease.tile.frame,
                 a.lease.tile.tile, a.lease.worker, a.lease.speculative ? " (speculative copy)" : "");
 }
 
 void Coordinator::lease_ended(const Lease& lease, LeaseEnd why) {
+  notify([&](SchedulerListener& o) { o.lease_ended(lease, why); });
+
   if (jobs_store_) jobs_store_->lease_ended(lease.id);
   if (why == LeaseEnd::kExpired) {
     spdlog::warn("lease {} of worker {} expired: job {} frame {} tile {} requeued", lease.id, lease.worker,
@@ -691,7 +739,9 @@ void Coordinator::lease_ended(const Lease& lease, LeaseEnd why) {
   touched_workers_.push_back(it->second);
 }
 
-void Coordinator::tile_finished(const TileKey& key, const TileOutput& out, WorkerId) {
+void Coordinator::tile_finished(const TileKey& key, const TileOutput& out, WorkerId worker) {
+  notify([&](SchedulerListener& o) { o.tile_finished(key, out, worker); });
+
   if (jobs_store_) jobs_store_->tile_done(key, out);
   if (auto it = awaiting_first_tile_.find(key.job); it != awaiting_first_tile_.end()) {
     spdlog::info("job {} first tile {:.3f} s after submit", key.job,
@@ -702,7 +752,15 @@ void Coordinator::tile_finished(const TileKey& key, const TileOutput& out, Worke
   for (auto it = b; it != e; ++it) push_tile_locked(key.job, it->second, out.payload);
 }
 
+void Coordinator::job_priority_changed(const JobId& id, int priority) {
+  notify([&](SchedulerListener& o) { o.job_priority_changed(id, priority); });
+  if (jobs_store_) jobs_store_->job_updated(*scheduler_.job(id));
+  spdlog::info("job {} priority set to {}", id, priority);
+}
+
 void Coordinator::frame_finished(const JobId& id, int frame) {
+  notify([&](SchedulerListener& o) { o.frame_finished(id, frame); });
+
   spdlog::info("job {} frame {} finished", id, frame);
   auto [b, e] = watchers_.equal_range(id);
   for (auto it = b; it != e; ++it) {
@@ -714,6 +772,8 @@ void Coordinator::frame_finished(const JobId& id, int frame) {
 }
 
 void Coordinator::frame_acknowledged(const JobId& id, int frame) {
+  notify([&](SchedulerListener& o) { o.frame_acknowledged(id, frame); });
+
   if (jobs_store_) {
     if (const auto s = scheduler_.job(id)) jobs_store_->frame_acknowledged(id, frame, s->tiles_per_frame);
   }
@@ -721,6 +781,8 @@ void Coordinator::frame_acknowledged(const JobId& id, int frame) {
 }
 
 void Coordinator::worker_joined(const WorkerStats& w) {
+  notify([&](SchedulerListener& o) { o.worker_joined(w); });
+
   spdlog::info("worker {} '{}' joined from {}: {} threads, Embree {}", w.id, w.info.name, w.info.peer,
                w.info.threads, w.info.embree_isa);
   if (!isas_.empty() && !isas_.count(w.info.embree_isa)) {
@@ -731,6 +793,8 @@ void Coordinator::worker_joined(const WorkerStats& w) {
 }
 
 void Coordinator::worker_left(const WorkerStats& w, std::string_view reason) {
+  notify([&](SchedulerListener& o) { o.worker_left(w, reason); });
+
   spdlog::info("worker {} '{}' left ({}): {} tiles rendered, {} leases requeued", w.id, w.info.name, reason,
                w.tiles_done, w.in_flight);
   auto it = workers_.find(w.id);
@@ -746,6 +810,8 @@ namespace tessera::server {
 
 void Coordinator::worker_faulted(const JobId& job, const WorkerStats& w, std::string_view reason, int faults,
                                  bool blocklisted) {
+  notify([&](SchedulerListener& o) { o.worker_faulted(job, w, reason, faults, blocklisted); });
+
   spdlog::warn("worker {} '{}': refused result for job {}: {} (fault {} of {} for this job)", w.id, w.info.name, job,
                reason, faults, scheduler_.options().max_faults);
   if (blocklisted) {

@@ -73,6 +73,16 @@ struct Admission {
   std::function<grpc::Status(const Scene&, int first_frame, int last_frame)> check;
 };
 
+// What the coordinator knows at one instant, for observers that look rather than act (the web
+// monitor, the Prometheus gauges). Taken under the coordinator's mutex, used after it.
+struct FarmSnapshot {
+  std::vector<JobSnapshot> jobs;      // in memory, in submit order
+  std::vector<WorkerStats> workers;
+  size_t tiles_queued = 0;
+  size_t watch_backlog = 0;           // messages queued and unwritten over every watch stream
+  JobStore::Stats store;              // zero without a job store
+};
+
 class Coordinator : private SchedulerListener {
  public:
   // `jobs` (may be null: memory only, for tests) is loaded and restored here, before any stream.
@@ -96,6 +106,9 @@ class Coordinator : private SchedulerListener {
   grpc::Status cancel(const std::string& id, tessera::v1::JobStatus* out);
   grpc::Status ack_frame(const std::string& id, int frame);
   void list_workers(tessera::v1::ListWorkersResponse* out);
+  // NOT_FOUND for an unknown job (also one evicted from memory), FAILED_PRECONDITION for an
+  // ended one. The new priority is stored with the job.
+  grpc::Status set_priority(const std::string& id, int priority, tessera::v1::JobStatus* out);
   // Queues the job's status and every unacknowledged finished tile into `sink`, then keeps it
   // attached for new tiles until the job ends. NOT_FOUND for an unknown job.
   grpc::Status attach_watcher(const std::string& id, std::shared_ptr<WatchSink> sink);
@@ -110,6 +123,16 @@ class Coordinator : private SchedulerListener {
   void worker_gone(WorkerId id, std::string_view reason);
   void worker_message(WorkerId id, const tessera::v1::WorkerMessage& msg);
 
+  // --- observers (issue 16: metrics, the web monitor) --------------------------------------
+  // `observer` receives every scheduler event after the coordinator handled it, under the
+  // coordinator's mutex: it must be quick and must not call back into the coordinator. Add
+  // observers before any stream starts; they must outlive the coordinator's streams.
+  void add_observer(SchedulerListener* observer);
+  FarmSnapshot snapshot();
+  // Every finished tile of the job still in memory (frames not yet acknowledged).
+  std::vector<std::pair<TileKey, TileOutput>> finished_tiles(const std::string& id);
+  void status_of(const JobSnapshot& s, tessera::v1::JobStatus* out) const { status_proto(s, out); }
+
   // Stops the expiry thread (before the gRPC server shuts down).
   void stop();
 
@@ -117,6 +140,7 @@ class Coordinator : private SchedulerListener {
   // SchedulerListener: runs under mu_.
   void job_submitted(const JobSnapshot&) override;
   void job_state_changed(const JobId&, JobState) override;
+  void job_priority_changed(const JobId&, int priority) override;
   void tile_leased(const Assignment&) override;
   void lease_ended(const Lease&, LeaseEnd) override;
   void tile_finished(const TileKey&, const TileOutput&, WorkerId) override;
@@ -157,6 +181,12 @@ class Coordinator : private SchedulerListener {
   std::set<std::string> isas_;  // Embree ISAs seen: bit-identity needs the same kernels
   std::vector<std::shared_ptr<WorkerSink>> touched_workers_;
   std::vector<std::shared_ptr<WatchSink>> touched_watchers_;
+  std::vector<SchedulerListener*> observers_;
+  // Calls `event` on every observer (under mu_).
+  template <class F>
+  void notify(F&& event) {
+    for (SchedulerListener* o : observers_) event(*o);
+  }
 
   std::mutex stop_mu_;
   std::condition_variable stop_cv_;

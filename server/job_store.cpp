@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <limits>
 #include <map>
@@ -334,7 +335,8 @@ void JobStore::open_database() {
       "INSERT OR REPLACE INTO jobs(id, seq, name, bundle, overrides, first_frame, last_frame, width, height, spp, "
       "tile_size, priority, state, error, submitted, ended, duplicates, rays, owner) "
       "VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13,?14,?15,?16,?17,?18,?19)");
-  upd_job_ = prepare("UPDATE jobs SET state=?2, error=?3, ended=?4, duplicates=?5, rays=?6 WHERE id=?1");
+  // priority: SetJobPriority changes it (issue 16).
+  upd_job_ = prepare("UPDATE jobs SET state=?2, error=?3, ended=?4, duplicates=?5, rays=?6, priority=?7 WHERE id=?1");
   ins_tile_ = prepare(
       "INSERT OR REPLACE INTO tiles(job, frame, tile, rays, seconds, segment, offset, length) "
       "VALUES(?1,?2,?3,?4,?5,?6,?7,?8)");
@@ -553,8 +555,14 @@ JobStore::Stats JobStore::stats() const {
   return s;
 }
 
+void JobStore::set_batch_observer(BatchObserver observer) {
+  std::lock_guard lock(mu_);
+  batch_observer_ = std::move(observer);
+}
+
 void JobStore::writer_loop() {
   std::vector<Op> pending;
+  BatchObserver observer;
   while (true) {
     {
       std::unique_lock lock(mu_);
@@ -563,11 +571,20 @@ void JobStore::writer_loop() {
       // Everything queued so far is one batch: under load batches grow and commits stay few.
       for (auto& op : queue_) pending.push_back(std::move(op));
       queue_.clear();
+      if (!observer) observer = batch_observer_;
     }
     std::string error;
     std::vector<Op> deferred;
     try {
+      const auto start = std::chrono::steady_clock::now();
       apply(pending);
+      if (observer) {
+        uint64_t bytes = 0;
+        for (const Op& op : pending) {
+          if (const auto* t = std::get_if<TileDone>(&op); t && t->payload) bytes += t->payload->size();
+        }
+        observer(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), bytes);
+      }
     } catch (const std::exception& e) {
       error = e.what();
       // A full disk: whatever needs no new segment goes through now, above all the
@@ -723,6 +740,7 @@ std::vector<JobStore::Op> JobStore::apply(std::vector<Op>& batch, bool new_segme
           if (s.ended) sqlite3_bind_double(st, 4, to_unix_seconds(*s.ended));
           sqlite3_bind_int64(st, 5, s.duplicates_discarded);
           sqlite3_bind_int64(st, 6, int64_t(s.rays));
+          sqlite3_bind_int(st, 7, s.spec.priority);
         }
         step(st);
       } else if (const auto* t = std::get_if<TileDone>(&op)) {

@@ -102,6 +102,11 @@ class JobStore {
     size_t queued = 0;
   };
   Stats stats() const;
+  // Called by the writer thread after each batch it committed: how long the batch took (segment
+  // write, fsyncs, SQLite commit) and the tile bytes it wrote. Set before the first write (the
+  // metrics' store latency and bytes, issue 16).
+  using BatchObserver = std::function<void(double seconds, uint64_t tile_bytes)>;
+  void set_batch_observer(BatchObserver observer);
 
  private:
   struct JobRow { JobSnapshot s; bool insert; };
@@ -163,6 +168,7 @@ class JobStore {
   bool healthy_ = true;
   std::string last_error_;
   Stats stats_;
+  BatchObserver batch_observer_;  // under mu_ (the writer copies it with each batch)
   LeaseId lease_hwm_ = 0;  // writer thread only
   std::thread writer_;
 };

@@ -16,6 +16,10 @@
 #include "client_service.h"
 #include "coordinator.h"
 #include "job_store.h"
+#include "metrics/farm_metrics.h"
+#include "monitor/http_listener.h"
+#include "monitor/monitor_feed.h"
+#include "monitor/monitor_routes.h"
 #include "request_limits.h"
 #include "worker_service.h"
 
@@ -70,6 +74,10 @@ int main(int argc, char** argv) {
                  "Hold a job (no new leases) while one of its watch streams has this many tiles unsent; "
                  "bounds the coordinator's memory for slow clients (0: no bound)")
       ->check(CLI::Range(size_t(0), size_t(1) << 24))->capture_default_str();
+  std::string http_listen;
+  app.add_option("--http-listen", http_listen,
+                 "HOST:PORT for the web monitor, its JSON API and Prometheus /metrics (off unless given; "
+                 "HTTPS with the --tls-cert certificate when TLS is on; port 0 picks a free one)");
   ServerSecurity security;
   security.add_flags(app);
   std::vector<std::string> admins;
@@ -125,6 +133,21 @@ int main(int argc, char** argv) {
   opts.retention = std::chrono::seconds(int64_t(retention_hours * 3600));
   opts.watch_backlog_tiles = watch_backlog_tiles;
   Coordinator coordinator(opts, *store, jobs.get());
+  // The HTTP side: nothing of it exists, and nothing observes the farm, unless asked for.
+  std::unique_ptr<FarmMetrics> metrics;
+  std::unique_ptr<MonitorFeed> feed;
+  std::unique_ptr<HttpListener> http;
+  if (!http_listen.empty()) {
+    try {
+      http = std::make_unique<HttpListener>(http_listen, HttpTls{security.tls_cert, security.tls_key, security.tls_ca});
+    } catch (const std::exception& e) {
+      std::cerr << "tessera-server: " << e.what() << "\n";
+      return 2;
+    }
+    metrics = std::make_unique<FarmMetrics>(coordinator, jobs.get());
+    feed = std::make_unique<MonitorFeed>(coordinator);
+    MonitorRoutes{coordinator, *feed, metrics.get(), auth, {admins.begin(), admins.end()}}.install(http->server());
+  }
   ClientServiceImpl client_service(coordinator, auth, limits, {admins.begin(), admins.end()});
   WorkerServiceImpl worker_service(coordinator, auth);
 
@@ -158,13 +181,38 @@ int main(int argc, char** argv) {
   spdlog::info("tessera-server 0.1.0: data in {}, heartbeat {} ms, lease timeout {} ms", data_dir, heartbeat_ms,
                lease_timeout_ms);
   security.log_posture(listen, auth);
+  int http_port = 0;
+  if (http) {
+    try {
+      http_port = http->start();
+    } catch (const std::exception& e) {
+      std::cerr << "tessera-server: " << e.what() << "\n";
+      coordinator.stop();
+      server->Shutdown();
+      return 1;
+    }
+  }
   // The machine-readable line tests and scripts wait for.
   std::printf("listening on %s:%d\n", host.c_str(), port);
+  if (http) {
+    const std::string http_host = http_listen.substr(0, http_listen.rfind(':'));
+    // After the gRPC line: scripts that wait for "listening on" get the gRPC port.
+    std::printf("monitor on %s://%s:%d/\n", http->tls() ? "https" : "http", http_host.c_str(), http_port);
+    const bool loopback = http_host == "127.0.0.1" || http_host == "localhost" || http_host == "[::1]";
+    if (!loopback && auth.open(PeerRole::kClient)) {
+      spdlog::warn("the monitor on {} has no client token: anyone who reaches it can see and cancel jobs",
+                   http_listen);
+    } else if (!loopback && !http->tls()) {
+      spdlog::warn("the monitor on {} checks client tokens over plain HTTP: tokens cross the network in "
+                   "clear; use TLS (--tls-cert) or a reverse proxy with TLS", http_listen);
+    }
+  }
   std::fflush(stdout);
 
   int sig = 0;
   sigwait(&sigs, &sig);
   spdlog::info("signal {}: shutting down", sig);
+  if (http) http->stop();
   coordinator.stop();
   // Give streams a moment to finish; then everything still open is cancelled.
   server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));

@@ -121,6 +121,18 @@ Scheduler::CancelResult Scheduler::cancel(const JobId& id) {
   return CancelResult::kCancelled;
 }
 
+Scheduler::PriorityResult Scheduler::set_priority(const JobId& id, int priority) {
+  Job* job = find_job(id);
+  if (!job) return PriorityResult::kUnknownJob;
+  if (job_ended(job->state)) return PriorityResult::kAlreadyEnded;
+  if (job->spec.priority == priority) return PriorityResult::kChanged;
+  runnable_.erase(queue_key(*job));  // the key holds the priority: re-filed under the new one
+  job->spec.priority = priority;
+  update_runnable(*job);
+  events().job_priority_changed(id, priority);
+  return PriorityResult::kChanged;
+}
+
 Scheduler::AckResult Scheduler::acknowledge_frame(const JobId& id, int frame) {
   Job* job = find_job(id);
   if (!job) return AckResult::kUnknownJob;

@@ -139,6 +139,7 @@ class SchedulerListener {
   virtual ~SchedulerListener() = default;
   virtual void job_submitted(const JobSnapshot&) {}
   virtual void job_state_changed(const JobId&, JobState) {}
+  virtual void job_priority_changed(const JobId&, int /*priority*/) {}
   virtual void tile_leased(const Assignment&) {}
   virtual void lease_ended(const Lease&, LeaseEnd) {}
   virtual void tile_finished(const TileKey&, const TileOutput&, WorkerId) {}
@@ -199,6 +200,10 @@ class Scheduler {
   // A client has every tile of the frame: release them. Only finished frames can be acked.
   enum class AckResult { kAcknowledged, kNotFinished, kUnknownFrame, kUnknownJob };
   AckResult acknowledge_frame(const JobId& id, int frame);
+  // Moves a live job in the dispatch order (higher first); its queued tiles go out in the new
+  // order from the next dispatch, leases in flight are untouched. Ended jobs keep theirs.
+  enum class PriorityResult { kChanged, kAlreadyEnded, kUnknownJob };
+  PriorityResult set_priority(const JobId& id, int priority);
 
   // --- workers ----------------------------------------------------------------------------
   WorkerId add_worker(const WorkerInfo& info);

@@ -437,5 +437,24 @@ TEST_F(SchedulerTest, NothingDispatchableOnceEveryTileHasTwoCopies) {
   EXPECT_EQ(tc[0].lease.tile.tile, 0);  // the oldest first
 }
 
+TEST_F(SchedulerTest, SetPriorityReordersQueuedTilesOfLiveJobsOnly) {
+  const JobId low = s.submit(spec(16, 16, 16, 2, 0));
+  const JobId high = s.submit(spec(16, 16, 16, 2, 5));
+  const WorkerId w = worker("a");
+  auto first = pull(w, 1);
+  ASSERT_EQ(first.size(), 1u);
+  EXPECT_EQ(first[0].lease.tile.job, high);
+  // Raising the older job above the other puts its tiles first from the next dispatch.
+  EXPECT_EQ(s.set_priority(low, 9), Scheduler::PriorityResult::kChanged);
+  EXPECT_EQ(s.job(low)->spec.priority, 9);
+  auto next = pull(w, 1);
+  ASSERT_EQ(next.size(), 1u);
+  EXPECT_EQ(next[0].lease.tile.job, low);
+  EXPECT_EQ(s.set_priority("nope", 1), Scheduler::PriorityResult::kUnknownJob);
+  ASSERT_EQ(s.cancel(high), Scheduler::CancelResult::kCancelled);
+  EXPECT_EQ(s.set_priority(high, 1), Scheduler::PriorityResult::kAlreadyEnded);
+  EXPECT_EQ(s.job(high)->spec.priority, 5);
+}
+
 }  // namespace
 }  // namespace tessera::server

@@ -39,6 +39,37 @@ float through_half(float v) {
   return float(half(std::clamp(v, -65504.0f, 65504.0f)));
 }
 
+}  // namespace
+
+Rgb8Image quantize_rgb8(const ImageRGB& srgb, int channels, DitherMethod dither, ImageRGB* decoded) {
+  Rgb8Image png;
+  png.width = srgb.width;
+  png.height = srgb.height;
+  png.channels = channels;
+  png.pixels.resize(srgb.pixel_count() * size_t(png.channels));
+  if (decoded) *decoded = ImageRGB(srgb.width, srgb.height);
+  for (int y = 0; y < srgb.height; ++y) {
+    for (int x = 0; x < srgb.width; ++x) {
+      const float t = ordered_threshold(dither, x, y);
+      const size_t p = size_t(y) * size_t(srgb.width) + size_t(x);
+      for (int c = 0; c < 3; ++c) {
+        const float v = srgb.rgb[3 * p + size_t(c)];
+        const uint8_t q = uint8_t(std::clamp(std::floor(v * 255.0f + t), 0.0f, 255.0f));
+        png.pixels[p * size_t(png.channels) + size_t(c)] = q;
+        if (decoded) decoded->rgb[3 * p + size_t(c)] = float(q) / 255.0f;
+      }
+      if (png.channels == 4) png.pixels[p * 4 + 3] = 255;
+    }
+  }
+  return png;
+}
+
+Rgb8Image tonemap_to_rgb8(const ImageRGB& hdr, const ToneMapSettings& tonemap) {
+  return quantize_rgb8(srgb_encode_image(tonemap_image(hdr, tonemap)), 3, DitherMethod::kNone, nullptr);
+}
+
+namespace {
+
 struct Encoded {
   ImageRGB decoded;  // LDR: sRGB-encoded [0, 1]; HDR: linear
   int bits_per_pixel = 0;
@@ -52,24 +83,7 @@ Encoded encode_ldr(const ImageRGB& srgb, const ImageRGB& display_linear, const s
   switch (o.format) {
     case OutputFormat::kRgb8:
     case OutputFormat::kRgba8: {
-      Rgb8Image png;
-      png.width = srgb.width;
-      png.height = srgb.height;
-      png.channels = o.format == OutputFormat::kRgba8 ? 4 : 3;
-      png.pixels.resize(srgb.pixel_count() * size_t(png.channels));
-      for (int y = 0; y < srgb.height; ++y) {
-        for (int x = 0; x < srgb.width; ++x) {
-          const float t = ordered_threshold(o.dither, x, y);
-          const size_t p = size_t(y) * size_t(srgb.width) + size_t(x);
-          for (int c = 0; c < 3; ++c) {
-            const float v = srgb.rgb[3 * p + size_t(c)];
-            const uint8_t q = uint8_t(std::clamp(std::floor(v * 255.0f + t), 0.0f, 255.0f));
-            png.pixels[p * size_t(png.channels) + size_t(c)] = q;
-            e.decoded.rgb[3 * p + size_t(c)] = float(q) / 255.0f;
-          }
-          if (png.channels == 4) png.pixels[p * 4 + 3] = 255;
-        }
-      }
+      const Rgb8Image png = quantize_rgb8(srgb, o.format == OutputFormat::kRgba8 ? 4 : 3, o.dither, &e.decoded);
       write_png(path, png);
       e.bits_per_pixel = png.channels * 8;
       break;

@@ -23,6 +23,7 @@
 #include "color/dither.h"
 #include "color/image_metrics.h"
 #include "color/input_sanitizer.h"
+#include "color/png_io.h"
 #include "color/tonemap.h"
 #include "image/image.h"
 
@@ -65,6 +66,14 @@ struct ConversionReport {
 // Converts and writes. Throws ColorError / ExrError naming the path on failure.
 ConversionReport convert_image(const ImageRGB& hdr, const std::string& path,
                                const ConvertOptions& options);
+
+// sRGB-encoded [0, 1] floats -> 8-bit pixels (channels 3 or 4, alpha opaque), with the ordered
+// dither's thresholds (none: round to nearest); `decoded` (may be null) receives q / 255.
+Rgb8Image quantize_rgb8(const ImageRGB& srgb, int channels, DitherMethod dither, ImageRGB* decoded);
+// What convert_image writes to an 8-bit PNG without dithering: sanitize, expose, tone map, sRGB,
+// quantize. The coordinator's monitor previews frames with it, so a preview equals the PNG
+// `tessera convert` makes of the same frame.
+Rgb8Image tonemap_to_rgb8(const ImageRGB& hdr, const ToneMapSettings& tonemap);
 
 // The one-line human report and its machine-readable form (PSNR of a lossless output is null).
 std::string report_text(const ConversionReport& r);

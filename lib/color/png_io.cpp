@@ -41,7 +41,8 @@ struct WriteDesc {
   int trans_size;
 };
 
-bool write_png_raw(std::FILE* f, const WriteDesc& d, PngErrorState* err) {
+// Writes to `f`, or appends to `sink` when it is given (in-memory PNGs).
+bool write_png_raw(std::FILE* f, const WriteDesc& d, PngErrorState* err, std::string* sink = nullptr) {
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, err, on_png_error,
                                             on_png_warning);
   if (!png) return false;
@@ -54,7 +55,16 @@ bool write_png_raw(std::FILE* f, const WriteDesc& d, PngErrorState* err) {
     png_destroy_write_struct(&png, &info);
     return false;
   }
-  png_init_io(png, f);
+  if (sink) {
+    png_set_write_fn(
+        png, sink,
+        [](png_structp p, png_bytep data, png_size_t n) {
+          static_cast<std::string*>(png_get_io_ptr(p))->append(reinterpret_cast<const char*>(data), n);
+        },
+        [](png_structp) {});
+  } else {
+    png_init_io(png, f);
+  }
   png_set_IHDR(png, info, png_uint_32(d.width), png_uint_32(d.height), d.bit_depth, d.color_type,
                PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   // sRGB chunk (with the gAMA/cHRM fallbacks): the samples are sRGB-encoded.
@@ -146,22 +156,39 @@ int palette_bit_depth(int colors) {
   return colors <= 2 ? 1 : colors <= 4 ? 2 : colors <= 16 ? 4 : 8;
 }
 
+namespace {
+bool write_rgb8(std::FILE* f, std::string* sink, const Rgb8Image& image, PngErrorState* err) {
+  auto rows = row_pointers(const_cast<uint8_t*>(image.pixels.data()), image.height,
+                           size_t(image.width) * size_t(image.channels));
+  const WriteDesc d{image.width, image.height,
+                    image.channels == 4 ? PNG_COLOR_TYPE_RGB_ALPHA : PNG_COLOR_TYPE_RGB,
+                    8, rows.data(), nullptr, 0, nullptr, 0};
+  return write_png_raw(f, d, err, sink);
+}
+}  // namespace
+
 void write_png(const std::string& path, const Rgb8Image& image) {
   if (image.width <= 0 || image.height <= 0 || (image.channels != 3 && image.channels != 4) ||
       image.pixels.size() != size_t(image.width) * size_t(image.height) * size_t(image.channels)) {
     throw ColorError("cannot write PNG " + path + ": bad image size");
   }
   FilePtr f = open_or_throw(path, "wb");
-  auto rows = row_pointers(const_cast<uint8_t*>(image.pixels.data()), image.height,
-                           size_t(image.width) * size_t(image.channels));
-  const WriteDesc d{image.width, image.height,
-                    image.channels == 4 ? PNG_COLOR_TYPE_RGB_ALPHA : PNG_COLOR_TYPE_RGB,
-                    8, rows.data(), nullptr, 0, nullptr, 0};
   PngErrorState err;
-  const bool ok = write_png_raw(f.get(), d, &err);
+  const bool ok = write_rgb8(f.get(), nullptr, image, &err);
   if (std::fflush(f.get()) != 0 || !ok) {
     throw ColorError("cannot write PNG " + path + ": " + (ok ? "write failed" : err.message));
   }
+}
+
+std::string encode_png(const Rgb8Image& image) {
+  if (image.width <= 0 || image.height <= 0 || (image.channels != 3 && image.channels != 4) ||
+      image.pixels.size() != size_t(image.width) * size_t(image.height) * size_t(image.channels)) {
+    throw ColorError("cannot encode PNG: bad image size");
+  }
+  std::string out;
+  PngErrorState err;
+  if (!write_rgb8(nullptr, &out, image, &err)) throw ColorError(std::string("cannot encode PNG: ") + err.message);
+  return out;
 }
 
 void write_png_indexed(const std::string& path, const IndexedImage& image, int bit_depth) {

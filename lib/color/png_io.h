@@ -32,6 +32,8 @@ int palette_bit_depth(int colors);
 
 // Writes an RGB (channels 3) or RGBA (channels 4) 8-bit PNG tagged sRGB. Throws ColorError.
 void write_png(const std::string& path, const Rgb8Image& image);
+// The same PNG in memory (the coordinator's monitor serves previews without files). Throws ColorError.
+std::string encode_png(const Rgb8Image& image);
 
 // Writes an indexed PNG (PLTE, tRNS when alpha is set) at palette_bit_depth(palette.size()),
 // or at bit_depth when it is given and large enough. Throws ColorError.

@@ -1,0 +1,79 @@
+// The coordinator's Prometheus metrics (issue 16), served as text by GET /metrics on the HTTP
+// listener (server/monitor/http_listener.h). Names follow Prometheus conventions: `tessera_`
+// prefix, base units (seconds, bytes), `_total` on counters.
+//
+// Two kinds of sources:
+//   - events (tiles completed, rays, leases expired, speculative copies, faults, store batches):
+//     counted as they happen, as a scheduler observer (Coordinator::add_observer). Each event
+//     costs an atomic add or a histogram bucket, under the coordinator's mutex;
+//   - levels (jobs by state, tiles queued / leased / done, workers, watch backlog): read from a
+//     Coordinator::snapshot() when Prometheus scrapes, so they cost nothing in between.
+//
+// Labels stay bounded: job states and tile states are fixed sets, workers are counted per
+// Embree ISA (a handful of values). No label carries a job id or a worker name: those grow
+// without bound on a long-lived farm (one time series each, forever, in Prometheus).
+#pragma once
+
+#include <prometheus/counter.h>
+#include <prometheus/family.h>
+#include <prometheus/gauge.h>
+#include <prometheus/histogram.h>
+#include <prometheus/registry.h>
+
+#include <mutex>
+#include <set>
+#include <string>
+
+#include "coordinator.h"
+
+namespace tessera::server {
+
+class FarmMetrics : public SchedulerListener {
+ public:
+  // Registers itself as an observer of `coordinator` and as the batch observer of `jobs` (may be
+  // null). Call before any stream starts.
+  FarmMetrics(Coordinator& coordinator, JobStore* jobs);
+
+  // The Prometheus text exposition format (version 0.0.4) of every metric, levels read now.
+  std::string scrape();
+
+  // SchedulerListener (under the coordinator's mutex).
+  void tile_leased(const Assignment& a) override;
+  void lease_ended(const Lease& lease, LeaseEnd why) override;
+  void tile_finished(const TileKey&, const TileOutput& out, WorkerId) override;
+  void worker_faulted(const JobId&, const WorkerStats&, std::string_view, int, bool blocklisted) override;
+
+ private:
+  void store_batch(double seconds, uint64_t bytes);
+  // Counters that mirror a running total kept elsewhere (bundle bytes, store failures).
+  static void advance(prometheus::Counter& c, double total) {
+    if (total > c.Value()) c.Increment(total - c.Value());
+  }
+
+  Coordinator& coordinator_;
+  prometheus::Registry registry_;
+  // Events.
+  prometheus::Counter& tiles_completed_;
+  prometheus::Counter& rays_;
+  prometheus::Histogram& tile_seconds_;
+  prometheus::Counter& lease_expiries_;
+  prometheus::Counter& speculative_copies_;
+  prometheus::Counter& lost_races_;
+  prometheus::Counter& faults_;
+  prometheus::Counter& blocklistings_;
+  prometheus::Histogram& store_write_seconds_;
+  prometheus::Counter& store_bytes_;
+  prometheus::Counter& store_failures_;
+  prometheus::Counter& bundle_stored_bytes_;
+  prometheus::Counter& bundle_served_bytes_;
+  // Levels, set at each scrape.
+  prometheus::Family<prometheus::Gauge>& jobs_;
+  prometheus::Family<prometheus::Gauge>& tiles_;
+  prometheus::Family<prometheus::Gauge>& workers_;
+  std::set<prometheus::Gauge*> workers_isa_seen_;
+  prometheus::Gauge& watch_backlog_;
+  prometheus::Gauge& store_queued_;
+  std::mutex scrape_mu_;  // one scrape at a time sets the levels
+};
+
+}  // namespace tessera::server

@@ -1,0 +1,78 @@
+#include "http_listener.h"
+
+#include <httplib.h>
+
+#include <fstream>
+#include <stdexcept>
+
+namespace tessera::server {
+
+namespace {
+
+// Open pages (each holds at most one connection: requests are sequential), scrapers and API
+// scripts at once before the next one waits. Idle threads cost nothing but their stacks.
+constexpr size_t kThreads = 16;
+
+void require_readable(const std::string& path, const char* what) {
+  if (!std::ifstream(path)) throw std::runtime_error(std::string("--http-listen: cannot read the TLS ") + what + " " + path);
+}
+
+}  // namespace
+
+HttpListener::HttpListener(const std::string& address, const HttpTls& tls) {
+  const auto colon = address.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == address.size()) {
+    throw std::runtime_error("--http-listen '" + address + "': expected HOST:PORT, e.g. 0.0.0.0:8080");
+  }
+  host_ = address.substr(0, colon);
+  if (host_.size() > 2 && host_.front() == '[' && host_.back() == ']') host_ = host_.substr(1, host_.size() - 2);
+  try {
+    size_t used = 0;
+    port_ = std::stoi(address.substr(colon + 1), &used);
+    if (used != address.size() - colon - 1 || port_ < 0 || port_ > 65535) throw std::out_of_range("port");
+  } catch (const std::exception&) {
+    throw std::runtime_error("--http-listen '" + address + "': the port must be a number in [0, 65535]");
+  }
+  if (tls.cert.empty()) {
+    server_ = std::make_unique<httplib::Server>();
+  } else {
+    require_readable(tls.cert, "certificate");
+    require_readable(tls.key, "key");
+    if (!tls.client_ca.empty()) require_readable(tls.client_ca, "client CA");
+    auto ssl = std::make_unique<httplib::SSLServer>(tls.cert.c_str(), tls.key.c_str(),
+                                                    tls.client_ca.empty() ? nullptr : tls.client_ca.c_str());
+    if (!ssl->is_valid()) {
+      throw std::runtime_error("--http-listen: the TLS certificate " + tls.cert + " and key " + tls.key +
+                               " were refused by OpenSSL (not PEM, or not a pair)");
+    }
+    server_ = std::move(ssl);
+    tls_ = true;
+  }
+  // cpp-httplib serves each connection on a thread of a fixed pool, also while a kept-alive
+  // connection waits for its next request. Pages poll once a second: a short keep-alive still
+  // reuses the connection between two polls, and a browser that went away frees its thread soon.
+  server_->set_keep_alive_timeout(2);
+  server_->set_read_timeout(10, 0);
+  server_->set_write_timeout(10, 0);
+  server_->new_task_queue = [] { return new httplib::ThreadPool(kThreads); };
+}
+
+HttpListener::~HttpListener() { stop(); }
+
+int HttpListener::start() {
+  const int port = port_ == 0 ? server_->bind_to_any_port(host_) : (server_->bind_to_port(host_, port_) ? port_ : -1);
+  if (port <= 0) {
+    throw std::runtime_error("--http-listen: cannot listen on " + host_ + ":" + std::to_string(port_) +
+                             " (address in use or not local?)");
+  }
+  thread_ = std::thread([this] { server_->listen_after_bind(); });
+  return port;
+}
+
+void HttpListener::stop() {
+  if (!thread_.joinable()) return;
+  server_->stop();
+  thread_.join();
+}
+
+}  // namespace tessera::server

@@ -1,0 +1,230 @@
+#include "monitor_routes.h"
+
+#include <httplib.h>
+#include <openssl/ssl.h>
+#include <openssl/x509.h>
+#include <spdlog/spdlog.h>
+
+#include <nlohmann/json.hpp>
+
+#include "coordinator.h"
+#include "job_access.h"
+#include "metrics/farm_metrics.h"
+#include "monitor_feed.h"
+#include "web_assets.h"
+
+namespace tessera::server {
+
+namespace {
+
+using grpc::Status;
+using grpc::StatusCode;
+using nlohmann::json;
+
+constexpr const char* kJobRoute = R"(/api/jobs/([0-9A-Za-z_.-]{1,128}))";
+
+int http_status(StatusCode c) {
+  switch (c) {
+    case StatusCode::OK: return 200;
+    case StatusCode::UNAUTHENTICATED: return 401;
+    case StatusCode::PERMISSION_DENIED: return 403;
+    case StatusCode::NOT_FOUND: return 404;
+    case StatusCode::INVALID_ARGUMENT: return 400;
+    case StatusCode::FAILED_PRECONDITION: return 409;
+    case StatusCode::RESOURCE_EXHAUSTED: return 429;
+    case StatusCode::UNAVAILABLE: return 503;
+    default: return 500;
+  }
+}
+
+void send_json(httplib::Response& res, int code, const json& body) {
+  res.status = code;
+  res.set_header("Cache-Control", "no-store");
+  res.set_content(body.dump(), "application/json");
+}
+
+void send_error(httplib::Response& res, const Status& s) {
+  if (s.error_code() == StatusCode::UNAUTHENTICATED) res.set_header("WWW-Authenticate", "Bearer");
+  send_json(res, http_status(s.error_code()), json{{"error", s.error_message()}});
+}
+
+// "cn:NAME" of a verified TLS client certificate (mutual TLS), as client_identity() in gRPC.
+std::string certificate_identity(const httplib::Request& req) {
+  if (!req.ssl) return {};
+  X509* cert = SSL_get1_peer_certificate(req.ssl);
+  if (!cert) return {};
+  char cn[256] = {};
+  const int n = X509_NAME_get_text_by_NID(X509_get_subject_name(cert), NID_commonName, cn, sizeof cn);
+  X509_free(cert);
+  return n > 0 ? "cn:" + std::string(cn, size_t(n)) : std::string();
+}
+
+std::optional<int> int_param(const httplib::Request& req, const char* name, Status* error) {
+  if (!req.has_param(name)) return std::nullopt;
+  const std::string v = req.get_param_value(name);
+  try {
+    size_t used = 0;
+    const int n = std::stoi(v, &used);
+    if (used == v.size()) return n;
+  } catch (const std::exception&) {
+  }
+  *error = Status(StatusCode::INVALID_ARGUMENT, std::string(name) + ": '" + v + "' is not an integer");
+  return std::nullopt;
+}
+
+}  // namespace
+
+void MonitorRoutes::install(httplib::Server& server) const {
+  // The handlers outlive this call: they share a copy of the routes' references and settings.
+  const auto self = std::make_shared<const MonitorRoutes>(*this);
+  // Who is calling, as ClientServiceImpl::authenticate decides it.
+  auto authenticate = [self](const httplib::Request& req, Caller* caller) {
+    std::optional<std::string_view> header;
+    const std::string value = req.get_header_value("Authorization");
+    if (req.has_header("Authorization")) header = value;
+    std::string token_name;
+    Status s = self->auth.check_authorization(header, PeerRole::kClient, &token_name);
+    if (!s.ok()) return s;
+    caller->identity = certificate_identity(req);
+    if (caller->identity.empty() && !token_name.empty()) caller->identity = "token:" + token_name;
+    if (caller->identity.empty()) {
+      caller->identity = req.remote_addr.find(':') == std::string::npos ? "ipv4:" + req.remote_addr
+                                                                         : "ipv6:[" + req.remote_addr + "]";
+    }
+    caller->admin = self->admins.count(caller->identity) > 0;
+    return s;
+  };
+  auto authorize = [self](const std::string& job, const Caller& caller, const char* action) {
+    const std::optional<std::string> owner = self->coordinator.job_owner(job);
+    if (!owner) return Status(StatusCode::NOT_FOUND, "no job '" + job + "' on this coordinator");
+    Status s = check_job_access(job, *owner, caller, action);
+    if (!s.ok()) spdlog::warn("monitor: {} refused: {}", caller.identity, s.error_message());
+    return s;
+  };
+  // Actions change state: they must come from the page's fetch() (a JSON body), not from a form
+  // another site posts into a browser that can reach the coordinator (forms cannot send JSON
+  // without a CORS preflight, which this server never grants).
+  auto json_body = [](const httplib::Request& req, json* body) {
+    if (req.get_header_value("Content-Type").rfind("application/json", 0) != 0) {
+      return Status(StatusCode::INVALID_ARGUMENT, "actions take a JSON body (Content-Type: application/json)");
+    }
+    *body = json::parse(req.body.empty() ? "{}" : req.body, nullptr, false);
+    if (body->is_discarded() || !body->is_object()) return Status(StatusCode::INVALID_ARGUMENT, "the body is not a JSON object");
+    return Status::OK;
+  };
+
+  // The caller may do `action` to the job the route names: returns its id, or nothing after
+  // answering with the refusal.
+  auto job_request = [=](const httplib::Request& req, httplib::Response& res, const char* action, Caller* caller) {
+    const std::string id = req.matches[1];
+    Status s = authenticate(req, caller);
+    if (s.ok()) s = authorize(id, *caller, action);
+    if (s.ok()) return std::optional<std::string>(id);
+    send_error(res, s);
+    return std::optional<std::string>();
+  };
+
+  server.set_post_routing_handler([](const httplib::Request&, httplib::Response& res) {
+    res.set_header("X-Content-Type-Options", "nosniff");
+    res.set_header("Content-Security-Policy", "default-src 'self'; img-src 'self' blob: data:; frame-ancestors 'none'");
+  });
+
+  auto page = [](std::string_view name, httplib::Response& res) {
+    const WebAsset* a = web_asset(name);
+    if (!a) {
+      res.status = 404;
+      res.set_content("no such file", "text/plain");
+      return;
+    }
+    res.set_content(std::string(a->bytes), std::string(a->content_type).c_str());
+  };
+  server.Get("/", [page](const httplib::Request&, httplib::Response& res) { page("index.html", res); });
+  server.Get(R"(/static/([A-Za-z0-9_.-]+))",
+             [page](const httplib::Request& req, httplib::Response& res) { page(req.matches[1].str(), res); });
+
+  server.Get("/api/whoami", [=](const httplib::Request& req, httplib::Response& res) {
+    Caller caller;
+    if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
+    send_json(res, 200,
+              {{"identity", caller.identity}, {"admin", caller.admin}, {"token_required", !self->auth.open(PeerRole::kClient)}});
+  });
+  server.Get("/api/farm", [=](const httplib::Request& req, httplib::Response& res) {
+    Caller caller;
+    if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
+    send_json(res, 200, self->feed.farm());
+  });
+  server.Get(kJobRoute, [=](const httplib::Request& req, httplib::Response& res) {
+    Caller caller;
+    const auto id = job_request(req, res, "watch", &caller);
+    if (!id) return;
+    Status bad;
+    const auto frame = int_param(req, "frame", &bad);
+    if (!bad.ok()) return send_error(res, bad);
+    auto j = self->feed.job(*id, frame);
+    if (!j) return send_error(res, Status(StatusCode::NOT_FOUND, "job " + *id + " is no longer in the coordinator's memory"));
+    send_json(res, 200, *j);
+  });
+  server.Get(std::string(kJobRoute) + "/preview.png", [=](const httplib::Request& req, httplib::Response& res) {
+    Caller caller;
+    const auto id = job_request(req, res, "watch", &caller);
+    if (!id) return;
+    Status bad;
+    const auto frame = int_param(req, "frame", &bad);
+    color::ToneMapSettings tonemap;
+    if (req.has_param("tonemap")) {
+      const auto op = color::parse_tonemap(req.get_param_value("tonemap"));
+      if (!op) bad = Status(StatusCode::INVALID_ARGUMENT, "tonemap: '" + req.get_param_value("tonemap") +
+                                                              "' is not clamp, reinhard, aces or pbr-neutral");
+      else tonemap.op = *op;
+    }
+    if (const auto ev = int_param(req, "exposure", &bad)) tonemap.exposure_ev = float(*ev);
+    if (!bad.ok()) return send_error(res, bad);
+    std::optional<std::string> png;
+    try {
+      png = self->feed.preview(*id, frame, tonemap);
+    } catch (const std::exception& e) {
+      return send_error(res, Status(StatusCode::INTERNAL, std::string("cannot encode the preview: ") + e.what()));
+    }
+    if (!png) return send_error(res, Status(StatusCode::NOT_FOUND, "no finished tile of that frame of job " + *id + " in memory"));
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(std::move(*png), "image/png");
+  });
+  server.Post(std::string(kJobRoute) + "/cancel", [=](const httplib::Request& req, httplib::Response& res) {
+    Caller caller;
+    json body;
+    const auto id = job_request(req, res, "cancel", &caller);
+    if (!id) return;
+    if (Status s = json_body(req, &body); !s.ok()) return send_error(res, s);
+    tessera::v1::JobStatus status;
+    if (Status s = self->coordinator.cancel(*id, &status); !s.ok()) return send_error(res, s);
+    spdlog::info("monitor: {} cancelled job {}", caller.identity, *id);
+    send_json(res, 200, {{"id", *id}, {"state", "cancelled"}});
+  });
+  server.Post(std::string(kJobRoute) + "/priority", [=](const httplib::Request& req, httplib::Response& res) {
+    Caller caller;
+    json body;
+    const auto id = job_request(req, res, "change the priority of", &caller);
+    if (!id) return;
+    if (Status s = json_body(req, &body); !s.ok()) return send_error(res, s);
+    if (!body.contains("priority") || !body["priority"].is_number_integer()) {
+      return send_error(res, Status(StatusCode::INVALID_ARGUMENT, "priority: an integer is required, e.g. {\"priority\": 5}"));
+    }
+    const int64_t p = body["priority"].get<int64_t>();
+    if (p < INT32_MIN || p > INT32_MAX) {
+      return send_error(res, Status(StatusCode::INVALID_ARGUMENT, "priority: " + std::to_string(p) + " is out of range"));
+    }
+    tessera::v1::JobStatus status;
+    if (Status s = self->coordinator.set_priority(*id, int(p), &status); !s.ok()) return send_error(res, s);
+    spdlog::info("monitor: {} set the priority of job {} to {}", caller.identity, *id, p);
+    send_json(res, 200, {{"id", *id}, {"priority", status.priority()}});
+  });
+  if (self->metrics) {
+    server.Get("/metrics", [=](const httplib::Request& req, httplib::Response& res) {
+      Caller caller;
+      if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
+      res.set_content(self->metrics->scrape(), "text/plain; version=0.0.4; charset=utf-8");
+    });
+  }
+}
+
+}  // namespace tessera::server

@@ -1,0 +1,40 @@
+// The routes of the coordinator's HTTP listener:
+//   GET  /, /static/NAME          the monitor page and its modules (no farm data: always served)
+//   GET  /api/whoami              who the token makes the caller, and whether one is needed
+//   GET  /api/farm                jobs and workers
+//   GET  /api/jobs/ID[?frame=F]   one job: frames' times and errors, the preview's tile map
+//   GET  /api/jobs/ID/preview.png[?frame=F&tonemap=T&exposure=EV]  the frame tone-mapped
+//   POST /api/jobs/ID/cancel      as CancelJob
+//   POST /api/jobs/ID/priority    {"priority": N}, as SetJobPriority
+//   GET  /metrics                 Prometheus text format (when metrics are given)
+// Every route but the page itself checks the client token as the gRPC API does
+// (`Authorization: Bearer TOKEN`); watching (the preview, the job page), cancelling and
+// changing the priority need the permissions of job_access.h.
+#pragma once
+
+#include <set>
+#include <string>
+
+#include "auth.h"
+
+namespace httplib {
+class Server;
+}
+
+namespace tessera::server {
+
+class Coordinator;
+class FarmMetrics;
+class MonitorFeed;
+
+struct MonitorRoutes {
+  Coordinator& coordinator;
+  MonitorFeed& feed;
+  FarmMetrics* metrics = nullptr;  // null: no /metrics
+  const Authenticator& auth;
+  std::set<std::string> admins;
+
+  void install(httplib::Server& server) const;
+};
+
+}  // namespace tessera::server

@@ -1,0 +1,50 @@
+// The main page: every job and every worker, refreshed by app.js.
+import * as fmt from './format.js';
+
+function cell(row, text, className) {
+  const td = row.insertCell();
+  td.textContent = text;
+  if (className) td.className = className;
+  return td;
+}
+
+export function render(farm) {
+  const jobs = document.querySelector('#jobs tbody');
+  jobs.replaceChildren();
+  for (const job of farm.jobs) {
+    const row = jobs.insertRow();
+    row.dataset.job = job.id;
+    row.dataset.state = job.state;
+    row.className = 'clickable';
+    row.addEventListener('click', () => { location.hash = '#/job/' + job.id; });
+    cell(row, job.id, 'job-id');
+    cell(row, job.name, 'job-name');
+    cell(row, job.owner || '—', 'job-owner');
+    cell(row, job.state, 'job-state state-' + job.state);
+    cell(row, String(job.priority), 'job-priority');
+    cell(row, fmt.frames(job), 'job-frames');
+    const progress = cell(row, '', 'job-progress');
+    const bar = document.createElement('progress');
+    bar.max = job.tiles_total;
+    bar.value = job.tiles_done;
+    progress.append(bar, ` ${job.tiles_done}/${job.tiles_total}`);
+    cell(row, fmt.seconds(job.eta_seconds), 'job-eta');
+    cell(row, fmt.fixed(job.mrays_per_second, 2), 'job-mrays');
+    cell(row, fmt.rmse(job.estimated_rmse), 'job-rmse');
+  }
+  const workers = document.querySelector('#workers tbody');
+  workers.replaceChildren();
+  for (const w of farm.workers) {
+    const row = workers.insertRow();
+    row.dataset.worker = w.name;
+    cell(row, w.name, 'worker-name');
+    cell(row, String(w.threads), 'worker-threads');
+    cell(row, w.embree_isa, 'worker-isa');
+    cell(row, w.state, 'worker-state');
+    cell(row, fmt.fixed(w.tiles_per_second, 2), 'worker-tiles-per-second');
+    cell(row, String(w.tiles_held), 'worker-tiles-held');
+    cell(row, String(w.tiles_done), 'worker-tiles-done');
+    cell(row, String(w.faults), 'worker-faults').title = w.last_fault;
+    cell(row, w.blocklisted_for.join(', ') || '—', 'worker-blocklisted');
+  }
+}

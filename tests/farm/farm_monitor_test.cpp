@@ -1,0 +1,346 @@
+// The coordinator's HTTP side (issue 16), end to end: a real coordinator with --http-listen,
+// real workers and the real CLI on 127.0.0.1; the monitor's API under tokens, owners and TLS;
+// a real Prometheus server scraping /metrics; and the monitor in headless Chromium.
+#include <gtest/gtest.h>
+#include <httplib.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+#include <fstream>
+#include <regex>
+#include <thread>
+
+#include "color/png_io.h"
+#include "farm_harness.h"
+
+namespace tessera::farmtest {
+namespace {
+
+using namespace std::chrono_literals;
+using nlohmann::json;
+
+const fs::path kScene = source("tests/farm/whitted_orbit.json");  // 96x64, 3 frames
+constexpr int kTilesPerFrame = 24;                                 // at --tile 16
+
+void write(const fs::path& p, const std::string& text) {
+  std::ofstream out(p);
+  out << text;
+}
+
+// The port of the coordinator's HTTP listener, from its "monitor on" line.
+int http_port(Farm& farm) {
+  const std::regex re("monitor on https?://127\\.0\\.0\\.1:([0-9]+)/");
+  for (int i = 0; i < 200; ++i) {
+    std::smatch m;
+    const std::string log = farm.server().log();
+    if (std::regex_search(log, m, re)) return std::stoi(m[1]);
+    std::this_thread::sleep_for(25ms);
+  }
+  ADD_FAILURE() << "no 'monitor on' line:\n" << farm.server().log();
+  return 0;
+}
+
+int free_port() {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+  socklen_t n = sizeof a;
+  getsockname(fd, reinterpret_cast<sockaddr*>(&a), &n);
+  close(fd);
+  return ntohs(a.sin_port);
+}
+
+httplib::Headers bearer(const std::string& token) { return {{"Authorization", "Bearer " + token}}; }
+
+// Named client tokens: alice and bob each own what they submit (job_access.h).
+TEST(MonitorHttp, EveryCallChecksTheTokenAndActionsNeedTheJobsOwner) {
+  Farm farm;
+  write(farm.dir() / "tokens", "alice:alice-secret-1\nbob:bob-secret-2\n");
+  farm.start_server({"--http-listen", "127.0.0.1:0", "--client-tokens", (farm.dir() / "tokens").string()});
+  httplib::Client http("127.0.0.1", http_port(farm));
+  write(farm.dir() / "alice.token", "alice-secret-1\n");
+  // No worker: the job stays queued, so its priority can change and it can be cancelled.
+  CliResult sub = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--detach", "--tile", "16",
+                            "--token-file", (farm.dir() / "alice.token").string(), "--name", "alices-job"});
+  ASSERT_EQ(sub.code, 0) << sub.output;
+  const std::string job = job_id_from(sub.output);
+
+  // The page itself holds no farm data: it loads, and asks for a token.
+  auto page = http.Get("/");
+  ASSERT_TRUE(page);
+  EXPECT_EQ(page->status, 200);
+  EXPECT_NE(page->body.find("id=\"login\""), std::string::npos);
+  // Everything else needs a valid token.
+  for (const std::string& path : std::vector<std::string>{"/api/farm", "/api/whoami", "/metrics", "/api/jobs/" + job,
+                                 "/api/jobs/" + job + "/preview.png"}) {
+    auto none = http.Get(path);
+    ASSERT_TRUE(none) << path;
+    EXPECT_EQ(none->status, 401) << path << ": " << none->body;
+    auto wrong = http.Get(path, bearer("alice-secret-X"));
+    ASSERT_TRUE(wrong) << path;
+    EXPECT_EQ(wrong->status, 401) << path << ": " << wrong->body;
+  }
+  auto farm_json = http.Get("/api/farm", bearer("bob-secret-2"));
+  ASSERT_TRUE(farm_json);
+  ASSERT_EQ(farm_json->status, 200) << farm_json->body;
+  const json jobs = json::parse(farm_json->body).at("jobs");
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].at("id"), job);
+  EXPECT_EQ(jobs[0].at("owner"), "token:alice");
+  EXPECT_EQ(jobs[0].at("name"), "alices-job");
+  EXPECT_EQ(jobs[0].at("state"), "queued");
+  EXPECT_EQ(jobs[0].at("tiles_total"), 3 * kTilesPerFrame);
+
+  // Bob may not watch, reprioritize or cancel alice's job; alice may.
+  EXPECT_EQ(http.Get("/api/jobs/" + job, bearer("bob-secret-2"))->status, 403);
+  auto denied = http.Post("/api/jobs/" + job + "/cancel", bearer("bob-secret-2"), "{}", "application/json");
+  ASSERT_TRUE(denied);
+  EXPECT_EQ(denied->status, 403) << denied->body;
+  EXPECT_NE(denied->body.find("token:bob"), std::string::npos) << denied->body;
+  // An action must come with a JSON body (a form posted by another site cannot send one).
+  auto form = http.Post("/api/jobs/" + job + "/cancel", bearer("alice-secret-1"), "x=1",
+                        "application/x-www-form-urlencoded");
+  ASSERT_TRUE(form);
+  EXPECT_EQ(form->status, 400) << form->body;
+  auto bad = http.Post("/api/jobs/" + job + "/priority", bearer("alice-secret-1"), R"({"priority":"high"})",
+                       "application/json");
+  ASSERT_TRUE(bad);
+  EXPECT_EQ(bad->status, 400);
+  EXPECT_NE(bad->body.find("priority"), std::string::npos) << bad->body;
+  auto prio = http.Post("/api/jobs/" + job + "/priority", bearer("alice-secret-1"), R"({"priority":7})",
+                        "application/json");
+  ASSERT_TRUE(prio);
+  ASSERT_EQ(prio->status, 200) << prio->body;
+  CliResult st = farm.cli({"status", job, "--json", "--coordinator", farm.address(), "--token-file",
+                           (farm.dir() / "alice.token").string()});
+  ASSERT_EQ(st.code, 0) << st.output;
+  EXPECT_EQ(json::parse(st.output).at("priority"), 7);
+  // The CLI's SetJobPriority has the same rule.
+  write(farm.dir() / "bob.token", "bob-secret-2\n");
+  CliResult bob = farm.cli({"priority", job, "1", "--coordinator", farm.address(), "--token-file",
+                            (farm.dir() / "bob.token").string()});
+  EXPECT_NE(bob.code, 0) << bob.output;
+  CliResult alice = farm.cli({"priority", job, "3", "--coordinator", farm.address(), "--token-file",
+                              (farm.dir() / "alice.token").string()});
+  ASSERT_EQ(alice.code, 0) << alice.output;
+  EXPECT_NE(alice.output.find("priority 3"), std::string::npos) << alice.output;
+  auto cancel = http.Post("/api/jobs/" + job + "/cancel", bearer("alice-secret-1"), "{}", "application/json");
+  ASSERT_TRUE(cancel);
+  ASSERT_EQ(cancel->status, 200) << cancel->body;
+  CliResult gone = farm.cli({"status", job, "--json", "--coordinator", farm.address(), "--token-file",
+                            (farm.dir() / "alice.token").string()});
+  ASSERT_EQ(gone.code, 0) << gone.output;
+  EXPECT_EQ(json::parse(gone.output).at("state"), "cancelled");
+  // The priority of an ended job is refused, by name.
+  auto late = http.Post("/api/jobs/" + job + "/priority", bearer("alice-secret-1"), R"({"priority":1})",
+                        "application/json");
+  ASSERT_TRUE(late);
+  EXPECT_EQ(late->status, 409) << late->body;
+  // The priority survives a restart (it is stored with the job).
+  CliResult other = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--detach", "--token-file",
+                              (farm.dir() / "alice.token").string()});
+  ASSERT_EQ(other.code, 0) << other.output;
+  const std::string job2 = job_id_from(other.output);
+  ASSERT_EQ(farm.cli({"priority", job2, "-4", "--coordinator", farm.address(), "--token-file",
+                      (farm.dir() / "alice.token").string()}).code, 0);
+  farm.restart_server();
+  CliResult after = farm.cli({"status", job2, "--json", "--coordinator", farm.address(), "--token-file",
+                              (farm.dir() / "alice.token").string()});
+  ASSERT_EQ(after.code, 0) << after.output;
+  EXPECT_EQ(json::parse(after.output).at("priority"), -4);
+}
+
+TEST(MonitorHttp, TlsServesHttpsWithTheCoordinatorsCertificate) {
+  Farm farm;
+  const fs::path d = farm.dir();
+  ASSERT_EQ(std::system(("cd " + d.string() + " && openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 "
+                         "-nodes -keyout server.key -out server.pem -days 2 -subj /CN=localhost "
+                         "-addext subjectAltName=IP:127.0.0.1 2>openssl.log").c_str()),
+            0);
+  farm.start_server({"--http-listen", "127.0.0.1:0", "--tls-cert", (d / "server.pem").string(), "--tls-key",
+                     (d / "server.key").string()});
+  const int port = http_port(farm);
+  EXPECT_NE(farm.server().log().find("monitor on https://"), std::string::npos);
+  httplib::SSLClient https("127.0.0.1", port);
+  https.set_ca_cert_path((d / "server.pem").c_str());
+  https.enable_server_certificate_verification(true);
+  auto ok = https.Get("/api/farm");
+  ASSERT_TRUE(ok) << httplib::to_string(ok.error());
+  EXPECT_EQ(ok->status, 200);
+  EXPECT_TRUE(json::parse(ok->body).contains("workers"));
+  // Plain HTTP on the same port gets no answer.
+  httplib::Client plain("127.0.0.1", port);
+  plain.set_read_timeout(3, 0);
+  auto no = plain.Get("/api/farm");
+  EXPECT_TRUE(!no || no->status != 200);
+}
+
+TEST(MonitorHttp, MutualTlsRequiresAClientCertificateWhoseNameIsTheCaller) {
+  Farm farm;
+  const std::string d = farm.dir().string();
+  const std::string key = "-newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes";
+  const std::string q = " 2>>openssl.log";
+  for (const std::string& cmd :
+       {"openssl req -x509 " + key + " -keyout ca.key -out ca.pem -days 2 -subj '/CN=Monitor Test CA'" + q,
+        "openssl req " + key + " -keyout server.key -out server.csr -subj /CN=localhost" + q,
+        "printf 'subjectAltName=IP:127.0.0.1\\n' > server.ext && openssl x509 -req -in server.csr -CA ca.pem -CAkey "
+        "ca.key -CAcreateserial -days 2 -out server.pem -extfile server.ext" + q,
+        "openssl req " + key + " -keyout client.key -out client.csr -subj /CN=render-ops" + q,
+        "printf 'extendedKeyUsage=clientAuth\\n' > client.ext && openssl x509 -req -in client.csr -CA ca.pem -CAkey "
+        "ca.key -CAcreateserial -days 2 -out client.pem -extfile client.ext" + q}) {
+    ASSERT_EQ(std::system(("cd " + d + " && " + cmd).c_str()), 0) << cmd;
+  }
+  farm.start_server({"--http-listen", "127.0.0.1:0", "--tls-cert", d + "/server.pem", "--tls-key", d + "/server.key",
+                     "--tls-ca", d + "/ca.pem", "--admin", "cn:render-ops"});
+  const int port = http_port(farm);
+  // Without a client certificate the handshake fails: no answer at all.
+  httplib::SSLClient anonymous("127.0.0.1", port);
+  anonymous.set_ca_cert_path((d + "/ca.pem").c_str());
+  anonymous.enable_server_certificate_verification(true);
+  auto refused = anonymous.Get("/api/farm");
+  EXPECT_FALSE(refused && refused->status == 200);
+  // With one, the certificate's CN is the caller, as on the gRPC side.
+  httplib::SSLClient ops("127.0.0.1", port, d + "/client.pem", d + "/client.key");
+  ops.set_ca_cert_path((d + "/ca.pem").c_str());
+  ops.enable_server_certificate_verification(true);
+  auto me = ops.Get("/api/whoami");
+  ASSERT_TRUE(me) << httplib::to_string(me.error());
+  ASSERT_EQ(me->status, 200) << me->body;
+  EXPECT_EQ(json::parse(me->body).at("identity"), "cn:render-ops");
+  EXPECT_TRUE(json::parse(me->body).at("admin").get<bool>());
+}
+
+TEST(MonitorPrometheus, PrometheusScrapesTilesCompletedEqualToTheJobsTiles) {
+  if (!fs::exists("/usr/bin/prometheus")) GTEST_SKIP() << "/usr/bin/prometheus not installed (Debian prometheus)";
+  Farm farm;
+  farm.start_server({"--http-listen", "127.0.0.1:0"});
+  const int port = http_port(farm);
+  farm.start_worker("w1");
+  farm.start_worker("w2");
+  const int prom_port = free_port();
+  write(farm.dir() / "prometheus.yml", "global:\n  scrape_interval: 1s\n  scrape_timeout: 1s\n"
+                                       "scrape_configs:\n  - job_name: tessera\n    static_configs:\n"
+                                       "      - targets: ['127.0.0.1:" + std::to_string(port) + "']\n");
+  Process prometheus({"/usr/bin/prometheus", "--config.file", (farm.dir() / "prometheus.yml").string(),
+                      "--storage.tsdb.path", (farm.dir() / "prometheus-data").string(), "--web.listen-address",
+                      "127.0.0.1:" + std::to_string(prom_port)},
+                     farm.dir() / "prometheus.log");
+  CliResult r = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "-o",
+                          (farm.dir() / "out" / "frame_####.exr").string(), "--tile", "16"});
+  ASSERT_EQ(r.code, 0) << r.output;
+  const int tiles = 3 * kTilesPerFrame;
+  httplib::Client api("127.0.0.1", prom_port);
+  double seen = -1;
+  std::string last;
+  for (int i = 0; i < 600 && seen != tiles; ++i) {  // up to a minute: Prometheus starts, then scrapes each second
+    std::this_thread::sleep_for(100ms);
+    auto q = api.Get("/api/v1/query?query=tessera_tiles_completed_total");
+    if (!q || q->status != 200) continue;
+    last = q->body;
+    const json result = json::parse(q->body).at("data").at("result");
+    if (result.size() == 1) seen = std::stod(result[0].at("value")[1].get<std::string>());
+  }
+  EXPECT_EQ(seen, tiles) << "last answer: " << last << "\n" << prometheus.log();
+  // The rays the CLI reported went through the same counter path.
+  auto rays = api.Get("/api/v1/query?query=tessera_rays_traced_total");
+  ASSERT_TRUE(rays);
+  const json rr = json::parse(rays->body).at("data").at("result");
+  ASSERT_EQ(rr.size(), 1u) << rays->body;
+  EXPECT_GT(std::stod(rr[0].at("value")[1].get<std::string>()), 0.0);
+}
+
+TEST(MonitorBrowser, ChromiumShowsTheJobTheWorkersTheFinishedFrameAndCancels) {
+  for (const char* p : {"/usr/bin/chromium", "/usr/bin/chromedriver", "/usr/bin/python3"}) {
+    if (!fs::exists(p)) GTEST_SKIP() << p << " not installed (Debian chromium, chromium-driver, python3-selenium)";
+  }
+  Farm farm;
+  const std::string token = "monitor-secret-5e1";
+  write(farm.dir() / "client.token", token + "\n");
+  farm.start_server({"--http-listen", "127.0.0.1:0", "--client-token-file", (farm.dir() / "client.token").string()});
+  const int port = http_port(farm);
+  // Slowed so that the page sees the job running and the second job is still live when cancelled.
+  farm.start_worker("w1", 1, 200);
+  farm.start_worker("w2", 1, 200);
+  const std::vector<std::string> auth{"--coordinator", farm.address(), "--token-file",
+                                      (farm.dir() / "client.token").string(), "--tile", "16"};
+  auto with = [&](std::vector<std::string> args) {
+    args.insert(args.end(), auth.begin(), auth.end());
+    return args;
+  };
+  // The page is open (past its login) before the jobs are submitted: it sees them render.
+  const fs::path out = farm.dir() / "browser";
+  fs::create_directories(out);
+  Process browser({"/usr/bin/python3", source("tests/farm/monitor_browser.py").string(),
+                   "http://127.0.0.1:" + std::to_string(port) + "/", token, out.string()},
+                  farm.dir() / "browser.log");
+  for (int i = 0; i < 1200 && !fs::exists(out / "ready") && browser.running(); ++i) std::this_thread::sleep_for(50ms);
+  ASSERT_TRUE(fs::exists(out / "ready")) << browser.log();
+  auto done_cli = farm.cli_async(with({"submit", kScene.string(), "--frames", "0", "--name", "monitored", "-o",
+                                       (farm.dir() / "out" / "frame_####.exr").string()}),
+                                 "submit-done.log");
+  const std::string done_job = wait_job_id(*done_cli);
+  ASSERT_FALSE(done_job.empty()) << done_cli->log();
+  auto cancel_cli = farm.cli_async(with({"submit", kScene.string(), "--name", "to-cancel", "-o",
+                                         (farm.dir() / "out2" / "frame_####.exr").string()}),
+                                   "submit-cancel.log");
+  const std::string cancel_job = wait_job_id(*cancel_cli);
+  ASSERT_FALSE(cancel_job.empty()) << cancel_cli->log();
+  write(out / "jobs.json.tmp", json{{"done", done_job}, {"cancel", cancel_job}}.dump());
+  fs::rename(out / "jobs.json.tmp", out / "jobs.json");
+  ASSERT_EQ(browser.wait(150s), 0) << browser.log() << "\n" << farm.server().log();
+  const std::string log = browser.log();
+  const json report = json::parse(log.substr(log.rfind("\n{") == std::string::npos ? 0 : log.rfind("\n{") + 1));
+  EXPECT_TRUE(report.at("asked_for_token").get<bool>());
+  EXPECT_EQ(report.at("job").at("id"), done_job);
+  EXPECT_EQ(report.at("job").at("name"), "monitored");
+  EXPECT_EQ(report.at("workers"), json::array({"w1", "w2"}));
+  EXPECT_EQ(report.at("preview_tiles"), kTilesPerFrame);
+  EXPECT_EQ(report.at("frames_rows"), 1);
+  EXPECT_TRUE(report.at("cancelled").get<bool>());
+
+  // The frame the CLI wrote, tone-mapped by `tessera convert` (8-bit PNG, clamp, no dither),
+  // equals what the browser decoded from the preview, pixel for pixel.
+  ASSERT_EQ(done_cli->wait(60s), 0) << done_cli->log();
+  const fs::path ref = farm.dir() / "reference.png";
+  CliResult conv = farm.cli({"convert", (farm.dir() / "out" / "frame_0000.exr").string(), ref.string()});
+  ASSERT_EQ(conv.code, 0) << conv.output;
+  const color::Rgb8Image want = color::read_png_rgb8(ref.string());
+  const json size = json::parse(read_text(out / "preview.json"));
+  ASSERT_EQ(size.at("width"), want.width);
+  ASSERT_EQ(size.at("height"), want.height);
+  const std::string got = read_text(out / "preview.rgba");
+  ASSERT_EQ(got.size(), size_t(want.width) * size_t(want.height) * 4);
+  int64_t differing = 0;
+  std::string first;
+  for (size_t p = 0; p < size_t(want.width) * size_t(want.height); ++p) {
+    for (size_t c = 0; c < 3; ++c) {
+      if (uint8_t(got[p * 4 + c]) != want.pixels[p * 3 + c]) {
+        if (differing++ == 0) {
+          first = "pixel " + std::to_string(p) + " channel " + std::to_string(c) + ": browser " +
+                  std::to_string(uint8_t(got[p * 4 + c])) + ", reference " + std::to_string(want.pixels[p * 3 + c]);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(differing, 0) << first;
+
+  // The CLI watching the other job reports it cancelled (exit code 3).
+  EXPECT_EQ(cancel_cli->wait(60s), 3) << cancel_cli->log();
+  EXPECT_NE(cancel_cli->log().find("job " + cancel_job + " was cancelled"), std::string::npos) << cancel_cli->log();
+
+  // The screenshots are docs/monitor.png's and docs/monitor-farm.png's source: refreshed there
+  // with TESSERA_UPDATE_DOCS=1.
+  ASSERT_TRUE(fs::exists(out / "monitor.png"));
+  if (const char* update = std::getenv("TESSERA_UPDATE_DOCS"); update && std::string(update) == "1") {
+    for (const char* name : {"monitor.png", "monitor-farm.png"}) {
+      fs::copy_file(out / name, source(std::string("docs/") + name), fs::copy_options::overwrite_existing);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace tessera::farmtest
