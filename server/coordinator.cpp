@@ -203,6 +203,7 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out, 
     SceneLoadOptions options;
     options.confine_to = (store_.dir() / req.bundle_sha256()).string();
     options.max_primitives = admission.max_primitives;
+    options.gltf = farm::gltf_options_from_proto(req.overrides());
     scene = load_scene(store_.scene_path(req.bundle_sha256()).string(), options);
     apply_overrides(scene, farm::from_proto(req.overrides()));
   } catch (const SceneError& e) {

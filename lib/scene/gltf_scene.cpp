@@ -491,9 +491,10 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
   // The scene to show.
   if (model.scenes.empty()) r.fail("scenes", "the file has no scene");
   int si = options.gltf.scene_index >= 0 ? options.gltf.scene_index : (model.defaultScene >= 0 ? model.defaultScene : 0);
-  if (size_t(si) >= model.scenes.size()) {
-    throw SceneError(path + ": --scene-index " + std::to_string(si) + ": the file has scenes 0-" +
-                     std::to_string(model.scenes.size() - 1));
+  if (options.gltf.scene_index < -1 || si < 0 || size_t(si) >= model.scenes.size()) {
+    const std::string which = options.gltf.scene_index == -1 ? "scene " : "--scene-index ";
+    throw SceneError(path + ": " + which + std::to_string(options.gltf.scene_index == -1 ? si : options.gltf.scene_index) +
+                     ": must be in [0, " + std::to_string(model.scenes.size() - 1) + "] (the file's scenes)");
   }
   const std::string spath = idx("scenes", size_t(si));
 
@@ -591,7 +592,9 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
     }
   }
   const double fps = options.gltf.fps;
-  if (!(fps > 0 && fps <= 1000)) throw SceneError(path + ": --fps: must be in (0, 1000], got " + std::to_string(fps));
+  if (!(fps > 0 && fps <= GltfOptions::kMaxFps)) {
+    throw SceneError(path + ": --fps: must be in (0, " + std::to_string(int(GltfOptions::kMaxFps)) + "], got " + std::to_string(fps));
+  }
   const double frames_d = std::floor(duration * fps + 1e-9) + 1;
   if (frames_d > SceneLimits::kMaxFrames) {
     throw SceneError(path + ": the animation lasts " + std::to_string(duration) + " s: more than " +
