@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "render/shading_normal.h"
+
 namespace tessera::rays {
 
 namespace {
@@ -82,9 +84,10 @@ bool RayTracer::trace(const WorldRay& w, WorldHit* out) const {
   out->t = shift == 0.0 ? h.t : float(shift + double(h.t));
   out->p = rs.origin() + Vec3d(h.p);
   out->n = h.n;
-  // The integrator shades with the geometric normal turned towards the side the ray came from
-  // (integrator.cpp: front = dot(d, n) < 0).
-  out->ns = dot(d, h.n) < 0.0f ? h.n : -h.n;
+  // The integrator shades with the normal turned towards the side the ray came from
+  // (integrator.cpp: front = dot(d, n) < 0): the geometric one, or a mesh's interpolated one.
+  const Vec3f n_facing = dot(d, h.n) < 0.0f ? h.n : -h.n;
+  out->ns = h.smooth ? facing(h.ns, h.n, n_facing) : n_facing;
   out->u = h.u;
   out->v = h.v;
   const RenderScene::Source src = rs.source_of(h.prim);

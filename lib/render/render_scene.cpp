@@ -8,6 +8,7 @@
 #include "math/transform.h"
 #include "render/plane.h"
 #include "render/ray_log.h"
+#include "render/shading_normal.h"
 #include "render/sphere.h"
 #include "render/watertight_triangle.h"
 #include "scene/animation.h"
@@ -390,6 +391,10 @@ void RenderScene::build(const Scene& scene, int frame) {
             bucket.uvs.resize(6 * (bucket.material_ids.size() - 1), 0.0f);
             for (uint32_t i : {i0, i1, i2}) bucket.uvs.insert(bucket.uvs.end(), {mesh.uvs[2 * i], mesh.uvs[2 * i + 1]});
           }
+          if (mesh.normals.size() == mesh.positions.size()) {  // vertex normals: smooth shading (shading_normal.h)
+            auto n = [&](uint32_t i) { return xf.normal(Vec3d(mesh.normals[i])); };
+            append_vertex_normals(&bucket.normals, bucket.material_ids.size() - 1, {n(i0), n(i1), n(i2)});
+          }
           if (materials_[m].is_emissive()) {
             auto [it, fresh] = light_of_material.try_emplace(m, area_lights_.size());
             if (fresh) area_lights_.push_back({{}, {}, 0.0f, materials_[m].emission});
@@ -405,6 +410,7 @@ void RenderScene::build(const Scene& scene, int frame) {
   }
   for (TriangleBucket& b : triangles_) {
     if (!b.uvs.empty()) b.uvs.resize(6 * b.material_ids.size(), 0.0f);
+    if (!b.normals.empty()) b.normals.resize(9 * b.material_ids.size(), 0.0f);
   }
   for (AreaLight& L : area_lights_) {
     for (float& c : L.cdf) c /= L.area;
@@ -522,6 +528,7 @@ bool RenderScene::intersect(const Ray& ray, const PrimRef& from, Hit* hit) const
 
 bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double tp, uint32_t g, uint32_t prim_id,
                              float hit_u, float hit_v, float tfar, Hit* hit) const {
+  hit->smooth = false;  // set for triangles with vertex normals below
   if (g != RTC_INVALID_GEOMETRY_ID) {
     hit->t = tfar;
     for (int k = 0; k < 2; ++k) {
@@ -544,6 +551,7 @@ bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double t
           hit->tex_u = t[0] * w + t[2] * u + t[4] * v;
           hit->tex_v = t[1] * w + t[3] * u + t[5] * v;
         }
+        hit->smooth = !b.normals.empty() && interpolate_shading_normal(&b.normals[9 * size_t(pid)], w, u, v, hit->n, &hit->ns);
         return true;
       }
       if (g == sphere_buckets_[k].geom_id) {

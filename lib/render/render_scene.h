@@ -36,6 +36,10 @@ struct Hit {
   // from); 0 for spheres and planes. Read by the ray service (lib/rays), not by shading.
   float u = 0, v = 0;
   float tex_u = 0, tex_v = 0;  // texture coordinates (triangles of textured materials only)
+  // Interpolated unit shading normal (render/shading_normal.h), on n's side; set only where
+  // `smooth` (triangles with vertex normals): read it only then.
+  Vec3f ns;
+  bool smooth = false;
 };
 
 // How rays meet triangles (docs/accuracy.md, case 4, has the leak counts and costs).
@@ -135,6 +139,7 @@ class RenderScene {
     std::vector<uint32_t> material_ids;
     std::vector<Source> sources;       // per triangle
     std::vector<float> uvs;  // 6 per triangle (its vertices' uv) when any triangle is textured; else empty
+    std::vector<float> normals;  // 9 per triangle (unit vertex normals, 0: flat) when any has them; else empty
     uint32_t geom_id = RTC_INVALID_GEOMETRY_ID;
   };
   struct SphereBucket {

@@ -445,6 +445,21 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
       } else if (!mesh.uvs.empty()) {
         mesh.uvs.resize(2 * mesh.positions.size(), 0.0f);
       }
+      // Vertex normals: interpolated shading normals (render/shading_normal.h). A zero or
+      // non-finite one is kept as zero: its triangles shade flat.
+      if (auto n_it = prim.attributes.find("NORMAL"); n_it != prim.attributes.end()) {
+        const auto nrm = r.accessor(n_it->second, ppath + ".attributes.NORMAL", {TINYGLTF_TYPE_VEC3},
+                                    {TINYGLTF_COMPONENT_TYPE_FLOAT});
+        if (nrm.count != pos.count) r.fail(ppath + ".attributes.NORMAL", "count differs from POSITION's");
+        mesh.normals.resize(size_t(base), Vec3f(0.0f));
+        for (size_t v = 0; v < nrm.count; ++v) {
+          const Vec3f n(float(GltfReader::component(nrm, v, 0)), float(GltfReader::component(nrm, v, 1)),
+                        float(GltfReader::component(nrm, v, 2)));
+          mesh.normals.push_back(is_finite(n) ? n : Vec3f(0.0f));
+        }
+      } else if (!mesh.normals.empty()) {
+        mesh.normals.resize(mesh.positions.size(), Vec3f(0.0f));
+      }
       std::vector<uint32_t> tri;
       if (prim.indices >= 0) {
         const auto ind = r.accessor(prim.indices, ppath + ".indices", {TINYGLTF_TYPE_SCALAR},
