@@ -403,6 +403,7 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
   // Meshes: one Scene mesh per glTF mesh (all its triangle primitives), shared by every node
   // that uses it: an instanced mesh is loaded once.
   size_t dropped_other_modes = 0, dropped_degenerate = 0;
+  std::string first_morphed;  // glTF path of the first primitive with morph targets
   for (size_t mi = 0; mi < model.meshes.size(); ++mi) {
     Mesh mesh;
     const auto& gmesh = model.meshes[mi];
@@ -413,6 +414,7 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
         ++dropped_other_modes;  // points, lines, strips and fans
         continue;
       }
+      if (!prim.targets.empty() && first_morphed.empty()) first_morphed = ppath + ".targets";
       auto pos_it = prim.attributes.find("POSITION");
       if (pos_it == prim.attributes.end()) r.fail(ppath + ".attributes", "has no POSITION");
       const auto pos = r.accessor(pos_it->second, ppath + ".attributes.POSITION", {TINYGLTF_TYPE_VEC3},
@@ -498,6 +500,10 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
   if (dropped_other_modes) {
     spdlog::warn("{}: {} primitives that are not triangles (points, lines, strips, fans) ignored", path,
                  dropped_other_modes);
+  }
+  if (!first_morphed.empty()) {
+    spdlog::warn("{}: {}: morph targets are not supported: meshes render in their base shape, and animations of "
+                 "their weights are ignored", path, first_morphed);
   }
   if (dropped_degenerate) {
     spdlog::warn("{}: dropped {} triangles with a NaN/Inf vertex or zero area", path, dropped_degenerate);
@@ -789,9 +795,12 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
   // Objects: one per mesh instance, sharing the mesh.
   uint64_t primitives = 0;
   std::vector<const Instance*> object_instance;
+  std::string first_skinned;  // glTF path of the first skinned mesh node shown
+  size_t skinned = 0;
   for (const Instance& inst : instances) {
     const auto& node = model.nodes[size_t(inst.chain.back())];
     if (node.mesh < 0) continue;
+    if (node.skin >= 0 && skinned++ == 0) first_skinned = idx("nodes", size_t(inst.chain.back())) + ".skin";
     if (size_t(node.mesh) >= model.meshes.size()) {
       r.fail(idx("nodes", size_t(inst.chain.back())) + ".mesh", "mesh " + std::to_string(node.mesh) + " does not exist");
     }
@@ -810,6 +819,14 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
     scene.objects.push_back(std::move(o));
     object_instance.push_back(&inst);
   }
+  // Skins are not evaluated: a skinned mesh renders in its bind pose (its vertices as stored,
+  // placed by its node), never silently.
+  if (skinned) {
+    spdlog::warn("{}: {}: skins are not supported: {} skinned mesh instance{} render{} in the bind pose, "
+                 "without the joints' transforms or animation (apply the armature before export to pose them)",
+                 path, first_skinned, skinned, skinned == 1 ? "" : "s", skinned == 1 ? "s" : "");
+  }
+
   if (scene.objects.empty()) throw SceneError(path + ": " + spath + " has no mesh with triangles");
 
   // Per-frame keys for whatever moves: every frame is a key, so frames are exact.

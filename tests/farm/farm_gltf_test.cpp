@@ -131,5 +131,18 @@ TEST(FarmGltf, BadGltfFlagsAreRefusedNamingTheFlagAndRange) {
   EXPECT_NE(json.output.find("apply to glTF scenes (.gltf, .glb) only"), std::string::npos) << json.output;
 }
 
+// Texture pixels are one of the coordinator's limits: the Blender scene's checker texture is over
+// a limit of 15 pixels, and the refusal names the limit and the flag.
+TEST(FarmGltf, TexturePixelsAreLimitedByTheServersFlag) {
+  Farm farm;
+  farm.start_server({"--max-texture-pixels", "15"});
+  const CliResult r = farm.cli({"submit", source("tests/data/gltf/whitted_a.glb").string(), "--coordinator",
+                                farm.address(), "--detach", "--width", "32"});
+  EXPECT_EQ(r.code, 1) << r.output;  // RESOURCE_EXHAUSTED: a limit, not a bad scene (INVALID_ARGUMENT exits 2)
+  EXPECT_NE(r.output.find("exceeds the texture limit (15 pixels in all) (tessera-server --max-texture-pixels)"),
+            std::string::npos)
+      << r.output;
+}
+
 }  // namespace
 }  // namespace tessera::farmtest
