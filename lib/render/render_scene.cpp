@@ -599,6 +599,27 @@ bool RenderScene::opaque_plane_blocks(const Ray& ray, const PrimRef& from) const
   return false;
 }
 
+bool RenderScene::any_hit(const Ray& ray, const PrimRef& from) const {
+  // The planes exactly as intersect() meets them; one whose point is beyond float range is no hit,
+  // and Embree then looks only closer than it, as intersect() does.
+  const Vec3d o(ray.o), d(ray.d);
+  int plane = -1;
+  const double tp = nearest_plane(o, d, from, double(ray.tmax), &plane);
+  Hit h;
+  if (plane >= 0 && finish_hit(o, d, plane, tp, RTC_INVALID_GEOMETRY_ID, 0, 0.0f, 0.0f, 0.0f, &h) && is_finite(h.p)) {
+    return true;
+  }
+  Ray er;
+  if (embree_ray({ray.o, ray.d, plane >= 0 ? float(tp) : ray.tmax}, &er) < 0.0) return false;
+  TraceContext ctx;  // no glass list: glass blocks like any surface
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.scene = this;
+  ctx.from = from;
+  RTCRay r = make_rayhit(er, 0.0f, er.tmax, kOpaqueMask | kGlassMask).ray;
+  rtcOccluded1(rtc_scene_.get(), &ctx.rtc, &r);
+  return r.tfar < 0.0f;
+}
+
 Rgb RenderScene::transmittance(const Ray& ray, const PrimRef& from) const {
   // Opaque planes first: cheapest.
   if (opaque_plane_blocks(ray, from)) return Rgb(0.0f);

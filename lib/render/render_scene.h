@@ -79,6 +79,10 @@ class RenderScene {
   // pure function of the pixel (the tile renderer packs one pixel's consecutive samples).
   static constexpr int kPacket = 8;
   void intersect_packet(const Ray* rays, const PrimRef* from, int n, Hit* hits, bool* found) const;
+  // Whether intersect() would find a hit with a finite point, by an any-hit traversal
+  // (rtcOccluded1) that stops at the first surface met, glass included: line-of-sight queries of
+  // the ray service (lib/rays).
+  bool any_hit(const Ray& ray, const PrimRef& from) const;
   void transmittance_packet(const Ray* rays, const PrimRef* from, int n, Rgb* T) const;
   // Fraction of light arriving along the ray over (0, ray.tmax]: 0 if an opaque surface blocks
   // it, else the product of the transmittances of the glass surfaces crossed (unrefracted).
