@@ -10,7 +10,6 @@
 // Mirrors that show glass are not masked. Prints JSON on stdout; appends markdown to --markdown.
 // Asserts nothing about time.
 #include <spdlog/spdlog.h>
-#include <sys/resource.h>
 
 #include <cmath>
 #include <cstdio>
@@ -23,6 +22,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "../bench_host.h"
 #include "image/exr_io.h"
 #include "render/embree_device.h"
 #include "render/tile_renderer.h"
@@ -30,22 +30,9 @@
 
 namespace fs = std::filesystem;
 using namespace tessera;
+using bench::cpu_model;
 
 namespace {
-
-double cpu_seconds() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
-
-std::string cpu_model() {
-  std::ifstream in("/proc/cpuinfo");
-  for (std::string line; std::getline(in, line);) {
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  }
-  return "unknown";
-}
 
 // RMSE over the pixels where mask is 1 (an empty mask: every pixel).
 double rmse(const ImageRGB& a, const ImageRGB& b, const std::vector<uint8_t>& mask = {}) {
@@ -117,9 +104,9 @@ Run render(const Scene& base, int spp, int threads) {
   Scene s = base;
   s.image.spp = spp;
   RenderScene rs(s, 0);
-  const double c0 = cpu_seconds();
+  const double c0 = bench::process_cpu_seconds();
   FrameResult r = render_frame(rs, 32, threads);
-  return {r.seconds, cpu_seconds() - c0, std::move(r.image)};
+  return {r.seconds, bench::process_cpu_seconds() - c0, std::move(r.image)};
 }
 
 }  // namespace

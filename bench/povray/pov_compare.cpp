@@ -5,7 +5,6 @@
 // Then the lowest spp at which Tessera's error is at most POV-Ray's, and the speed-up at that
 // equal error. Prints JSON on stdout; appends markdown to --markdown. Asserts nothing about time.
 #include <spdlog/spdlog.h>
-#include <sys/resource.h>
 
 #include <chrono>
 #include <cmath>
@@ -18,6 +17,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "../bench_host.h"
 #include "image/exr_io.h"
 #include "render/embree_device.h"
 #include "render/tile_renderer.h"
@@ -27,12 +27,6 @@ namespace fs = std::filesystem;
 using namespace tessera;
 
 namespace {
-
-double cpu_seconds() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
 
 double rmse(const ImageRGB& a, const ImageRGB& b) {
   double s = 0;
@@ -53,11 +47,11 @@ Run render(const Scene& base, int spp, int threads, const ImageRGB& ref) {
   Scene s = base;
   s.image.spp = spp;
   RenderScene rs(s, 0);
-  const double c0 = cpu_seconds();
+  const double c0 = bench::process_cpu_seconds();
   FrameResult r = render_frame(rs, 32, threads);
   Run run;
   run.spp = spp;
-  run.cpu = cpu_seconds() - c0;
+  run.cpu = bench::process_cpu_seconds() - c0;
   run.wall = r.seconds;
   run.rmse = rmse(r.image, ref);
   run.image = std::move(r.image);

@@ -25,6 +25,7 @@
 #include <random>
 #include <thread>
 
+#include "../bench_host.h"
 #include "ray_codec.h"
 #include "large_buffers.h"
 #include "ray_service.h"
@@ -35,17 +36,12 @@ namespace fs = std::filesystem;
 using namespace tessera;
 using namespace tessera::rays;
 using Clock = std::chrono::steady_clock;
+using bench::cpu_model;
+using bench::process_cpu_seconds;
 
 namespace {
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-// CPU time of every thread of the process, user and system, to the nanosecond.
-double process_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
-}
 
 // Rays per second of wall time and of process CPU time.
 struct Rate {
@@ -63,14 +59,6 @@ class Stopwatch {
   Clock::time_point wall_;
   double cpu_;
 };
-
-std::string cpu_model() {
-  std::ifstream in("/proc/cpuinfo");
-  for (std::string line; std::getline(in, line);) {
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  }
-  return "unknown";
-}
 
 // Camera rays through a side x side grid of the scene's own camera, in pixel order.
 std::vector<WorldRay> coherent_rays(const RenderScene& rs, int side) {
