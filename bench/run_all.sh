@@ -10,6 +10,8 @@
 #                 against the packet ceiling with Embree's robust triangles (Whitted, Cornell, bunny,
 #                 armadillo); the watertight test's frame time against Embree's robust test
 #   povray        POV-Ray 3.7 on the same Whitted scene: error and samples/s of both
+#   cycles        Blender 3.4's Cycles (Whitted-like settings) on the glTF test scene: error and
+#                 samples/s of both (skipped, with a message, when blender is not installed)
 #   farm          bench/farm/run.sh (farm overhead, coordinator at scale), when it exists
 #
 # Results go to OUT (default bench-results/): JSON per run, summary.md (markdown tables) and the
@@ -22,7 +24,7 @@ ROOT=$(cd "$HERE/.." && pwd)
 BUILD=$ROOT/build
 OUT=""
 SMOKE=0
-ONLY=speed_error,ray_ceiling,povray,farm
+ONLY=speed_error,ray_ceiling,povray,cycles,farm
 FARM=1
 THREADS=$(nproc)
 while [ $# -gt 0 ]; do
@@ -33,7 +35,7 @@ while [ $# -gt 0 ]; do
     --only) ONLY=$2; shift 2 ;;
     --no-farm) FARM=0; shift ;;
     --threads) THREADS=$2; shift 2 ;;
-    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
     *) echo "run_all.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -42,7 +44,19 @@ mkdir -p "$OUT"
 OUT=$(cd "$OUT" && pwd)
 cd "$ROOT"
 want() { [[ ",$ONLY," == *",$1,"* ]]; }
-for exe in speed_error/speed_error ray_ceiling/ray_ceiling povray/pov_compare; do
+# A peer renderer's section: its heading on stderr and in the summary; false (after saying so in
+# both) when the peer's program is not installed, so CI machines without it skip cleanly.
+# Usage: peer PROGRAM DEBIAN_PACKAGE "stderr heading" "summary heading"
+peer() {
+  echo "== $3" >&2
+  echo -e "\n### $4\n" >>"$SUMMARY"
+  if ! command -v "$1" >/dev/null; then
+    echo "run_all.sh: $1 not installed (apt-get install $2): skipped" >&2
+    echo "$1 not installed: skipped." >>"$SUMMARY"
+    return 1
+  fi
+}
+for exe in speed_error/speed_error ray_ceiling/ray_ceiling povray/pov_compare cycles/cycles_compare; do
   if [ ! -x "$BUILD/bench/$exe" ]; then
     echo "run_all.sh: $BUILD/bench/$exe is missing: cmake --build $BUILD --target $(basename $exe)" >&2
     exit 1
@@ -55,10 +69,12 @@ if [ $SMOKE = 1 ]; then
   W=32 H=18 MAXSPP=4 REFSPP=16 CENTER=2 TARGETS=0.05 SEEDS=1   # speed_error
   CW=32 CH=18 CSPP=1 REPS=1                      # ray_ceiling
   PW=32 PH=18 PR=2                               # povray: +R2 = 4 samples per pixel
+  BW=32 BH=18 BSPP=2 BREF=16                     # cycles
 else
   W=192 H=108 MAXSPP=1024 REFSPP=4096 CENTER=16 TARGETS=auto SEEDS=3
   CW=480 CH=270 CSPP=4 REPS=3
   PW=192 PH=108 PR=4
+  BW=192 BH=108 BSPP=16 BREF=1024
 fi
 {
   echo "<!-- bench/run_all.sh$([ $SMOKE = 1 ] && echo ' --smoke') on $(date -u '+%Y-%m-%d %H:%M UTC'), $(nproc) cores: $(lscpu | sed -n 's/^Model name: *//p') -->"
@@ -151,37 +167,53 @@ PY
   done
 fi
 
-if want povray; then
-  echo "== POV-Ray 3.7 against Tessera (${PW}x${PH}, $((PR * PR)) spp, $THREADS threads)" >&2
-  echo -e "\n### POV-Ray 3.7 on the Whitted showcase (${PW}x${PH}, $THREADS threads)\n" >>"$SUMMARY"
-  if ! command -v povray >/dev/null; then
-    echo "run_all.sh: povray not installed (apt-get install povray): skipped" >&2
-    echo "POV-Ray not installed: skipped." >>"$SUMMARY"
-  else
-    # The reference is the speed_error one when its size matches; otherwise render one.
-    REF=$CACHE/whitted_${PW}x${PH}_ref${REFSPP}_sobol.exr
-    if [ ! -f "$REF" ]; then
-      "$BUILD/bench/speed_error/speed_error" --scene scenes/whitted.json --width $PW --height $PH --max-spp 1 \
-        --ref-spp $REFSPP --samplers sobol --targets none --threads "$THREADS" --cache "$CACHE" >/dev/null
-    fi
-    # +A0.0 +AM1 +R n: every pixel supersampled on an n x n grid (non-adaptive in effect), no
-    # jitter; linear EXR output (assumed_gamma 1.0 in the scene); same thread count as ours.
-    s=$(date +%s.%N)
-    /usr/bin/time -f "%U %S" -o "$OUT/povray.cpu" povray +I"$HERE/povray/whitted.pov" +O"$OUT/povray_whitted.exr" \
-      +FE +W$PW +H$PH +A0.0 +AM1 +R$PR -J -D +WT"$THREADS" +V >"$OUT/povray.log" 2>&1
-    e=$(date +%s.%N)
-    process_wall=$(echo "$e - $s" | bc -l)
-    process_cpu=$(awk '{printf "%.3f", $1 + $2}' "$OUT/povray.cpu")
-    # POV-Ray's own trace time (wall) and CPU-seconds: like Tessera's render time, they leave out
-    # start-up and parsing (POV-Ray's front end alone takes most of a second).
-    wall=$(sed -n 's/.*Trace Time:.*(\([0-9.]*\) seconds).*/\1/p' "$OUT/povray.log" | tail -1)
-    cpu=$(sed -n 's/.*thread(s) with \([0-9.]*\) CPU-seconds total.*/\1/p' "$OUT/povray.log" | tail -1)
-    samples=$(sed -n 's/.*Samples: *\([0-9]*\).*/\1/p' "$OUT/povray.log" | tail -1)
-    echo "POV-Ray process: ${process_wall} s wall, ${process_cpu} s CPU (start-up included)" >&2
-    "$BUILD/bench/povray/pov_compare" --scene scenes/whitted.json --pov-exr "$OUT/povray_whitted.exr" \
-      --pov-wall "$wall" --pov-cpu "$cpu" --pov-samples "$samples" --pov-spp $((PR * PR)) --reference "$REF" \
-      --width $PW --height $PH --threads "$THREADS" --markdown "$SUMMARY" >"$OUT/povray.json"
+if want povray && peer povray povray "POV-Ray 3.7 against Tessera (${PW}x${PH}, $((PR * PR)) spp, $THREADS threads)" \
+    "POV-Ray 3.7 on the Whitted showcase (${PW}x${PH}, $THREADS threads)"; then
+  # The reference is the speed_error one when its size matches; otherwise render one.
+  REF=$CACHE/whitted_${PW}x${PH}_ref${REFSPP}_sobol.exr
+  if [ ! -f "$REF" ]; then
+    "$BUILD/bench/speed_error/speed_error" --scene scenes/whitted.json --width $PW --height $PH --max-spp 1 \
+      --ref-spp $REFSPP --samplers sobol --targets none --threads "$THREADS" --cache "$CACHE" >/dev/null
   fi
+  # +A0.0 +AM1 +R n: every pixel supersampled on an n x n grid (non-adaptive in effect), no
+  # jitter; linear EXR output (assumed_gamma 1.0 in the scene); same thread count as ours.
+  s=$(date +%s.%N)
+  /usr/bin/time -f "%U %S" -o "$OUT/povray.cpu" povray +I"$HERE/povray/whitted.pov" +O"$OUT/povray_whitted.exr" \
+    +FE +W$PW +H$PH +A0.0 +AM1 +R$PR -J -D +WT"$THREADS" +V >"$OUT/povray.log" 2>&1
+  e=$(date +%s.%N)
+  process_wall=$(echo "$e - $s" | bc -l)
+  process_cpu=$(awk '{printf "%.3f", $1 + $2}' "$OUT/povray.cpu")
+  # POV-Ray's own trace time (wall) and CPU-seconds: like Tessera's render time, they leave out
+  # start-up and parsing (POV-Ray's front end alone takes most of a second).
+  wall=$(sed -n 's/.*Trace Time:.*(\([0-9.]*\) seconds).*/\1/p' "$OUT/povray.log" | tail -1)
+  cpu=$(sed -n 's/.*thread(s) with \([0-9.]*\) CPU-seconds total.*/\1/p' "$OUT/povray.log" | tail -1)
+  samples=$(sed -n 's/.*Samples: *\([0-9]*\).*/\1/p' "$OUT/povray.log" | tail -1)
+  echo "POV-Ray process: ${process_wall} s wall, ${process_cpu} s CPU (start-up included)" >&2
+  "$BUILD/bench/povray/pov_compare" --scene scenes/whitted.json --pov-exr "$OUT/povray_whitted.exr" \
+    --pov-wall "$wall" --pov-cpu "$cpu" --pov-samples "$samples" --pov-spp $((PR * PR)) --reference "$REF" \
+    --width $PW --height $PH --threads "$THREADS" --markdown "$SUMMARY" >"$OUT/povray.json"
+fi
+
+if want cycles && peer blender blender "Blender's Cycles against Tessera on whitted_a.glb (${BW}x${BH}, $BSPP spp, $THREADS threads)" \
+    "Cycles (Blender 3.4) on tests/data/gltf/whitted_a.glb (${BW}x${BH}, $THREADS threads)"; then
+  # Blender renders in its own process; only the render's time counts (start-up and the glTF
+  # import left out, as Tessera's render time leaves out loading).
+  blender -b --factory-startup --python "$HERE/cycles/cycles_render.py" -- tests/data/gltf/whitted_a.glb \
+    "$OUT/cycles_whitted_a.exr" $BW $BH $BSPP 8 "$THREADS" >"$OUT/cycles.log" 2>&1
+  result=$(sed -n 's/^CYCLES_RESULT //p' "$OUT/cycles.log" | tail -1)
+  if [ -z "$result" ]; then
+    echo "run_all.sh: Cycles gave no result (see $OUT/cycles.log)" >&2
+    exit 1
+  fi
+  # Cycles at the reference's spp too: the two references differ where the models do.
+  blender -b --factory-startup --python "$HERE/cycles/cycles_render.py" -- tests/data/gltf/whitted_a.glb \
+    "$OUT/cycles_whitted_a_ref.exr" $BW $BH $BREF 8 "$THREADS" >"$OUT/cycles_ref.log" 2>&1
+  wall=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["wall_s"])' "$result")
+  cpu=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["cpu_s"])' "$result")
+  "$BUILD/bench/cycles/cycles_compare" --scene tests/data/gltf/whitted_a.glb --cycles-exr "$OUT/cycles_whitted_a.exr" \
+    --cycles-reference-exr "$OUT/cycles_whitted_a_ref.exr" \
+    --cycles-wall "$wall" --cycles-cpu "$cpu" --spp $BSPP --ref-spp $BREF --max-depth 8 --width $BW --height $BH \
+    --threads "$THREADS" --markdown "$SUMMARY" >"$OUT/cycles.json"
 fi
 
 if want farm && [ $FARM = 1 ] && [ -x "$HERE/farm/run.sh" ]; then

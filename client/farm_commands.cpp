@@ -350,12 +350,6 @@ int run_submit(const SubmitArgs& a) {
   } catch (const SceneError& e) {
     throw FarmError{kExitBadInput, e.what()};
   }
-  if (a.image.gltf_given()) {
-    // Workers and the coordinator read the bundle's glTF with the defaults: the job's overrides
-    // do not carry these yet, and a farm frame must equal `tessera render`'s.
-    throw FarmError{kExitBadInput, "--camera, --scene-index and --fps are not carried to the farm yet: it renders a "
-                                   "glTF's first camera of its default scene at 24 fps (use tessera render for others)"};
-  }
   int first = 0, last = scene.frame_count() - 1;
   if (!a.frames.empty()) {
     const auto dash = a.frames.find('-');
@@ -384,6 +378,8 @@ int run_submit(const SubmitArgs& a) {
   v1::SubmitJobRequest req;
   req.set_bundle_sha256(bundle.sha256);
   farm::to_proto(o, req.mutable_overrides());
+  // The coordinator and workers read the bundle's glTF exactly so (checked by load_scene_with).
+  farm::to_proto(a.image.gltf_options(), req.mutable_overrides());
   req.set_first_frame(first);
   req.set_last_frame(last);
   req.set_tile_size(a.tile);

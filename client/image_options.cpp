@@ -16,17 +16,34 @@ void add_image_options(CLI::App& cmd, ImageOptions& o) {
                  "Render to a target error: samples go where the estimated RMSE (linear light) is above this");
   cmd.add_option("--min-spp", o.overrides.min_spp, "With --target-rmse: fewest samples per pixel (default 16)");
   cmd.add_option("--max-spp", o.overrides.max_spp, "With --target-rmse: most samples per pixel (default 1024)");
-  cmd.add_option("--camera", o.gltf.camera, "glTF scenes: the camera to render (camera or node name; default: the first)");
-  cmd.add_option("--scene-index", o.gltf.scene_index, "glTF scenes: the index in the file's scenes (default: its scene)");
-  cmd.add_option("--fps", o.gltf.fps, "glTF scenes: animation frames per second (default 24)");
+  cmd.add_option("--camera", o.camera, "glTF scenes: the camera to render (camera or node name; default: the first)");
+  cmd.add_option("--scene-index", o.scene_index, "glTF scenes: the index in the file's scenes (default: its scene)");
+  cmd.add_option("--fps", o.fps, "glTF scenes: animation frames per second, in (0, 1000] (default 24)");
+}
+
+GltfOptions ImageOptions::gltf_options() const {
+  GltfOptions g;
+  g.camera = camera;
+  if (scene_index) {
+    if (*scene_index < 0) throw SceneError("--scene-index: must be >= 0, got " + std::to_string(*scene_index));
+    g.scene_index = *scene_index;
+  }
+  if (fps) {
+    if (!(*fps > 0 && *fps <= GltfOptions::kMaxFps)) {
+      throw SceneError("--fps: must be in (0, " + std::to_string(int(GltfOptions::kMaxFps)) + "], got " +
+                       std::to_string(*fps));
+    }
+    g.fps = *fps;
+  }
+  return g;
 }
 
 Scene load_scene_with(const std::string& path, const ImageOptions& o, ImageOverrides* resolved) {
-  if (o.gltf_given() && !is_gltf_path(path)) {
+  SceneLoadOptions load;
+  load.gltf = o.gltf_options();
+  if ((load.gltf.given() || o.scene_index || o.fps) && !is_gltf_path(path)) {
     throw SceneError("--camera, --scene-index and --fps apply to glTF scenes (.gltf, .glb) only");
   }
-  SceneLoadOptions load;
-  load.gltf = o.gltf;
   Scene scene = load_scene(path, load);
   ImageOverrides overrides = o.overrides;
   if (!o.sampler.empty()) {

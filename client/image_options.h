@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <optional>
 #include <string>
 
 #include "scene/scene_parser.h"
@@ -13,8 +14,13 @@ namespace tessera::cli {
 struct ImageOptions {
   ImageOverrides overrides;
   std::string sampler;  // empty: the scene's
-  GltfOptions gltf;     // --camera, --scene-index, --fps: how a glTF scene file is read
-  bool gltf_given() const { return !gltf.camera.empty() || gltf.scene_index >= 0 || gltf.fps != GltfOptions{}.fps; }
+  // --camera, --scene-index, --fps: how a glTF scene file is read (optional: a value given on
+  // the command line is checked even where it equals the default's meaning).
+  std::string camera;
+  std::optional<int> scene_index;
+  std::optional<double> fps;
+  // The glTF options the flags give; throws SceneError naming the flag and its range.
+  GltfOptions gltf_options() const;
 };
 
 // Adds --spp, --width, --height, --max-depth, --seed, --sampler, --target-rmse, --min-spp, --max-spp,

@@ -188,6 +188,7 @@ grpc::ServerUnaryReactor* ClientServiceImpl::SubmitJob(grpc::CallbackServerConte
   Admission admission;
   admission.owner = client;
   admission.max_primitives = limits_.max_primitives;
+  admission.max_texture_pixels = limits_.max_texture_pixels;
   admission.check = [&](const Scene& scene, int first, int last) { return limits_.check_job(scene, first, last); };
   s = coord_.submit(*req, resp, admission);
   quota_.settle(client, s.ok() ? resp->job_id() : std::string());

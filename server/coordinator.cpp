@@ -203,6 +203,8 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out, 
     SceneLoadOptions options;
     options.confine_to = (store_.dir() / req.bundle_sha256()).string();
     options.max_primitives = admission.max_primitives;
+    if (admission.max_texture_pixels) options.max_texture_pixels = admission.max_texture_pixels;
+    options.gltf = farm::gltf_options_from_proto(req.overrides());
     scene = load_scene(store_.scene_path(req.bundle_sha256()).string(), options);
     apply_overrides(scene, farm::from_proto(req.overrides()));
   } catch (const SceneError& e) {
@@ -211,10 +213,12 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out, 
     std::string what = e.what();
     const std::string prefix = (store_.dir() / req.bundle_sha256()).string() + "/";
     for (size_t at; (at = what.find(prefix)) != std::string::npos;) what.erase(at, prefix.size());
-    // The primitive limit is a resource limit; other scene errors are the scene's fault.
-    const bool limit = what.find("limit max_primitives") != std::string::npos;
-    return Status(limit ? StatusCode::RESOURCE_EXHAUSTED : StatusCode::INVALID_ARGUMENT,
-                  "invalid scene: " + what + (limit ? " (tessera-server --max-primitives)" : ""));
+    // The primitive and texture limits are resource limits; other scene errors are the scene's fault.
+    const char* flag = what.find("limit max_primitives") != std::string::npos         ? "--max-primitives"
+                       : what.find("exceeds the texture limit") != std::string::npos ? "--max-texture-pixels"
+                                                                                    : nullptr;
+    return Status(flag ? StatusCode::RESOURCE_EXHAUSTED : StatusCode::INVALID_ARGUMENT,
+                  "invalid scene: " + what + (flag ? std::string(" (tessera-server ") + flag + ")" : ""));
   } catch (const std::exception& e) {
     return Status(StatusCode::INTERNAL, std::string("cannot load the bundle's scene: ") + e.what());
   }

@@ -69,6 +69,7 @@ struct CoordinatorOptions {
 struct Admission {
   std::string owner;            // the client identity the job counts against (stored with the job)
   uint64_t max_primitives = 0;  // checked while loading (SceneLoadOptions); 0: no limit
+  uint64_t max_texture_pixels = 0;  // the same, for glTF texture pixels; 0: SceneLoadOptions' default
   // The request limits that need the parsed scene (resolution, spp, frames); may be empty.
   std::function<grpc::Status(const Scene&, int first_frame, int last_frame)> check;
 };

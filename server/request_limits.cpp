@@ -17,6 +17,9 @@ void Limits::add_flags(CLI::App& app) {
       ->check(CLI::Range(1, tessera::SceneLimits::kMaxFrames))->capture_default_str()->group("Limits");
   app.add_option("--max-primitives", max_primitives, "Most primitives in a scene (triangles of every mesh instance)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40))->capture_default_str()->group("Limits");
+  app.add_option("--max-texture-pixels", max_texture_pixels,
+                 "Most texture pixels in a scene (all its glTF images together; at most the default, which workers use)")
+      ->check(CLI::Range(uint64_t(1), SceneLoadOptions{}.max_texture_pixels))->capture_default_str()->group("Limits");
   app.add_option("--max-jobs-per-client", max_jobs_per_client, "Most queued or running jobs per client")
       ->check(CLI::Range(1, 1000000))->capture_default_str()->group("Limits");
   app.add_option("--max-concurrent-uploads", max_concurrent_uploads,

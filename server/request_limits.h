@@ -28,6 +28,9 @@ struct Limits {
   int max_spp = 65536;
   int max_frames = 10000;                     // frames in one job
   uint64_t max_primitives = 20000000;         // triangles of every mesh instance + spheres + planes
+  // Pixels of all a scene's texture images together (glTF), checked while decoding. Workers load
+  // with the library's limit, so this can only lower it.
+  uint64_t max_texture_pixels = SceneLoadOptions{}.max_texture_pixels;
   int max_jobs_per_client = 100;              // queued or running jobs of one client identity
   int max_concurrent_uploads = 4;             // bundle uploads in progress at once (bundle_upload.h)
 

@@ -55,6 +55,7 @@ std::shared_ptr<const Scene> BundleCache::scene(const std::string& sha256, const
       const fs::path scene_path = ensure_extracted(sha256);
       SceneLoadOptions options;
       options.confine_to = (dir_ / sha256).string();  // the bundle's root, as the coordinator's
+      options.gltf = farm::gltf_options_from_proto(o);
       auto s = std::make_shared<Scene>(load_scene(scene_path.string(), options));
       apply_overrides(*s, farm::from_proto(o));
       promise.set_value(std::move(s));

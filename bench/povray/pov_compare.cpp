@@ -5,7 +5,6 @@
 // Then the lowest spp at which Tessera's error is at most POV-Ray's, and the speed-up at that
 // equal error. Prints JSON on stdout; appends markdown to --markdown. Asserts nothing about time.
 #include <spdlog/spdlog.h>
-#include <sys/resource.h>
 
 #include <chrono>
 #include <cmath>
@@ -18,6 +17,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "../bench_host.h"
 #include "image/exr_io.h"
 #include "render/embree_device.h"
 #include "render/tile_renderer.h"
@@ -27,12 +27,6 @@ namespace fs = std::filesystem;
 using namespace tessera;
 
 namespace {
-
-double cpu_seconds() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
 
 double rmse(const ImageRGB& a, const ImageRGB& b) {
   double s = 0;
@@ -62,9 +56,9 @@ Run render(const Scene& base, int spp, int threads, const ImageRGB& ref, double 
   Run run;
   run.cpu = run.wall = 1e30;
   for (int i = 0; i < reps; ++i) {
-    const double c0 = cpu_seconds();
+    const double c0 = bench::process_cpu_seconds();
     FrameResult r = render_frame(rs, 32, threads);
-    const double cpu = cpu_seconds() - c0;
+    const double cpu = bench::process_cpu_seconds() - c0;
     if (cpu >= run.cpu) continue;
     run.cpu = cpu;
     run.wall = r.seconds;

@@ -25,6 +25,7 @@
 #include <random>
 #include <thread>
 
+#include "../bench_host.h"
 #include "ray_codec.h"
 #include "large_buffers.h"
 #include "ray_service.h"
@@ -35,17 +36,12 @@ namespace fs = std::filesystem;
 using namespace tessera;
 using namespace tessera::rays;
 using Clock = std::chrono::steady_clock;
+using bench::cpu_model;
+using bench::process_cpu_seconds;
 
 namespace {
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-// CPU time of every thread of the process, user and system, to the nanosecond.
-double process_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
-}
 
 // Rays per second of wall time and of process CPU time.
 struct Rate {
@@ -63,14 +59,6 @@ class Stopwatch {
   Clock::time_point wall_;
   double cpu_;
 };
-
-std::string cpu_model() {
-  std::ifstream in("/proc/cpuinfo");
-  for (std::string line; std::getline(in, line);) {
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  }
-  return "unknown";
-}
 
 // Camera rays through a side x side grid of the scene's own camera, in pixel order.
 std::vector<WorldRay> coherent_rays(const RenderScene& rs, int side) {
@@ -130,11 +118,13 @@ Rate bare_embree(const Scene& scene, const RenderScene& rs, const std::vector<Wo
   return watch.rate(double(rays.size()));
 }
 
-Rate in_process(const RayTracer& tracer, const std::vector<WorldRay>& rays, size_t batch) {
+Rate in_process(const RayTracer& tracer, const std::vector<WorldRay>& rays, size_t batch, bool occlusion = false) {
   std::vector<WorldHit> hits(rays.size());
   const Stopwatch watch;
   for (size_t b = 0; b < rays.size(); b += batch) {
-    tracer.nearest(rays.data() + b, std::min(batch, rays.size() - b), hits.data() + b);
+    const size_t n = std::min(batch, rays.size() - b);
+    if (occlusion) tracer.occluded(rays.data() + b, n, hits.data() + b);
+    else tracer.nearest(rays.data() + b, n, hits.data() + b);
   }
   return watch.rate(double(rays.size()));
 }
@@ -283,6 +273,9 @@ int main(int argc, char** argv) {
                           double(rays.size());
       const Rate bare = best_of(reps, [&] { return bare_embree(*scene, *rs, rays); });
       r["bare_embree_rays_per_s"] = to_json(bare);
+      // Line-of-sight queries (any-hit traversal) on the same rays, all in one batch.
+      const Rate occ = best_of(reps, [&] { return in_process(*tracer, rays, rays.size(), true); });
+      r["in_process_occlusion_rays_per_s"] = to_json(occ);
       std::map<size_t, Rate> ip, gu, gs;
       double worst_cpu = 1e30, worst_wall = 1e30;  // the goal's ratio: the smallest over batches >= 4096
       for (size_t b : batches) {
@@ -310,6 +303,7 @@ int main(int argc, char** argv) {
       const Rate all = ip[batches.back()];
       const Rate to_bare{all.wall / bare.wall, all.cpu / bare.cpu};
       r["ratio_in_process_to_bare_embree"] = to_json(to_bare);
+      r["ratio_occlusion_to_nearest_in_process"] = to_json({occ.wall / all.wall, occ.cpu / all.cpu});
       r["ratio_grpc_to_in_process_batch_ge_4096"] = to_json({worst_wall, worst_cpu});
       js[coherent ? "coherent" : "incoherent"] = r;
       auto m = [](double x) {

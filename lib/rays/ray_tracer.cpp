@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "render/shading_normal.h"
+
 namespace tessera::rays {
 
 namespace {
@@ -41,10 +43,12 @@ bool cube_span(const Vec3d& o, const Vec3d& d, double L, double* t_in, double* t
 RayTracer::RayTracer(std::shared_ptr<const Scene> scene, std::shared_ptr<const RenderScene> frame)
     : scene_(std::move(scene)), frame_(std::move(frame)) {}
 
-bool RayTracer::trace(const WorldRay& w, WorldHit* out) const {
+// Inlined: called once per ray by both queries (the call and the struct copy showed in callgrind).
+[[gnu::always_inline]] inline RayTracer::Query RayTracer::query(const WorldRay& w) const {
   const RenderScene& rs = *frame_;
-  const Vec3d dd = unit_direction(w.d);
-  const Vec3f d(dd);
+  Query q;
+  q.dd = unit_direction(w.d);
+  const Vec3f d(q.dd);
   // Render space is world minus the eye, formed in double. A ray from the eye (a camera ray)
   // starts at exactly 0, as the renderer's do.
   const Vec3d o = w.o - rs.origin();
@@ -54,27 +58,36 @@ bool RayTracer::trace(const WorldRay& w, WorldHit* out) const {
   // would bend it past a small mesh. So a far ray (beyond 16x the radius R of all bounded
   // geometry, the renderer's own "far" threshold) moves, in double, to where it enters the
   // cube |x| <= 2R that holds that geometry; the stretch before it can only cross infinite
-  // planes, and gets its own query from the unmoved start.
-  double shift = double(w.tmin);
+  // planes, and gets its own query (`before`) from the unmoved start.
+  q.shift = double(w.tmin);
   // Distances are floats: a plane met 1e52 away (a near-parallel ray from far off) is beyond
   // what t can say, so it counts as no hit rather than a hit at t = infinity.
   const double tmax = std::min(double(w.tmax), double(std::numeric_limits<float>::max()));
   const double R = double(rs.bounds_radius());
-  const Vec3d start = o + dd * shift;
-  Hit h;
-  bool found = false;
+  const Vec3d start = o + q.dd * q.shift;
   double t_in = 0.0, t_out = 0.0;
-  if (R > 0.0 && max_component(abs(start)) > 16.0 * R && cube_span(start, dd, 2.0 * R, &t_in, &t_out) &&
-      t_out > 0.0 && t_in > 0.0 && t_in < tmax - shift) {
-    // Planes before the cube, from the unmoved start.
-    const Ray before{Vec3f(start), d, float(t_in)};
-    found = rs.intersect(before, PrimRef{}, &h);
-    if (!found) shift += t_in;
+  if (R > 0.0 && max_component(abs(start)) > 16.0 * R && cube_span(start, q.dd, 2.0 * R, &t_in, &t_out) &&
+      t_out > 0.0 && t_in > 0.0 && t_in < tmax - q.shift) {
+    q.before = {Vec3f(start), d, float(t_in)};
+    q.has_before = true;
+    q.after_shift = q.shift + t_in;
+    q.after = {Vec3f(o + q.dd * q.after_shift), d, float(tmax - q.after_shift)};
+  } else {
+    q.after_shift = q.shift;  // the common case: the ray starts where it asks
+    q.after = {Vec3f(start), d, float(tmax - q.shift)};
   }
+  return q;
+}
+
+bool RayTracer::trace(const WorldRay& w, WorldHit* out) const {
+  const RenderScene& rs = *frame_;
+  const Query q = query(w);
+  Hit h;
+  double shift = q.shift;
+  bool found = q.has_before && rs.intersect(q.before, PrimRef{}, &h);
   if (!found) {
-    const Ray ray{Vec3f(o + dd * shift), d, float(tmax - shift)};
-    found = rs.intersect(ray, PrimRef{}, &h);
-    if (!found) return false;
+    shift = q.after_shift;
+    if (!rs.intersect(q.after, PrimRef{}, &h)) return false;
   }
   // The same for a surface point beyond float range (render space is float): no hit to report.
   if (!std::isfinite(h.t) || !is_finite(h.p)) return false;
@@ -82,9 +95,11 @@ bool RayTracer::trace(const WorldRay& w, WorldHit* out) const {
   out->t = shift == 0.0 ? h.t : float(shift + double(h.t));
   out->p = rs.origin() + Vec3d(h.p);
   out->n = h.n;
-  // The integrator shades with the geometric normal turned towards the side the ray came from
-  // (integrator.cpp: front = dot(d, n) < 0).
-  out->ns = dot(d, h.n) < 0.0f ? h.n : -h.n;
+  // The integrator shades with the normal turned towards the side the ray came from
+  // (integrator.cpp: front = dot(d, n) < 0): the geometric one, or a mesh's interpolated one.
+  const Vec3f d(q.dd);
+  const Vec3f n_facing = dot(d, h.n) < 0.0f ? h.n : -h.n;
+  out->ns = h.smooth ? facing(h.ns, h.n, n_facing) : n_facing;
   out->u = h.u;
   out->v = h.v;
   const RenderScene::Source src = rs.source_of(h.prim);
@@ -94,18 +109,26 @@ bool RayTracer::trace(const WorldRay& w, WorldHit* out) const {
   return true;
 }
 
+bool RayTracer::blocked(const WorldRay& w) const {
+  const RenderScene& rs = *frame_;
+  const Query q = query(w);
+  // any_hit() turns down a plane point beyond float range, as trace() does below. (A point on
+  // `before` never is: it lies between the start and the geometry's cube.)
+  return (q.has_before && rs.any_hit(q.before, PrimRef{})) || rs.any_hit(q.after, PrimRef{});
+}
+
 void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
   for (size_t i = 0; i < n; ++i) {
-    hits[i] = WorldHit{};
-    hits[i].hit = trace(rays[i], &hits[i]);
+    // trace() writes every field of a hit, and nothing of a miss.
+    if (trace(rays[i], &hits[i])) hits[i].hit = true;
+    else hits[i] = WorldHit{};
   }
 }
 
 void RayTracer::occluded(const WorldRay* rays, size_t n, WorldHit* hits) const {
   for (size_t i = 0; i < n; ++i) {
-    WorldHit scratch;
     hits[i] = WorldHit{};
-    hits[i].hit = trace(rays[i], &scratch);
+    hits[i].hit = blocked(rays[i]);
   }
 }
 

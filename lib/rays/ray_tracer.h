@@ -22,15 +22,27 @@ class RayTracer {
   // answer depends on that ray alone, never on the batch around it. Const and thread-safe: any
   // number of threads may trace at once.
   void nearest(const WorldRay* rays, size_t n, WorldHit* hits) const;
-  // Sets only hits[i].hit: whether any surface lies in (tmin, tmax]. It uses the nearest-hit
-  // path, so "occluded" and "has a nearest hit" can never disagree.
+  // Sets only hits[i].hit: whether any surface lies in (tmin, tmax], by an any-hit traversal
+  // (RenderScene::any_hit: it stops at the first surface met) of the same render-space rays with
+  // the same primitive tests, so "occluded" and "has a nearest hit" never disagree.
   void occluded(const WorldRay* rays, size_t n, WorldHit* hits) const;
 
   const Scene& scene() const { return *scene_; }
   const RenderScene& frame() const { return *frame_; }
 
  private:
+  // The render-space rays a world ray becomes (query() in the .cpp says why): for a far origin,
+  // `before` (up to where it enters the geometry's cube) and then `after`; else `after` alone.
+  struct Query {
+    Vec3d dd;                  // unit direction, double
+    double shift = 0;          // t of before's start (t_min)
+    double after_shift = 0;    // t of after's start
+    Ray before, after;
+    bool has_before = false;
+  };
+  Query query(const WorldRay& ray) const;
   bool trace(const WorldRay& ray, WorldHit* hit) const;
+  bool blocked(const WorldRay& ray) const;
 
   std::shared_ptr<const Scene> scene_;
   std::shared_ptr<const RenderScene> frame_;

@@ -66,6 +66,11 @@ class RayTracerTest : public ::testing::Test {
     WorldRay r{o, normalize(d), tmin, tmax};
     WorldHit h;
     t.nearest(&r, 1, &h);
+    // Every analytic case here (edges, vertices, grazing, interval ends, far origins) also
+    // checks the occlusion query's own any-hit traversal against the nearest hit.
+    WorldHit occ;
+    t.occluded(&r, 1, &occ);
+    EXPECT_EQ(occ.hit, h.hit) << "occlusion disagrees with the nearest hit";
     return h;
   }
 
@@ -205,6 +210,8 @@ TEST_F(RayTracerTest, RaysEnteringThroughSharedEdgesAndVerticesStopThere) {
       const Vec3d d = normalize(q - o);
       const WorldHit h = nearest(t, o, d);
       ASSERT_TRUE(h.hit) << "passed through at " << p.x << " " << p.y << " " << p.z;
+      // Stopping just short of p: nothing in the way (the helper checks occlusion agrees).
+      EXPECT_FALSE(nearest(t, o, d, 0.0f, float(length(p - o) * (1 - 1e-4))).hit);
       ASSERT_NEAR(h.t, length(p - o), 1e-5) << p.x << " " << p.y << " " << p.z;
       // Float spacing of render space (world minus the eye, |z| ~ 20 here): 2^-19.
       expect_vec(h.p, p, 4 * 0x1p-19);
@@ -327,8 +334,10 @@ TEST_F(RayTracerTest, ExtremeButValidRaysGiveFiniteAnswers) {
     }
     if (check_ray(r, size_t(i))) continue;
     ++checked;
-    WorldHit h;
+    WorldHit h, occ;
     t.nearest(&r, 1, &h);
+    t.occluded(&r, 1, &occ);
+    ASSERT_EQ(occ.hit, h.hit) << i;  // the any-hit traversal agrees, however extreme the ray
     if (!h.hit) {
       ASSERT_TRUE(std::isinf(h.t)) << i;
       continue;

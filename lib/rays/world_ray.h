@@ -24,7 +24,7 @@ struct WorldHit {
   float t = std::numeric_limits<float>::infinity();
   Vec3d p;           // on the surface (recomputed there, not o + t d), world space
   Vec3f n;           // unit geometric normal
-  Vec3f ns;          // the normal the renderer shades with (flat shading: equal to n)
+  Vec3f ns;          // the normal the renderer shades with, facing the ray (a mesh's interpolated vertex normals, else n)
   float u = 0, v = 0;  // triangle barycentrics
   uint32_t object = kNoIndex;     // index into Scene::objects
   uint32_t primitive = kNoIndex;  // triangle index in its mesh; 0 for spheres and planes

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "render/fresnel.h"
+#include "render/shading_normal.h"
 
 namespace tessera {
 
@@ -33,6 +34,9 @@ template <typename F>
 void for_each_shadow_query(const Context& c, const Hit& hit, const Vec3f& n, uint64_t node, F&& f) {
   const RenderScene& s = c.scene;
   const Vec3f n_f = n;  // faces the viewer
+  // Smooth hits weigh light by their shading normal (shading_normal.h); flat ones by n_f as ever.
+  const Vec3f ns_f = hit.smooth ? facing(hit.ns, hit.n, n_f) : n_f;
+  auto cosine = [&](const Vec3f& w) { return hit.smooth ? smooth_light_cosine(n_f, ns_f, w) : dot(n_f, w); };
   // Point and spot lights: one shadow ray to the light's position; a spot scales its intensity
   // by its cone's falloff (points use theirs as is, so their arithmetic is what it always was).
   auto toward = [&](const Vec3f& position, const Rgb& intensity, const RenderScene::SpotLight* spot) {
@@ -40,7 +44,7 @@ void for_each_shadow_query(const Context& c, const Hit& hit, const Vec3f& n, uin
     const float r2 = dot(to, to);
     const float r = std::sqrt(r2);
     const Vec3f w = to / r;
-    const float cos_t = dot(n_f, w);
+    const float cos_t = cosine(w);
     if (!(cos_t > 0.0f)) return;
     const float cone = spot ? spot->falloff(-w) : 1.0f;
     if (!(cone > 0.0f)) return;
@@ -51,7 +55,7 @@ void for_each_shadow_query(const Context& c, const Hit& hit, const Vec3f& n, uin
   for (const auto& l : s.spot_lights()) toward(l.position, l.intensity, &l);  // after points: existing scenes unchanged
   for (const auto& l : s.directional_lights()) {
     const Vec3f w = -l.direction;
-    const float cos_t = dot(n_f, w);
+    const float cos_t = cosine(w);
     if (!(cos_t > 0.0f)) continue;
     const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
     f(ShadowQuery{{o, w}, l.irradiance, cos_t});
@@ -77,7 +81,7 @@ void for_each_shadow_query(const Context& c, const Hit& hit, const Vec3f& n, uin
     const float r2 = dot(to, to);
     if (!(r2 > 0.0f)) continue;
     const Vec3f w = to / std::sqrt(r2);
-    const float cos_t = dot(n_f, w);
+    const float cos_t = cosine(w);
     const float cos_l = -dot(nl, w);  // emitters emit from their front (CCW) face only
     if (!(cos_t > 0.0f) || !(cos_l > 0.0f)) continue;
     const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
@@ -116,24 +120,29 @@ Secondary plan_secondary(const Context& c, const Ray& ray, const Hit& hit, int d
   // The normal says which side is outside; shading happens on the side the ray came from.
   const bool front = dot(ray.d, hit.n) < 0.0f;
   const Vec3f n_facing = front ? hit.n : -hit.n;
+  // Mirrors and glass turn rays about this normal, kept on their side of the facet (shading_normal.h).
+  const Vec3f n_turn = hit.smooth ? turning_normal(n_facing, facing(hit.ns, hit.n, n_facing), ray.d) : n_facing;
   if (m.type == Material::Type::kMirror) {
-    const Vec3f w = normalize(reflect(ray.d, n_facing));
+    Vec3f w = normalize(reflect(ray.d, n_turn));
+    if (hit.smooth) w = keep_side(w, n_facing, true, normalize(reflect(ray.d, n_facing)));
     out.reflect = true;
     out.reflected = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
     return out;
   }
   // Glass. Outside is vacuum/air (index 1).
   const float eta_i = front ? 1.0f : float(m.ior), eta_t = front ? float(m.ior) : 1.0f;
-  const float cos_i = -dot(ray.d, n_facing);
+  const float cos_i = -dot(ray.d, n_turn);
   float cos_t = 0.0f;
   out.R = fresnel_dielectric(cos_i, eta_i, eta_t, &cos_t);
   if (out.R > 0.0f) {
-    const Vec3f w = normalize(reflect(ray.d, n_facing));
+    Vec3f w = normalize(reflect(ray.d, n_turn));
+    if (hit.smooth) w = keep_side(w, n_facing, true, normalize(reflect(ray.d, n_facing)));
     out.reflect = true;
     out.reflected = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
   }
   if (out.R < 1.0f) {
-    const Vec3f w = refract(ray.d, n_facing, eta_i / eta_t, cos_i, cos_t);
+    Vec3f w = refract(ray.d, n_turn, eta_i / eta_t, cos_i, cos_t);
+    if (hit.smooth) w = keep_side(w, n_facing, false, ray.d);
     out.refract = true;
     out.refracted = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
   }

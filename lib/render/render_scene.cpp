@@ -8,6 +8,7 @@
 #include "math/transform.h"
 #include "render/plane.h"
 #include "render/ray_log.h"
+#include "render/shading_normal.h"
 #include "render/sphere.h"
 #include "render/triangle_cluster.h"
 #include "render/watertight_triangle.h"
@@ -411,6 +412,10 @@ void RenderScene::build(const Scene& scene, int frame) {
             bucket.uvs.resize(6 * (bucket.material_ids.size() - 1), 0.0f);
             for (uint32_t i : {i0, i1, i2}) bucket.uvs.insert(bucket.uvs.end(), {mesh.uvs[2 * i], mesh.uvs[2 * i + 1]});
           }
+          if (mesh.normals.size() == mesh.positions.size()) {  // vertex normals: smooth shading (shading_normal.h)
+            auto n = [&](uint32_t i) { return xf.normal(Vec3d(mesh.normals[i])); };
+            append_vertex_normals(&bucket.normals, bucket.material_ids.size() - 1, {n(i0), n(i1), n(i2)});
+          }
           if (materials_[m].is_emissive()) {
             auto [it, fresh] = light_of_material.try_emplace(m, area_lights_.size());
             if (fresh) area_lights_.push_back({{}, {}, 0.0f, materials_[m].emission});
@@ -426,6 +431,7 @@ void RenderScene::build(const Scene& scene, int frame) {
   }
   for (TriangleBucket& b : triangles_) {
     if (!b.uvs.empty()) b.uvs.resize(6 * b.material_ids.size(), 0.0f);
+    if (!b.normals.empty()) b.normals.resize(9 * b.material_ids.size(), 0.0f);
   }
   for (AreaLight& L : area_lights_) {
     for (float& c : L.cdf) c /= L.area;
@@ -544,6 +550,7 @@ bool RenderScene::intersect(const Ray& ray, const PrimRef& from, Hit* hit) const
 
 bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double tp, uint32_t g, uint32_t prim_id,
                              float hit_u, float hit_v, float tfar, Hit* hit) const {
+  hit->smooth = false;  // set for triangles with vertex normals below
   if (g != RTC_INVALID_GEOMETRY_ID) {
     hit->t = tfar;
     for (int k = 0; k < 2; ++k) {
@@ -566,6 +573,7 @@ bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double t
           hit->tex_u = t[0] * w + t[2] * u + t[4] * v;
           hit->tex_v = t[1] * w + t[3] * u + t[5] * v;
         }
+        hit->smooth = !b.normals.empty() && interpolate_shading_normal(&b.normals[9 * size_t(pid)], w, u, v, hit->n, &hit->ns);
         return true;
       }
       if (g == sphere_buckets_[k].geom_id) {
@@ -611,6 +619,27 @@ bool RenderScene::opaque_plane_blocks(const Ray& ray, const PrimRef& from) const
     if (t > 0.0 && t < double(ray.tmax)) return true;
   }
   return false;
+}
+
+bool RenderScene::any_hit(const Ray& ray, const PrimRef& from) const {
+  // The planes exactly as intersect() meets them; one whose point is beyond float range is no hit,
+  // and Embree then looks only closer than it, as intersect() does.
+  const Vec3d o(ray.o), d(ray.d);
+  int plane = -1;
+  const double tp = nearest_plane(o, d, from, double(ray.tmax), &plane);
+  Hit h;
+  if (plane >= 0 && finish_hit(o, d, plane, tp, RTC_INVALID_GEOMETRY_ID, 0, 0.0f, 0.0f, 0.0f, &h) && is_finite(h.p)) {
+    return true;
+  }
+  Ray er;
+  if (embree_ray({ray.o, ray.d, plane >= 0 ? float(tp) : ray.tmax}, &er) < 0.0) return false;
+  TraceContext ctx;  // no glass list: glass blocks like any surface
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.scene = this;
+  ctx.from = from;
+  RTCRay r = make_rayhit(er, 0.0f, er.tmax, kOpaqueMask | kGlassMask).ray;
+  rtcOccluded1(rtc_scene_.get(), &ctx.rtc, &r);
+  return r.tfar < 0.0f;
 }
 
 Rgb RenderScene::transmittance(const Ray& ray, const PrimRef& from) const {

@@ -37,6 +37,10 @@ struct Hit {
   // from); 0 for spheres and planes. Read by the ray service (lib/rays), not by shading.
   float u = 0, v = 0;
   float tex_u = 0, tex_v = 0;  // texture coordinates (triangles of textured materials only)
+  // Interpolated unit shading normal (render/shading_normal.h), on n's side; set only where
+  // `smooth` (triangles with vertex normals): read it only then.
+  Vec3f ns;
+  bool smooth = false;
 };
 
 // How rays meet triangles (docs/accuracy.md, case 4, has the leak counts and costs).
@@ -77,6 +81,10 @@ class RenderScene {
   // pure function of the pixel (the tile renderer packs one pixel's consecutive samples).
   static constexpr int kPacket = 8;
   void intersect_packet(const Ray* rays, const PrimRef* from, int n, Hit* hits, bool* found) const;
+  // Whether intersect() would find a hit with a finite point, by an any-hit traversal
+  // (rtcOccluded1) that stops at the first surface met, glass included: line-of-sight queries of
+  // the ray service (lib/rays).
+  bool any_hit(const Ray& ray, const PrimRef& from) const;
   void transmittance_packet(const Ray* rays, const PrimRef* from, int n, Rgb* T) const;
   // Fraction of light arriving along the ray over (0, ray.tmax]: 0 if an opaque surface blocks
   // it, else the product of the transmittances of the glass surfaces crossed (unrefracted).
@@ -137,6 +145,7 @@ class RenderScene {
     std::vector<uint32_t> material_ids;
     std::vector<Source> sources;       // per triangle
     std::vector<float> uvs;  // 6 per triangle (its vertices' uv) when any triangle is textured; else empty
+    std::vector<float> normals;  // 9 per triangle (unit vertex normals, 0: flat) when any has them; else empty
     std::vector<TriangleCluster> clusters;  // the watertight test's Embree primitives (triangle_cluster.h)
     uint32_t geom_id = RTC_INVALID_GEOMETRY_ID;
   };

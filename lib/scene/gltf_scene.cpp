@@ -403,6 +403,7 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
   // Meshes: one Scene mesh per glTF mesh (all its triangle primitives), shared by every node
   // that uses it: an instanced mesh is loaded once.
   size_t dropped_other_modes = 0, dropped_degenerate = 0;
+  std::string first_morphed;  // glTF path of the first primitive with morph targets
   for (size_t mi = 0; mi < model.meshes.size(); ++mi) {
     Mesh mesh;
     const auto& gmesh = model.meshes[mi];
@@ -413,6 +414,7 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
         ++dropped_other_modes;  // points, lines, strips and fans
         continue;
       }
+      if (!prim.targets.empty() && first_morphed.empty()) first_morphed = ppath + ".targets";
       auto pos_it = prim.attributes.find("POSITION");
       if (pos_it == prim.attributes.end()) r.fail(ppath + ".attributes", "has no POSITION");
       const auto pos = r.accessor(pos_it->second, ppath + ".attributes.POSITION", {TINYGLTF_TYPE_VEC3},
@@ -444,6 +446,21 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
         }
       } else if (!mesh.uvs.empty()) {
         mesh.uvs.resize(2 * mesh.positions.size(), 0.0f);
+      }
+      // Vertex normals: interpolated shading normals (render/shading_normal.h). A zero or
+      // non-finite one is kept as zero: its triangles shade flat.
+      if (auto n_it = prim.attributes.find("NORMAL"); n_it != prim.attributes.end()) {
+        const auto nrm = r.accessor(n_it->second, ppath + ".attributes.NORMAL", {TINYGLTF_TYPE_VEC3},
+                                    {TINYGLTF_COMPONENT_TYPE_FLOAT});
+        if (nrm.count != pos.count) r.fail(ppath + ".attributes.NORMAL", "count differs from POSITION's");
+        mesh.normals.resize(size_t(base), Vec3f(0.0f));
+        for (size_t v = 0; v < nrm.count; ++v) {
+          const Vec3f n(float(GltfReader::component(nrm, v, 0)), float(GltfReader::component(nrm, v, 1)),
+                        float(GltfReader::component(nrm, v, 2)));
+          mesh.normals.push_back(is_finite(n) ? n : Vec3f(0.0f));
+        }
+      } else if (!mesh.normals.empty()) {
+        mesh.normals.resize(mesh.positions.size(), Vec3f(0.0f));
       }
       std::vector<uint32_t> tri;
       if (prim.indices >= 0) {
@@ -484,6 +501,10 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
     spdlog::warn("{}: {} primitives that are not triangles (points, lines, strips, fans) ignored", path,
                  dropped_other_modes);
   }
+  if (!first_morphed.empty()) {
+    spdlog::warn("{}: {}: morph targets are not supported: meshes render in their base shape, and animations of "
+                 "their weights are ignored", path, first_morphed);
+  }
   if (dropped_degenerate) {
     spdlog::warn("{}: dropped {} triangles with a NaN/Inf vertex or zero area", path, dropped_degenerate);
   }
@@ -491,9 +512,10 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
   // The scene to show.
   if (model.scenes.empty()) r.fail("scenes", "the file has no scene");
   int si = options.gltf.scene_index >= 0 ? options.gltf.scene_index : (model.defaultScene >= 0 ? model.defaultScene : 0);
-  if (size_t(si) >= model.scenes.size()) {
-    throw SceneError(path + ": --scene-index " + std::to_string(si) + ": the file has scenes 0-" +
-                     std::to_string(model.scenes.size() - 1));
+  if (options.gltf.scene_index < -1 || si < 0 || size_t(si) >= model.scenes.size()) {
+    const std::string which = options.gltf.scene_index == -1 ? "scene " : "--scene-index ";
+    throw SceneError(path + ": " + which + std::to_string(options.gltf.scene_index == -1 ? si : options.gltf.scene_index) +
+                     ": must be in [0, " + std::to_string(model.scenes.size() - 1) + "] (the file's scenes)");
   }
   const std::string spath = idx("scenes", size_t(si));
 
@@ -591,7 +613,9 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
     }
   }
   const double fps = options.gltf.fps;
-  if (!(fps > 0 && fps <= 1000)) throw SceneError(path + ": --fps: must be in (0, 1000], got " + std::to_string(fps));
+  if (!(fps > 0 && fps <= GltfOptions::kMaxFps)) {
+    throw SceneError(path + ": --fps: must be in (0, " + std::to_string(int(GltfOptions::kMaxFps)) + "], got " + std::to_string(fps));
+  }
   const double frames_d = std::floor(duration * fps + 1e-9) + 1;
   if (frames_d > SceneLimits::kMaxFrames) {
     throw SceneError(path + ": the animation lasts " + std::to_string(duration) + " s: more than " +
@@ -771,9 +795,12 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
   // Objects: one per mesh instance, sharing the mesh.
   uint64_t primitives = 0;
   std::vector<const Instance*> object_instance;
+  std::string first_skinned;  // glTF path of the first skinned mesh node shown
+  size_t skinned = 0;
   for (const Instance& inst : instances) {
     const auto& node = model.nodes[size_t(inst.chain.back())];
     if (node.mesh < 0) continue;
+    if (node.skin >= 0 && skinned++ == 0) first_skinned = idx("nodes", size_t(inst.chain.back())) + ".skin";
     if (size_t(node.mesh) >= model.meshes.size()) {
       r.fail(idx("nodes", size_t(inst.chain.back())) + ".mesh", "mesh " + std::to_string(node.mesh) + " does not exist");
     }
@@ -792,6 +819,14 @@ Scene parse_gltf_scene(const std::string& bytes, const std::string& path, const 
     scene.objects.push_back(std::move(o));
     object_instance.push_back(&inst);
   }
+  // Skins are not evaluated: a skinned mesh renders in its bind pose (its vertices as stored,
+  // placed by its node), never silently.
+  if (skinned) {
+    spdlog::warn("{}: {}: skins are not supported: {} skinned mesh instance{} render{} in the bind pose, "
+                 "without the joints' transforms or animation (apply the armature before export to pose them)",
+                 path, first_skinned, skinned, skinned == 1 ? "" : "s", skinned == 1 ? "s" : "");
+  }
+
   if (scene.objects.empty()) throw SceneError(path + ": " + spath + " has no mesh with triangles");
 
   // Per-frame keys for whatever moves: every frame is a key, so frames are exact.

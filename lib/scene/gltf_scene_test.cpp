@@ -3,6 +3,8 @@
 #include "scene/gltf_scene.h"
 
 #include <gtest/gtest.h>
+#include <spdlog/sinks/ringbuffer_sink.h>
+#include <spdlog/spdlog.h>
 
 #include <cmath>
 #include <filesystem>
@@ -260,6 +262,42 @@ TEST_F(GltfSceneTest, BuffersOutsideTheBundleAreRefused) {
   o.confine_to = (dir_ / "bundle").string();
   const std::string e = error_of((dir_ / "bundle" / "s.gltf").string(), o);
   EXPECT_NE(e.find("outside the scene bundle"), std::string::npos) << e;
+}
+
+// Skins and morph targets are not evaluated: each gets one warning naming the file and the
+// first glTF path that has one, and the geometry loads as stored (bind pose, base shape).
+TEST_F(GltfSceneTest, SkinsAndMorphTargetsAreWarnedOnceNamingTheGltfPath) {
+  auto warnings_of = [&](const GltfBuilder& b) {
+    const std::string p = write(b);
+    auto sink = std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(16);
+    spdlog::default_logger()->sinks().push_back(sink);
+    const Scene s = load_scene(p);
+    spdlog::default_logger()->sinks().pop_back();
+    EXPECT_EQ(s.meshes.at(0).positions.size(), 4u);
+    return sink->last_formatted();
+  };
+  GltfBuilder plain = minimal();
+  EXPECT_TRUE(warnings_of(plain).empty());
+
+  GltfBuilder b = minimal();
+  const int joint = b.node({{"name", "bone"}}, false);
+  b.doc["skins"] = {{{"joints", {joint}}}};
+  b.doc["nodes"][0]["skin"] = 0;
+  b.node({{"mesh", 0}, {"skin", 0}, {"translation", {3, 0, 0}}});  // nodes[3]: a second skinned instance
+  std::vector<std::string> lines = warnings_of(b);
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_NE(lines[0].find("s.gltf: nodes[0].skin: skins are not supported: 2 skinned mesh instances render in the "
+                          "bind pose"),
+            std::string::npos)
+      << lines[0];
+
+  GltfBuilder m = minimal();
+  const int offsets = m.floats({0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1}, "VEC3", 3);
+  m.doc["meshes"][0]["primitives"][0]["targets"] = {{{"POSITION", offsets}}};
+  lines = warnings_of(m);
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_NE(lines[0].find("s.gltf: meshes[0].primitives[0].targets: morph targets are not supported"), std::string::npos)
+      << lines[0];
 }
 
 }  // namespace

@@ -28,11 +28,12 @@ class GltfBuilder {
     return accessor(v.data(), v.size() * 4, v.size() / per, type, 5126);
   }
   int indices(const std::vector<uint32_t>& v) { return accessor(v.data(), v.size() * 4, v.size(), "SCALAR", 5125); }
-  // A mesh of one triangle primitive; returns the mesh index.
+  // A mesh of one triangle primitive (with vertex normals if `normals` is not empty); returns the mesh index.
   int mesh(const std::vector<float>& positions, const std::vector<uint32_t>& idx, int material = -1,
-           const std::vector<float>& uvs = {}) {
+           const std::vector<float>& uvs = {}, const std::vector<float>& normals = {}) {
     nlohmann::json prim = {{"attributes", {{"POSITION", floats(positions, "VEC3", 3)}}}, {"indices", indices(idx)}};
     if (!uvs.empty()) prim["attributes"]["TEXCOORD_0"] = floats(uvs, "VEC2", 2);
+    if (!normals.empty()) prim["attributes"]["NORMAL"] = floats(normals, "VEC3", 3);
     if (material >= 0) prim["material"] = material;
     doc["meshes"].push_back({{"primitives", {prim}}});
     return int(doc["meshes"].size() - 1);

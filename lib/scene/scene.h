@@ -109,6 +109,9 @@ struct Mesh {
   std::vector<uint32_t> indices;        // 3 per triangle
   std::vector<uint32_t> material_ids;   // one per triangle, index into Scene::materials
   std::vector<float> uvs;               // texture coordinates, 2 per vertex; empty: none
+  // Vertex normals (glTF NORMAL), 1 per vertex, for interpolated shading; empty: flat shading.
+  // A zero normal marks a vertex without one (its triangles shade flat).
+  std::vector<Vec3f> normals;
   size_t triangle_count() const { return indices.size() / 3; }
 };
 

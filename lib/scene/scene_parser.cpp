@@ -476,6 +476,8 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
 
 Scene load_scene(const std::string& path, const SceneLoadOptions& options) {
   if (is_gltf_path(path)) return load_gltf_scene(path, options);  // a glTF file is a whole scene
+  // Refused rather than ignored, also on the farm: a job must render what its flags say.
+  if (options.gltf.given()) throw SceneError(path + ": --camera, --scene-index and --fps apply to glTF scenes (.gltf, .glb) only");
   std::error_code ec;
   if (!fs::exists(path, ec)) throw SceneError(path + ": scene file not found");
   if (!fs::is_regular_file(path, ec)) throw SceneError(path + ": not a regular file");

@@ -21,11 +21,14 @@ struct ImageOverrides {
   std::optional<int> min_spp, max_spp;
 };
 
-// How a glTF scene file is read (gltf_scene.h); JSON scenes ignore these.
+// How a glTF scene file is read (gltf_scene.h); load_scene refuses them for other scene files.
 struct GltfOptions {
+  static constexpr double kDefaultFps = 24, kMaxFps = 1000;
   std::string camera;     // the camera (glTF camera name or its node's name); empty: the first
   int scene_index = -1;   // glTF `scenes` index; -1: the file's `scene`, else 0
-  double fps = 24;        // frames per second of animation time: frame F is at F / fps seconds
+  double fps = kDefaultFps;  // frames per second of animation time, in (0, kMaxFps]: frame F is at F / fps s
+  // Whether any differs from the defaults (the farm carries only those: tessera.v1.ImageOverrides).
+  bool given() const { return !camera.empty() || scene_index != -1 || fps != kDefaultFps; }
 };
 
 // Limits for scenes from untrusted peers (the coordinator and workers load scenes from bundles).

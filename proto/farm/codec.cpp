@@ -139,4 +139,29 @@ ImageOverrides from_proto(const tessera::v1::ImageOverrides& o) {
   return out;
 }
 
+void to_proto(const GltfOptions& o, tessera::v1::ImageOverrides* out) {
+  if (!o.camera.empty()) out->set_gltf_camera(o.camera);
+  if (o.scene_index != GltfOptions{}.scene_index) out->set_gltf_scene_index(o.scene_index);
+  if (o.fps != GltfOptions::kDefaultFps) out->set_gltf_fps(o.fps);
+}
+
+GltfOptions gltf_options_from_proto(const tessera::v1::ImageOverrides& o) {
+  GltfOptions out;
+  if (o.has_gltf_camera()) out.camera = o.gltf_camera();
+  if (o.has_gltf_scene_index()) {
+    if (o.gltf_scene_index() < 0) {
+      throw SceneError("overrides.gltf_scene_index: must be >= 0, got " + std::to_string(o.gltf_scene_index()));
+    }
+    out.scene_index = o.gltf_scene_index();
+  }
+  if (o.has_gltf_fps()) {
+    if (!(o.gltf_fps() > 0 && o.gltf_fps() <= GltfOptions::kMaxFps)) {
+      throw SceneError("overrides.gltf_fps: must be in (0, " + std::to_string(int(GltfOptions::kMaxFps)) + "], got " +
+                       std::to_string(o.gltf_fps()));
+    }
+    out.fps = o.gltf_fps();
+  }
+  return out;
+}
+
 }  // namespace tessera::farm

@@ -26,5 +26,9 @@ std::string decode_tile_in_image(const tessera::v1::TileData& in, int width, int
 void to_proto(const ImageOverrides& o, tessera::v1::ImageOverrides* out);
 // Throws SceneError naming the field for an unknown sampler name.
 ImageOverrides from_proto(const tessera::v1::ImageOverrides& o);
+// The glTF reading options travel in the same message (gltf_* fields); only non-defaults are set.
+void to_proto(const GltfOptions& o, tessera::v1::ImageOverrides* out);
+// Throws SceneError naming the field and its range (gltf_scene_index >= 0, gltf_fps in (0, 1000]).
+GltfOptions gltf_options_from_proto(const tessera::v1::ImageOverrides& o);
 
 }  // namespace tessera::farm

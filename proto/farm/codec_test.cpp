@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <climits>
+#include <cmath>
 
 namespace tessera::farm {
 namespace {
@@ -39,6 +40,45 @@ TEST(Codec, SizesMustMatchTheRectangle) {
   t.mutable_rgb()->pop_back();
   EXPECT_NE(decode_tile(t, &r).find("rgb has 191 bytes, expected 192"), std::string::npos);
   EXPECT_NE(check_tile(tile(0, 0, 0, 4), 0, 4), "");
+}
+
+// A job's glTF options: only what differs from the defaults goes on the wire (so a job without
+// them keeps the overrides it had before they existed), values come back unchanged, and values
+// out of range from a peer that skipped the client's checks are refused naming the field.
+TEST(Codec, GltfOptionsRoundTripAndBadValuesNameTheField) {
+  tessera::v1::ImageOverrides none;
+  to_proto(GltfOptions{}, &none);
+  EXPECT_EQ(none.ByteSizeLong(), 0u);
+  GltfOptions g;
+  g.camera = "side";
+  g.scene_index = 0;  // given, though it may equal the file's default
+  g.fps = 12.5;
+  tessera::v1::ImageOverrides o;
+  to_proto(g, &o);
+  const GltfOptions back = gltf_options_from_proto(o);
+  EXPECT_EQ(back.camera, "side");
+  EXPECT_EQ(back.scene_index, 0);
+  EXPECT_EQ(back.fps, 12.5);
+  EXPECT_TRUE(back.given());
+  auto error = [](const tessera::v1::ImageOverrides& bad) -> std::string {
+    try {
+      gltf_options_from_proto(bad);
+    } catch (const SceneError& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  tessera::v1::ImageOverrides bad = o;
+  bad.set_gltf_scene_index(-1);
+  EXPECT_EQ(error(bad), "overrides.gltf_scene_index: must be >= 0, got -1");
+  for (double fps : {0.0, -3.0, 1000.5, std::nan("")}) {
+    bad = o;
+    bad.set_gltf_fps(fps);
+    EXPECT_NE(error(bad).find("overrides.gltf_fps: must be in (0, 1000]"), std::string::npos) << fps;
+  }
+  bad = o;
+  bad.set_gltf_fps(1000);
+  EXPECT_EQ(error(bad), "accepted");
 }
 
 }  // namespace

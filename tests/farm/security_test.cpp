@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "farm_harness.h"
+#include "test_pki.h"
 
 namespace tessera::farmtest {
 namespace {
@@ -19,47 +20,6 @@ const fs::path kScene = source("tests/farm/whitted_orbit.json");  // 96x64, 4 sp
 
 void write(const fs::path& p, const std::string& s) {
   std::ofstream(p) << s;
-}
-
-void sh(const std::string& cmd) {
-  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
-}
-
-// A throwaway CA, a server certificate for 127.0.0.1/localhost and two client certificates
-// (CN client-1, client-2) signed by it, and a second, unrelated CA. EC P-256 keys: quick to make.
-struct Pki {
-  fs::path dir;
-  fs::path ca, server_cert, server_key, client_cert, client_key, other_ca;
-  fs::path client2_cert, client2_key;  // a second client identity (CN client-2)
-};
-
-Pki make_pki(const fs::path& dir) {
-  Pki p;
-  p.dir = dir / "pki";
-  fs::create_directories(p.dir);
-  const std::string d = p.dir.string();
-  const std::string key = "-newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes";
-  write(p.dir / "server.ext", "subjectAltName=IP:127.0.0.1,DNS:localhost\n");
-  write(p.dir / "client.ext", "extendedKeyUsage=clientAuth\n");
-  const std::string q = " 2>>" + d + "/openssl.log";
-  sh("cd " + d + " && openssl req -x509 " + key + " -keyout ca.key -out ca.pem -days 2 -subj '/CN=Tessera Test CA'" + q);
-  sh("cd " + d + " && openssl req -x509 " + key + " -keyout other.key -out other-ca.pem -days 2 -subj '/CN=Other CA'" + q);
-  for (const std::string who : {"server", "client", "client2"}) {
-    const std::string cn = who == "server" ? "localhost" : who == "client" ? "client-1" : "client-2";
-    if (who == "client2") fs::copy_file(p.dir / "client.ext", p.dir / "client2.ext");
-    sh("cd " + d + " && openssl req " + key + " -keyout " + who + ".key -out " + who + ".csr -subj '/CN=" + cn + "'" + q);
-    sh("cd " + d + " && openssl x509 -req -in " + who + ".csr -CA ca.pem -CAkey ca.key -CAcreateserial -days 2 -out " +
-       who + ".pem -extfile " + who + ".ext" + q);
-  }
-  p.ca = p.dir / "ca.pem";
-  p.other_ca = p.dir / "other-ca.pem";
-  p.server_cert = p.dir / "server.pem";
-  p.server_key = p.dir / "server.key";
-  p.client_cert = p.dir / "client.pem";
-  p.client_key = p.dir / "client.key";
-  p.client2_cert = p.dir / "client2.pem";
-  p.client2_key = p.dir / "client2.key";
-  return p;
 }
 
 struct Tokens {

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "../farm/farm_harness.h"
+#include "../farm/test_pki.h"
 #include "farm/bundle.h"
 #include "scene/scene_parser.h"
 
@@ -18,15 +19,17 @@ namespace {
 
 using namespace std::chrono_literals;
 
-// Starts tessera-rays for `farm`'s coordinator and returns its address once it listens.
-std::string start_rays(Farm& farm, std::unique_ptr<Process>* proc, const std::vector<std::string>& extra = {}) {
+// Starts tessera-rays for `farm`'s coordinator and returns its address once it listens. `name`
+// names its log and bundle cache in the farm's directory.
+std::string start_rays(Farm& farm, std::unique_ptr<Process>* proc, const std::vector<std::string>& extra = {},
+                       const std::string& name = "rays") {
   std::vector<std::string> argv{(fs::path(TESSERA_BINARY_DIR) / "rays" / "tessera-rays").string(),
                                 "--listen",      "127.0.0.1:0",
                                 "--coordinator", farm.address(),
-                                "--cache-dir",   (farm.dir() / "rays-cache").string(),
+                                "--cache-dir",   (farm.dir() / (name + "-cache")).string(),
                                 "--threads",     "2"};
   argv.insert(argv.end(), extra.begin(), extra.end());
-  *proc = std::make_unique<Process>(argv, farm.dir() / "rays.log");
+  *proc = std::make_unique<Process>(argv, farm.dir() / (name + ".log"));
   const std::regex re("listening on (127\\.0\\.0\\.1:[0-9]+)");
   for (int i = 0; i < 1000; ++i) {
     std::smatch m;
@@ -157,6 +160,49 @@ TEST(RaysCli, TokensOnBothHops) {
   r = farm.cli(with_token);
   ASSERT_EQ(r.code, 0) << r.output << rays->log();
   EXPECT_EQ(read_text(farm.dir() / "o.csv").substr(read_text(farm.dir() / "o.csv").find('\n') + 1, 4), "1,8,");
+}
+
+// TLS on both hops of tessera-rays: clients to it, and it to the coordinator for bundles. The
+// right CA answers; plaintext, a wrong CA on either hop, and a wrong CA at the client fail.
+TEST(RaysCli, TlsOnBothHops) {
+  Farm farm;
+  const Pki pki = make_pki(farm.dir());
+  const std::vector<std::string> server_tls{"--tls-cert", pki.server_cert.string(), "--tls-key",
+                                            pki.server_key.string()};
+  farm.start_server(server_tls);
+  std::vector<std::string> rays_args = server_tls;
+  rays_args.insert(rays_args.end(), {"--coordinator-tls-ca", pki.ca.string()});
+  std::unique_ptr<Process> rays;
+  const std::string addr = start_rays(farm, &rays, rays_args);
+  const fs::path in = farm.dir() / "in.csv";
+  std::ofstream(in) << "ox,oy,oz,dx,dy,dz\n0,0,0,0,0,1\n";
+  const std::string scene = source("tests/rays/sphere_scene.json").string();
+  auto query = [&](const std::string& server, const std::vector<std::string>& tls) {
+    std::vector<std::string> args{"rays", scene, "--in", in.string(), "--out", (farm.dir() / "o.csv").string(),
+                                  "--server", server, "--coordinator", farm.address()};
+    args.insert(args.end(), tls.begin(), tls.end());
+    fs::remove(farm.dir() / "o.csv");
+    return farm.cli(args);
+  };
+  // tessera-rays trusting another CA for the coordinator cannot fetch the bundle: the query fails.
+  std::unique_ptr<Process> lost;
+  std::vector<std::string> lost_args = server_tls;
+  lost_args.insert(lost_args.end(), {"--coordinator-tls-ca", pki.other_ca.string()});
+  const std::string lost_addr = start_rays(farm, &lost, lost_args, "lost");
+  CliResult r = query(lost_addr, {"--tls-ca", pki.ca.string()});
+  EXPECT_EQ(r.code, 1) << r.output << lost->log();
+  EXPECT_FALSE(fs::exists(farm.dir() / "o.csv"));
+  // Clients: the right CA answers, plaintext and another CA do not.
+  r = query(addr, {"--tls-ca", pki.ca.string()});
+  ASSERT_EQ(r.code, 0) << r.output << rays->log();
+  EXPECT_EQ(read_text(farm.dir() / "o.csv").substr(read_text(farm.dir() / "o.csv").find('\n') + 1, 4), "1,8,");
+  r = query(addr, {});
+  EXPECT_EQ(r.code, 1) << "plaintext to TLS servers answered: " << r.output;
+  r = query(addr, {"--tls-ca", pki.other_ca.string()});
+  EXPECT_EQ(r.code, 1) << "a server certificate from another CA was trusted: " << r.output;
+  EXPECT_FALSE(fs::exists(farm.dir() / "o.csv"));
+  EXPECT_TRUE(rays->running());
+  EXPECT_TRUE(lost->running());
 }
 
 TEST(RaysPython, ExampleClientFromTheProtoAlone) {

@@ -1,0 +1,218 @@
+// Blender's Cycles as a peer on a glTF scene (issue 17): compares Cycles' render of a .glb
+// (bench/cycles/cycles_render.py, run by bench/run_all.sh: Whitted-like transport, linear EXR)
+// with Tessera's render of the same file at the same size and samples per pixel, in this
+// process: RMSE in linear light of each against a high-spp Tessera reference, of the two against
+// each other, mean level ratio, and samples per second (wall and CPU) of each.
+//
+// Where the two models disagree is masked, and the mask's share is reported: pixels whose camera
+// ray meets glass (Cycles' Principled glass is not Tessera's two-branch Fresnel glass), and
+// diffuse pixels lit through glass (Cycles blocks shadow rays at glass; Tessera attenuates them).
+// Mirrors that show glass are not masked. Prints JSON on stdout; appends markdown to --markdown.
+// Asserts nothing about time.
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "../bench_host.h"
+#include "image/exr_io.h"
+#include "render/embree_device.h"
+#include "render/tile_renderer.h"
+#include "scene/scene_parser.h"
+
+namespace fs = std::filesystem;
+using namespace tessera;
+using bench::cpu_model;
+
+namespace {
+
+// RMSE over the pixels where mask is 1 (an empty mask: every pixel).
+double rmse(const ImageRGB& a, const ImageRGB& b, const std::vector<uint8_t>& mask = {}) {
+  double s = 0;
+  size_t n = 0;
+  for (size_t p = 0; p < a.rgb.size() / 3; ++p) {
+    if (!mask.empty() && !mask[p]) continue;
+    for (int c = 0; c < 3; ++c) {
+      const double d = double(a.rgb[3 * p + c]) - double(b.rgb[3 * p + c]);
+      s += d * d;
+    }
+    n += 3;
+  }
+  return n ? std::sqrt(s / double(n)) : 0.0;
+}
+
+double mean(const ImageRGB& a, const std::vector<uint8_t>& mask) {
+  double s = 0;
+  size_t n = 0;
+  for (size_t p = 0; p < a.rgb.size() / 3; ++p) {
+    if (!mask[p]) continue;
+    s += double(a.rgb[3 * p]) + a.rgb[3 * p + 1] + a.rgb[3 * p + 2];
+    n += 3;
+  }
+  return n ? s / double(n) : 0.0;
+}
+
+// 1 where the two renderers' models agree (see the file comment), from each pixel's centre ray.
+std::vector<uint8_t> agreement_mask(const RenderScene& rs) {
+  const ImageSettings& img = rs.image();
+  const auto& cam = rs.camera();
+  std::vector<uint8_t> mask(size_t(img.width) * img.height, 1);
+  for (int y = 0; y < img.height; ++y) {
+    for (int x = 0; x < img.width; ++x) {
+      const Vec3f d = normalize(cam.p0 + cam.du * ((x + 0.5f) / img.width) + cam.dv * ((y + 0.5f) / img.height));
+      Hit h;
+      if (!rs.intersect(Ray{Vec3f(0.0f), d}, PrimRef{}, &h)) continue;
+      const Material& m = rs.material(h.material);
+      uint8_t& keep = mask[size_t(y) * img.width + x];
+      if (m.type == Material::Type::kGlass) {
+        keep = 0;
+        continue;
+      }
+      if (m.type != Material::Type::kDiffuse) continue;
+      const Vec3f n = dot(d, h.n) < 0 ? h.n : -h.n;
+      // Lit through glass: the shadow ray's first surface is glass and the light still arrives.
+      auto through_glass = [&](const Vec3f& w, float dist) {
+        if (!(dot(n, w) > 0)) return false;
+        const Ray r{offset_ray_origin(h.p, h.p_err, n, w), w, dist};
+        Hit g;
+        if (!rs.intersect(r, h.prim, &g) || rs.material(g.material).type != Material::Type::kGlass) return false;
+        const Rgb T = rs.transmittance(r, h.prim);
+        return T.x > 0 || T.y > 0 || T.z > 0;
+      };
+      for (const auto& l : rs.point_lights()) keep &= !through_glass(normalize(l.position - h.p), length(l.position - h.p));
+      for (const auto& l : rs.spot_lights()) keep &= !through_glass(normalize(l.position - h.p), length(l.position - h.p));
+      for (const auto& l : rs.directional_lights()) keep &= !through_glass(-l.direction, INFINITY);
+    }
+  }
+  return mask;
+}
+
+struct Run {
+  double wall = 0, cpu = 0;
+  ImageRGB image;
+};
+
+Run render(const Scene& base, int spp, int threads) {
+  Scene s = base;
+  s.image.spp = spp;
+  RenderScene rs(s, 0);
+  const double c0 = bench::process_cpu_seconds();
+  FrameResult r = render_frame(rs, 32, threads);
+  return {r.seconds, bench::process_cpu_seconds() - c0, std::move(r.image)};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Tessera against Blender's Cycles on a glTF scene"};
+  std::string scene_path, cycles_exr, cycles_ref_exr, markdown;
+  int width = 192, height = 108, threads = 0, spp = 16, ref_spp = 1024, max_depth = 8;
+  double cycles_wall = 0, cycles_cpu = 0;
+  app.add_option("--scene", scene_path, "The .glb both render")->required()->check(CLI::ExistingFile);
+  app.add_option("--cycles-exr", cycles_exr, "Cycles' linear EXR (cycles_render.py)")->required()->check(CLI::ExistingFile);
+  app.add_option("--cycles-wall", cycles_wall, "Cycles' render time, wall seconds (its CYCLES_RESULT line)")->required();
+  app.add_option("--cycles-cpu", cycles_cpu, "Cycles' render CPU-seconds")->required();
+  app.add_option("--cycles-reference-exr", cycles_ref_exr,
+                 "Optional: Cycles at --ref-spp; then the two references' RMSE measures where the models differ, "
+                 "noise apart")->check(CLI::ExistingFile);
+  app.add_option("--spp", spp, "Samples per pixel of both renders");
+  app.add_option("--ref-spp", ref_spp, "Samples per pixel of the Tessera reference");
+  app.add_option("--max-depth", max_depth, "Tessera's max_depth (Cycles' glossy/transmission bounces)");
+  app.add_option("--width", width);
+  app.add_option("--height", height);
+  app.add_option("--threads", threads, "Tessera threads (give Cycles the same)");
+  app.add_option("--markdown", markdown);
+  CLI11_PARSE(app, argc, argv);
+  spdlog::set_level(spdlog::level::err);
+
+  Scene scene = load_scene(scene_path);
+  ImageOverrides o;
+  o.width = width;
+  o.height = height;
+  o.max_depth = max_depth;
+  o.spp = spp;
+  apply_overrides(scene, o);
+  const ImageRGB cycles = read_exr(cycles_exr);
+  if (cycles.width != width || cycles.height != height) {
+    std::cerr << "cycles_compare: Cycles' image is " << cycles.width << "x" << cycles.height << ", expected " << width
+              << "x" << height << "\n";
+    return 2;
+  }
+  const Run ref = render(scene, ref_spp, threads);
+  const Run same = render(scene, spp, threads);
+  const std::vector<uint8_t> mask = agreement_mask(RenderScene(scene, 0));
+  size_t kept = 0;
+  for (uint8_t m : mask) kept += m;
+  const double px = double(width) * height;
+  const double t_sps_wall = px * spp / same.wall, t_sps_cpu = px * spp / same.cpu;
+  const double c_sps_wall = px * spp / cycles_wall, c_sps_cpu = px * spp / cycles_cpu;
+  nlohmann::json out = {
+      {"scene", fs::path(scene_path).filename().string()},
+      {"width", width},
+      {"height", height},
+      {"spp", spp},
+      {"max_depth", max_depth},
+      {"threads", threads},
+      {"cpu", cpu_model()},
+      {"renderer", embree_isa()},
+      {"reference_spp", ref_spp},
+      {"agreement_mask_fraction", double(kept) / px},
+      {"cycles", {{"wall_s", cycles_wall}, {"cpu_s", cycles_cpu}, {"samples_per_s_wall", c_sps_wall},
+                  {"samples_per_s_cpu", c_sps_cpu}, {"rmse_vs_reference", rmse(cycles, ref.image)},
+                  {"rmse_vs_reference_masked", rmse(cycles, ref.image, mask)},
+                  {"mean_ratio_to_reference_masked", mean(cycles, mask) / mean(ref.image, mask)}}},
+      {"tessera", {{"wall_s", same.wall}, {"cpu_s", same.cpu}, {"samples_per_s_wall", t_sps_wall},
+                   {"samples_per_s_cpu", t_sps_cpu}, {"rmse_vs_reference", rmse(same.image, ref.image)},
+                   {"rmse_vs_reference_masked", rmse(same.image, ref.image, mask)}}},
+      {"rmse_cycles_vs_tessera", rmse(cycles, same.image)},
+      {"rmse_cycles_vs_tessera_masked", rmse(cycles, same.image, mask)},
+      {"throughput_ratio_wall", t_sps_wall / c_sps_wall},
+      {"throughput_ratio_cpu", t_sps_cpu / c_sps_cpu}};
+  if (!cycles_ref_exr.empty()) {
+    const ImageRGB cref = read_exr(cycles_ref_exr);
+    if (cref.width != width || cref.height != height) {
+      std::cerr << "cycles_compare: Cycles' reference is " << cref.width << "x" << cref.height << "\n";
+      return 2;
+    }
+    out["references"] = {{"rmse", rmse(cref, ref.image)}, {"rmse_masked", rmse(cref, ref.image, mask)},
+                         {"mean_ratio_masked", mean(cref, mask) / mean(ref.image, mask)}};
+  }
+  std::cout << out.dump(2) << "\n";
+  if (!markdown.empty()) {
+    std::ofstream md(markdown, std::ios::app);
+    char buf[1024];
+    md << "| | spp | wall s | CPU s | samples/s (wall) | samples/s (CPU) | RMSE vs reference | RMSE vs reference, masked |\n"
+          "|---|---:|---:|---:|---:|---:|---:|---:|\n";
+    std::snprintf(buf, sizeof buf, "| Cycles (Blender 3.4) | %d | %.3f | %.3f | %.3g | %.3g | %.4g | %.4g |\n", spp,
+                  cycles_wall, cycles_cpu, c_sps_wall, c_sps_cpu, rmse(cycles, ref.image), rmse(cycles, ref.image, mask));
+    md << buf;
+    std::snprintf(buf, sizeof buf, "| Tessera | %d | %.3f | %.3f | %.3g | %.3g | %.4g | %.4g |\n", spp, same.wall,
+                  same.cpu, t_sps_wall, t_sps_cpu, rmse(same.image, ref.image), rmse(same.image, ref.image, mask));
+    md << buf;
+    std::snprintf(buf, sizeof buf,
+                  "\nReference: Tessera at %d spp. Mask (models agree): %.1f%% of the pixels. Cycles' mean level / the "
+                  "reference's, masked: %.3f. RMSE between the two at %d spp: %.4g (masked %.4g). Throughput Tessera / "
+                  "Cycles: %.2fx wall, %.2fx CPU. CPU: %s; %s.\n",
+                  ref_spp, 100.0 * double(kept) / px, mean(cycles, mask) / mean(ref.image, mask), spp,
+                  rmse(cycles, same.image), rmse(cycles, same.image, mask), t_sps_wall / c_sps_wall, t_sps_cpu / c_sps_cpu,
+                  cpu_model().c_str(), embree_isa().c_str());
+    md << buf;
+    if (out.contains("references")) {
+      std::snprintf(buf, sizeof buf,
+                    "Both at %d spp (where the models differ, noise apart): RMSE %.4g, masked %.4g; Cycles' mean level / "
+                    "Tessera's, masked: %.3f.\n",
+                    ref_spp, out["references"]["rmse"].get<double>(), out["references"]["rmse_masked"].get<double>(),
+                    out["references"]["mean_ratio_masked"].get<double>());
+      md << buf;
+    }
+  }
+  return 0;
+}
