@@ -103,6 +103,10 @@ int main(int argc, char** argv) {
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
   raise_descriptor_limit();
 
+  // A peer that closes its connection while the HTTP side (cpp-httplib, OpenSSL) writes to it must
+  // cost an error on that one connection, not the process: neither library asks the kernel not to
+  // raise SIGPIPE on every write (gRPC does), so ignore it for the whole process.
+  signal(SIGPIPE, SIG_IGN);
   // Signals are taken by one thread with sigwait: block them before any thread starts.
   sigset_t sigs;
   sigemptyset(&sigs);
