@@ -113,10 +113,13 @@ struct Secondary {
   float R = 0;  // glass: Fresnel reflectance
 };
 
-Secondary plan_secondary(const Context& c, const Ray& ray, const Hit& hit, int depth) {
-  Secondary out;
+// Writes into *out (rather than returning a Secondary, two rays large) so that a diffuse hit, the
+// common case, costs two flag stores.
+void plan_secondary(const Context& c, const Ray& ray, const Hit& hit, int depth, Secondary* sec) {
+  Secondary& out = *sec;
+  out.reflect = out.refract = false;
   const Material& m = c.scene.material(hit.material);
-  if (m.type == Material::Type::kDiffuse || depth >= c.scene.image().max_depth) return out;
+  if (m.type == Material::Type::kDiffuse || depth >= c.scene.image().max_depth) return;
   // The normal says which side is outside; shading happens on the side the ray came from.
   const bool front = dot(ray.d, hit.n) < 0.0f;
   const Vec3f n_facing = front ? hit.n : -hit.n;
@@ -127,7 +130,7 @@ Secondary plan_secondary(const Context& c, const Ray& ray, const Hit& hit, int d
     if (hit.smooth) w = keep_side(w, n_facing, true, normalize(reflect(ray.d, n_facing)));
     out.reflect = true;
     out.reflected = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
-    return out;
+    return;
   }
   // Glass. Outside is vacuum/air (index 1).
   const float eta_i = front ? 1.0f : float(m.ior), eta_t = front ? float(m.ior) : 1.0f;
@@ -146,7 +149,6 @@ Secondary plan_secondary(const Context& c, const Ray& ray, const Hit& hit, int d
     out.refract = true;
     out.refracted = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
   }
-  return out;
 }
 
 // Radiance leaving `hit` back along `ray`, from the hit's direct lighting (diffuse; before
@@ -182,7 +184,8 @@ Rgb radiance(const Context& c, const Ray& ray, const PrimRef& from, int depth, u
   const bool diffuse = c.scene.material(hit.material).type == Material::Type::kDiffuse;
   const Vec3f n_facing = dot(ray.d, hit.n) < 0.0f ? hit.n : -hit.n;
   const Rgb direct = diffuse ? direct_sum(c, hit, n_facing, node) : Rgb(0.0f);
-  const Secondary sec = plan_secondary(c, ray, hit, depth);
+  Secondary sec;
+  plan_secondary(c, ray, hit, depth, &sec);
   Rgb reflected(0.0f), refracted(0.0f);
   if (sec.reflect) {
     ++c.counts->secondary;
@@ -296,13 +299,7 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
     int m = 0;
     for (int i = 0; i < n; ++i) {
       if (!found[i]) continue;
-      if (k == 0) {
-        if (scene.material(hits[i].material).type == Material::Type::kDiffuse) {
-          sec[i].reflect = sec[i].refract = false;  // what plan_secondary says, without building it
-          continue;
-        }
-        sec[i] = plan_secondary({scene, *samplers[i], counts}, rays[i], hits[i], depth);
-      }
+      if (k == 0) plan_secondary({scene, *samplers[i], counts}, rays[i], hits[i], depth, &sec[i]);
       if (!(k == 0 ? sec[i].reflect : sec[i].refract)) continue;
       r[m] = k == 0 ? sec[i].reflected : sec[i].refracted;
       f[m] = hits[i].prim;

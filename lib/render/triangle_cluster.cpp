@@ -38,9 +38,8 @@ void* create_leaf(RTCThreadLocalAllocator alloc, const RTCBuildPrimitive* prims,
 
 std::vector<TriangleCluster> build_triangle_clusters(const Vec3f* positions, size_t count) {
   constexpr int K = TriangleCluster::kSize;
+  // Capacity = count: the builder needs spare capacity only for spatial splits, and none are asked for.
   std::vector<RTCBuildPrimitive> prims(count);
-  // The builder needs spare capacity for spatial splits only; none are asked for.
-  prims.reserve(count);
   for (size_t i = 0; i < count; ++i) {
     const Vec3f* v = positions + 3 * i;
     const Vec3f lo = vmin(v[0], vmin(v[1], v[2])), hi = vmax(v[0], vmax(v[1], v[2]));
