@@ -208,6 +208,11 @@ int main(int argc, char** argv) {
   app.add_option("--reps", reps, "Best of this many runs")->check(CLI::Range(1, 100));
   app.add_option("--scenes", scenes, "bunny, armadillo")->delimiter(',');
   app.add_option("--markdown", markdown, "Append a markdown table to this file");
+  std::string profile;
+  double profile_seconds = 5;
+  app.add_option("--profile", profile,
+                 "Only run this for --profile-seconds, for a profiler: in-process, bare, occlusion (incoherent rays of the first scene)");
+  app.add_option("--profile-seconds", profile_seconds)->check(CLI::Range(0.1, 600.0));
   CLI11_PARSE(app, argc, argv);
   if (smoke) {
     reps = 1;
@@ -260,6 +265,29 @@ int main(int argc, char** argv) {
     auto stub = v1::RayService::NewStub(
         grpc::CreateCustomChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials(), args));
 
+    if (!profile.empty() && profile != "grpc") {
+      const std::vector<WorldRay> rays = incoherent_rays(*scene, size_t(side) * size_t(side));
+      const auto t0 = Clock::now();
+      size_t loops = 0;
+      while (seconds_since(t0) < profile_seconds) {
+        if (profile == "bare") bare_embree(*scene, *rs, rays);
+        else in_process(*tracer, rays, rays.size(), profile == "occlusion");
+        ++loops;
+      }
+      std::printf("%s: %.1f Mrays/s\n", profile.c_str(), double(loops * rays.size()) / seconds_since(t0) / 1e6);
+      return 0;
+    }
+    if (profile == "grpc") {
+      const std::vector<WorldRay> rays = incoherent_rays(*scene, size_t(side) * size_t(side));
+      const auto t0 = Clock::now();
+      size_t loops = 0;
+      while (seconds_since(t0) < profile_seconds) {
+        grpc_stream(*stub, rays, 4096);
+        ++loops;
+      }
+      std::printf("grpc: %.1f Mrays/s\n", double(loops * rays.size()) / seconds_since(t0) / 1e6);
+      return 0;
+    }
     nlohmann::json js;
     js["triangles"] = rs->triangle_count();
     for (const bool coherent : {true, false}) {

@@ -15,7 +15,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // The unit direction, in double. One that is unit length to within 2^-20 already is kept as
 // given, so a float direction passes to the renderer bit for bit (its own camera rays are
 // normalized floats: replaying one must give the renderer's exact hit).
-Vec3d unit_direction(const Vec3d& d) {
+[[gnu::always_inline]] inline Vec3d unit_direction(const Vec3d& d) {
   if (std::abs(length(d) - 1.0) <= 0x1p-20) return d;
   const Vec3d s = d / max_component(abs(d));  // scaled first: |d| of 1e-300 or 1e300 is fine
   return s / length(s);
@@ -83,12 +83,12 @@ bool RayTracer::trace(const WorldRay& w, WorldHit* out) const {
   const RenderScene& rs = *frame_;
   const Query q = query(w);
   Hit h;
-  double shift = q.shift;
-  bool found = q.has_before && rs.intersect(q.before, PrimRef{}, &h);
-  if (!found) {
-    shift = q.after_shift;
-    if (!rs.intersect(q.after, PrimRef{}, &h)) return false;
-  }
+  if (q.has_before && rs.intersect(q.before, PrimRef{}, &h)) return to_world(h, q.shift, Vec3f(q.dd), out);
+  return rs.intersect(q.after, PrimRef{}, &h) && to_world(h, q.after_shift, Vec3f(q.dd), out);
+}
+
+bool RayTracer::to_world(const Hit& h, double shift, const Vec3f& d, WorldHit* out) const {
+  const RenderScene& rs = *frame_;
   // The same for a surface point beyond float range (render space is float): no hit to report.
   if (!std::isfinite(h.t) || !is_finite(h.p)) return false;
   // t: exact when nothing moved (shift 0), else the moved start's distance added in double.
@@ -97,7 +97,6 @@ bool RayTracer::trace(const WorldRay& w, WorldHit* out) const {
   out->n = h.n;
   // The integrator shades with the normal turned towards the side the ray came from
   // (integrator.cpp: front = dot(d, n) < 0): the geometric one, or a mesh's interpolated one.
-  const Vec3f d(q.dd);
   const Vec3f n_facing = dot(d, h.n) < 0.0f ? h.n : -h.n;
   out->ns = h.smooth ? facing(h.ns, h.n, n_facing) : n_facing;
   out->u = h.u;
@@ -118,10 +117,43 @@ bool RayTracer::blocked(const WorldRay& w) const {
 }
 
 void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
-  for (size_t i = 0; i < n; ++i) {
-    // trace() writes every field of a hit, and nothing of a miss.
-    if (trace(rays[i], &hits[i])) hits[i].hit = true;
-    else hits[i] = WorldHit{};
+  // Rays go to RenderScene::intersect_each in groups (it overlaps their latencies; each answer is
+  // still intersect()'s for that ray alone); a far ray, which needs two queries, goes alone.
+  constexpr size_t kGroup = 64;
+  Ray rs_rays[kGroup];
+  Hit rs_hits[kGroup];
+  bool found[kGroup];
+  size_t index[kGroup];
+  double shift[kGroup];
+  for (size_t base = 0; base < n; base += kGroup) {
+    const size_t end = std::min(n, base + kGroup);
+    size_t m = 0;
+    const RenderScene& rs = *frame_;
+    const double R = double(rs.bounds_radius());
+    for (size_t i = base; i < end; ++i) {
+      // query()'s common case, written straight into the arrays (through a Query, the copies
+      // stalled on store forwarding): a ray that does not start far away.
+      const WorldRay& w = rays[i];
+      const Vec3d dd = unit_direction(w.d);
+      const double s = double(w.tmin);
+      const Vec3d start = (w.o - rs.origin()) + dd * s;
+      if (R > 0.0 && max_component(abs(start)) > 16.0 * R) {  // far: query() decides, trace() answers
+        if (trace(w, &hits[i])) hits[i].hit = true;
+        else hits[i] = WorldHit{};
+        continue;
+      }
+      const double tmax = std::min(double(w.tmax), double(std::numeric_limits<float>::max()));
+      rs_rays[m] = {Vec3f(start), Vec3f(dd), float(tmax - s)};
+      shift[m] = s;
+      index[m++] = i;
+    }
+    frame_->intersect_each(rs_rays, m, rs_hits, found);
+    for (size_t j = 0; j < m; ++j) {
+      // to_world() writes every field of a hit, and nothing of a miss.
+      WorldHit& out = hits[index[j]];
+      if (found[j] && to_world(rs_hits[j], shift[j], rs_rays[j].d, &out)) out.hit = true;
+      else out = WorldHit{};
+    }
   }
 }
 

@@ -18,8 +18,8 @@ class RayTracer {
   // `frame` must have been built from `scene`.
   RayTracer(std::shared_ptr<const Scene> scene, std::shared_ptr<const RenderScene> frame);
 
-  // Both trace n rays that passed check_ray() (not checked again here) one by one, so a ray's
-  // answer depends on that ray alone, never on the batch around it. Const and thread-safe: any
+  // Both trace n rays that passed check_ray() (not checked again here), each with its own
+  // Embree query, so a ray's answer depends on that ray alone, never on the batch around it. Const and thread-safe: any
   // number of threads may trace at once.
   void nearest(const WorldRay* rays, size_t n, WorldHit* hits) const;
   // Sets only hits[i].hit: whether any surface lies in (tmin, tmax], by an any-hit traversal
@@ -42,6 +42,8 @@ class RayTracer {
   };
   Query query(const WorldRay& ray) const;
   bool trace(const WorldRay& ray, WorldHit* hit) const;
+  // The world-space answer for a render-space hit on a ray that started `shift` along the query.
+  bool to_world(const Hit& h, double shift, const Vec3f& d, WorldHit* out) const;
   bool blocked(const WorldRay& ray) const;
 
   std::shared_ptr<const Scene> scene_;

@@ -548,6 +548,76 @@ bool RenderScene::intersect(const Ray& ray, const PrimRef& from, Hit* hit) const
   return finish_hit(o, d, plane, tp, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, t, hit);
 }
 
+void RenderScene::intersect_each(const Ray* rays, size_t n, Hit* hits, bool* found) const {
+  // intersect()'s steps, each over a group of rays before the next: the planes, the Embree
+  // query, the hit. Ray by ray, the long-latency chains around each Embree call (the planes'
+  // double division, the hit's square root, the vertex loads) ran one after another, and
+  // passing each step's result through small structs stalled on store forwarding; in phases over
+  // plain arrays the CPU overlaps them across rays. Every value is computed by the same
+  // operations in the same order as intersect(), so each answer is bit for bit intersect()'s
+  // (RenderSceneTest.IntersectEachIsIntersect).
+  constexpr size_t kGroup = 32;
+  alignas(64) RTCRayHit rh[kGroup];
+  double tp[kGroup], t0[kGroup];
+  int plane[kGroup];
+  RayLog* log = thread_ray_log();
+  TraceContext ctx;  // read-only during a query: one serves the group
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.scene = this;
+  for (size_t base = 0; base < n; base += kGroup) {
+    const Ray* r = rays + base;
+    const size_t m = std::min(kGroup, n - base);
+    // nearest_plane(), plane by plane over the rays: the same comparisons in the same order.
+    for (size_t i = 0; i < m; ++i) {
+      tp[i] = double(r[i].tmax);
+      plane[i] = -1;
+    }
+    for (size_t k = 0; k < planes_.size(); ++k) {
+      const Plane& pl = planes_[k];
+      for (size_t i = 0; i < m; ++i) {
+        const double t = intersect_plane(Vec3d(r[i].o), Vec3d(r[i].d), pl.point, pl.normal);
+        if (t > 0.0 && t < tp[i]) {
+          tp[i] = t;
+          plane[i] = int(k);
+        }
+      }
+    }
+    for (size_t i = 0; i < m; ++i) {
+      // embree_ray(), written straight into the Embree ray (through a Ray, the copies stalled).
+      const float tmax = plane[i] >= 0 ? float(tp[i]) : r[i].tmax;
+      if (max_component(abs(r[i].o)) <= 16.0f * bounds_radius_) {
+        t0[i] = 0.0;
+        rh[i] = make_rayhit(r[i], 0.0f, tmax, 0xFFFFFFFFu);
+      } else {
+        const Ray in{r[i].o, r[i].d, tmax};
+        Ray er = in;  // embree_ray_from_far() moves o and shortens tmax
+        t0[i] = embree_ray_from_far(in, &er);
+        rh[i] = make_rayhit(er, 0.0f, er.tmax, 0xFFFFFFFFu);
+      }
+      if (log) log->rays.push_back({rh[i].ray, PrimRef{}, LoggedRay::Kind::kCamera});
+    }
+    for (size_t i = 0; i < m; ++i) {
+      if (t0[i] >= 0.0) rtcIntersect1(rtc_scene_.get(), &ctx.rtc, &rh[i]);
+    }
+    // The hit triangles' records are cache misses on a large mesh: ask for all of them now, so
+    // they arrive together while the first hits are finished.
+    for (size_t i = 0; i < m; ++i) {
+      for (const TriangleBucket& b : triangles_) {
+        if (rh[i].hit.geomID != b.geom_id) continue;
+        const uint32_t pid = rh[i].hit.primID;
+        __builtin_prefetch(&b.material_ids[pid]);
+        __builtin_prefetch(&b.sources[pid]);
+        if (!b.normals.empty()) __builtin_prefetch(&b.normals[9 * size_t(pid)]);
+      }
+    }
+    for (size_t i = 0; i < m; ++i) {
+      const float t = t0[i] > 0.0 ? float(t0[i] + double(rh[i].ray.tfar)) : rh[i].ray.tfar;
+      found[base + i] = finish_hit(Vec3d(r[i].o), Vec3d(r[i].d), plane[i], tp[i], rh[i].hit.geomID, rh[i].hit.primID,
+                                   rh[i].hit.u, rh[i].hit.v, t, &hits[base + i]);
+    }
+  }
+}
+
 bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double tp, uint32_t g, uint32_t prim_id,
                              float hit_u, float hit_v, float tfar, Hit* hit) const {
   hit->smooth = false;  // set for triangles with vertex normals below
@@ -557,8 +627,10 @@ bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double t
       if (g == triangles_[k].geom_id) {
         const TriangleBucket& b = triangles_[k];
         const uint32_t pid = prim_id;
-        const Vec3f v0 = b.positions[b.indices[3 * pid]], v1 = b.positions[b.indices[3 * pid + 1]],
-                    v2 = b.positions[b.indices[3 * pid + 2]];
+        // Buckets store 3 unshared vertices per triangle (indices[3 pid + k] == 3 pid + k, for
+        // Embree's own triangles): read them without the dependent load of the index.
+        const Vec3f v0 = b.positions[3 * size_t(pid)], v1 = b.positions[3 * size_t(pid) + 1],
+                    v2 = b.positions[3 * size_t(pid) + 2];
         const float u = hit_u, v = hit_v, w = 1.0f - u - v;
         // Interpolating the vertices (not o + t d) bounds the error by the vertices' magnitude.
         hit->p = v0 * w + v1 * u + v2 * v;

@@ -75,6 +75,10 @@ class RenderScene {
 
   // Nearest hit along the ray in (0, ray.tmax]; `from` is the primitive the ray leaves.
   bool intersect(const Ray& ray, const PrimRef& from, Hit* hit) const;
+  // intersect(rays[i], PrimRef{}, &hits[i]) for every i, bit for bit: one Embree query per ray
+  // (so an answer never depends on the batch), in phases over groups of rays (faster: the .cpp
+  // says why). For queries from no surface: the ray service's.
+  void intersect_each(const Ray* rays, size_t n, Hit* hits, bool* found) const;
   // The same for n <= kPacket rays at once, traced as one Embree packet (render_scene_packet.cpp).
   // A lane's result depends only on its own ray, except that exact ties between two primitives
   // at the same t may resolve by the packet's traversal order: callers must form packets as a

@@ -2,7 +2,10 @@
 // a lane's result against the packet it is in: it must not depend on its lane or companions.
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
+#include <limits>
+#include <memory>
 #include <string>
 #include <tuple>
 
@@ -113,6 +116,60 @@ TEST_P(PacketTest, PacketTransmittanceMatchesSingleRays) {
     }
   }
   EXPECT_GT(blocked + open, 50);
+}
+
+// Every field of two hits, bit for bit (so -0 and +0 differ; padding is not compared).
+void expect_identical_hit(bool found_a, const Hit& a, bool found_b, const Hit& b, const std::string& what) {
+  ASSERT_EQ(found_a, found_b) << what;
+  if (!found_a) return;
+  auto bits = [](const Vec3f& v) { return std::tuple(std::bit_cast<uint32_t>(v.x), std::bit_cast<uint32_t>(v.y), std::bit_cast<uint32_t>(v.z)); };
+  EXPECT_EQ(std::bit_cast<uint32_t>(a.t), std::bit_cast<uint32_t>(b.t)) << what;
+  EXPECT_EQ(bits(a.p), bits(b.p)) << what;
+  EXPECT_EQ(bits(a.p_err), bits(b.p_err)) << what;
+  EXPECT_EQ(bits(a.n), bits(b.n)) << what;
+  EXPECT_EQ(a.material, b.material) << what;
+  EXPECT_EQ(a.prim, b.prim) << what;
+  EXPECT_EQ(std::tuple(std::bit_cast<uint32_t>(a.u), std::bit_cast<uint32_t>(a.v), std::bit_cast<uint32_t>(a.tex_u),
+                       std::bit_cast<uint32_t>(a.tex_v)),
+            std::tuple(std::bit_cast<uint32_t>(b.u), std::bit_cast<uint32_t>(b.v), std::bit_cast<uint32_t>(b.tex_u),
+                       std::bit_cast<uint32_t>(b.tex_v)))
+      << what;
+  ASSERT_EQ(a.smooth, b.smooth) << what;
+  if (a.smooth) EXPECT_EQ(bits(a.ns), bits(b.ns)) << what;
+}
+
+// intersect_each() reorders intersect()'s work over a batch: every answer must still be
+// intersect()'s, bit for bit, whatever the batch size or the ray's place in it. Camera rays,
+// rays from inside and around the scene in every direction (planes hit from both sides and
+// missed), short t_max, and rays starting far outside (embree_ray_from_far).
+TEST_P(PacketTest, IntersectEachIsIntersectBitForBit) {
+  const RenderScene rs(scene(), 0, options());
+  std::vector<Ray> rays = camera_rays(rs, 300);
+  const float R = rs.bounds_radius();
+  for (int i = 0; i < 300; ++i) {
+    const uint64_t h = mix64(uint64_t(i) + 777), g = mix64(h);
+    auto unit = [](uint64_t x, int k) { return 2.0f * to_unit_float(uint32_t(x >> (16 * k))) - 1.0f; };
+    const float scale = i % 3 == 0 ? 40.0f * R : 1.5f * R;  // a third start beyond 16 R: far rays
+    const Vec3f o(unit(h, 0) * scale, unit(h, 1) * scale, unit(h, 2) * scale);
+    const Vec3f target(unit(g, 0) * 0.5f * R, unit(g, 1) * 0.5f * R, unit(g, 2) * 0.5f * R);
+    const float tmax = i % 4 == 0 ? 0.7f * length(target - o) : std::numeric_limits<float>::infinity();
+    rays.push_back({o, normalize(target - o), tmax});
+  }
+  for (const size_t batch : {size_t(1), size_t(7), size_t(32), size_t(45), rays.size()}) {
+    std::vector<Hit> each(rays.size());
+    std::unique_ptr<bool[]> found(new bool[rays.size()]);
+    for (size_t b = 0; b < rays.size(); b += batch) {
+      rs.intersect_each(&rays[b], std::min(batch, rays.size() - b), &each[b], &found[b]);
+    }
+    int hits = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      Hit single;
+      const bool f = rs.intersect(rays[i], PrimRef{}, &single);
+      hits += f;
+      expect_identical_hit(f, single, found[i], each[i], "ray " + std::to_string(i) + ", batch " + std::to_string(batch));
+    }
+    EXPECT_GT(hits, 200);
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Showcase, PacketTest,
