@@ -15,10 +15,19 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // The unit direction, in double. One that is unit length to within 2^-20 already is kept as
 // given, so a float direction passes to the renderer bit for bit (its own camera rays are
 // normalized floats: replaying one must give the renderer's exact hit).
+constexpr double kUnitTolerance = 0x1p-20;
 [[gnu::always_inline]] inline Vec3d unit_direction(const Vec3d& d) {
-  if (std::abs(length(d) - 1.0) <= 0x1p-20) return d;
+  if (std::abs(length(d) - 1.0) <= kUnitTolerance) return d;
   const Vec3d s = d / max_component(abs(d));  // scaled first: |d| of 1e-300 or 1e300 is fine
   return s / length(s);
+}
+
+// max(a, b, c) without branches (std::max's reference result compiles to a compare and jump,
+// mispredicted half the time on random directions); the same value for the non-negative,
+// non-NaN arguments it gets here.
+inline double max3(double a, double b, double c) {
+  const double m = b > a ? b : a;
+  return c > m ? c : m;
 }
 
 // [t_in, t_out] of the ray o + t d inside the cube |x| <= L (max norm), in double; false if it
@@ -97,7 +106,8 @@ bool RayTracer::to_world(const Hit& h, double shift, const Vec3f& d, WorldHit* o
   out->n = h.n;
   // The integrator shades with the normal turned towards the side the ray came from
   // (integrator.cpp: front = dot(d, n) < 0): the geometric one, or a mesh's interpolated one.
-  const Vec3f n_facing = dot(d, h.n) < 0.0f ? h.n : -h.n;
+  // (Multiplied by +-1, exactly -h.n where flipped: a select, not a mispredicted branch.)
+  const Vec3f n_facing = h.n * (dot(d, h.n) < 0.0f ? 1.0f : -1.0f);
   out->ns = h.smooth ? facing(h.ns, h.n, n_facing) : n_facing;
   out->u = h.u;
   out->v = h.v;
@@ -129,15 +139,20 @@ void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
     const size_t end = std::min(n, base + kGroup);
     size_t m = 0;
     const RenderScene& rs = *frame_;
-    const double R = double(rs.bounds_radius());
+    const double far = 16.0 * double(rs.bounds_radius());
+    // The direction's length first, for the whole group: the square roots overlap instead of
+    // each one stalling its ray's chain.
+    double len[kGroup];
+    for (size_t i = base; i < end; ++i) len[i - base] = length(rays[i].d);
     for (size_t i = base; i < end; ++i) {
       // query()'s common case, written straight into the arrays (through a Query, the copies
       // stalled on store forwarding): a ray that does not start far away.
       const WorldRay& w = rays[i];
-      const Vec3d dd = unit_direction(w.d);
+      const Vec3d dd = std::abs(len[i - base] - 1.0) <= kUnitTolerance ? w.d : unit_direction(w.d);
       const double s = double(w.tmin);
       const Vec3d start = (w.o - rs.origin()) + dd * s;
-      if (R > 0.0 && max_component(abs(start)) > 16.0 * R) {  // far: query() decides, trace() answers
+      if (far > 0.0 && max3(std::abs(start.x), std::abs(start.y), std::abs(start.z)) > far) {
+        // Far: query() decides, trace() answers.
         if (trace(w, &hits[i])) hits[i].hit = true;
         else hits[i] = WorldHit{};
         continue;
