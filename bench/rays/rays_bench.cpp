@@ -93,7 +93,7 @@ std::vector<WorldRay> incoherent_rays(const Scene& scene, size_t n) {
 // The same rays as Embree queries: render space, and tfar clipped at the nearest infinite plane
 // (the renderer intersects planes itself and asks Embree only for what lies before them). The
 // preparation is not timed: this is the ceiling a service could approach.
-Rate bare_embree(const Scene& scene, const RenderScene& rs, const std::vector<WorldRay>& world) {
+std::vector<RTCRayHit> embree_rays(const Scene& scene, const RenderScene& rs, const std::vector<WorldRay>& world) {
   std::vector<RTCRayHit> rays(world.size());
   for (size_t i = 0; i < world.size(); ++i) {
     const Vec3f o(world[i].o - rs.origin()), d(world[i].d);
@@ -106,6 +106,11 @@ Rate bare_embree(const Scene& scene, const RenderScene& rs, const std::vector<Wo
     RTCRayHit& rh = rays[i];
     rh.ray = {o.x, o.y, o.z, 0.0f, d.x, d.y, d.z, 0.0f, tfar, 0xFFFFFFFFu, 0, 0};
   }
+  return rays;
+}
+
+// Traces prepared rays (their tfar and hits are overwritten: pass a fresh copy each time).
+Rate bare_embree(const RenderScene& rs, std::vector<RTCRayHit>& rays) {
   RenderScene::TraceContext ctx;
   rtcInitIntersectContext(&ctx.rtc);
   ctx.scene = &rs;
@@ -116,6 +121,11 @@ Rate bare_embree(const Scene& scene, const RenderScene& rs, const std::vector<Wo
     rtcIntersect1(rs.embree_scene(), &ctx.rtc, &rh);
   }
   return watch.rate(double(rays.size()));
+}
+
+Rate bare_embree(const Scene& scene, const RenderScene& rs, const std::vector<WorldRay>& world) {
+  std::vector<RTCRayHit> rays = embree_rays(scene, rs, world);
+  return bare_embree(rs, rays);
 }
 
 Rate in_process(const RayTracer& tracer, const std::vector<WorldRay>& rays, size_t batch, bool occlusion = false) {
@@ -211,7 +221,7 @@ int main(int argc, char** argv) {
   std::string profile;
   double profile_seconds = 5;
   app.add_option("--profile", profile,
-                 "Only run this for --profile-seconds, for a profiler: in-process, bare, occlusion (incoherent rays of the first scene)");
+                 "Only run this for --profile-seconds: in-process, bare, occlusion, grpc (for a profiler: incoherent rays of the first scene), or ratio (in-process against bare Embree, alternated, fastest of each, for every scene)");
   app.add_option("--profile-seconds", profile_seconds)->check(CLI::Range(0.1, 600.0));
   CLI11_PARSE(app, argc, argv);
   if (smoke) {
@@ -265,6 +275,28 @@ int main(int argc, char** argv) {
     auto stub = v1::RayService::NewStub(
         grpc::CreateCustomChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials(), args));
 
+    if (profile == "ratio") {
+      // In-process against bare Embree, alternated many times on the same rays, fastest of each
+      // (short runs, so some land between other processes' bursts on a shared machine).
+      for (const bool coherent : {true, false}) {
+        const std::vector<WorldRay> rays =
+            coherent ? coherent_rays(*rs, side) : incoherent_rays(*scene, size_t(side) * size_t(side));
+        const std::vector<RTCRayHit> prepared = embree_rays(*scene, *rs, rays);
+        std::vector<WorldHit> hits(rays.size());
+        double bare = 0, ip = 0;
+        const auto t0 = Clock::now();
+        while (seconds_since(t0) < profile_seconds) {
+          std::vector<RTCRayHit> work = prepared;
+          bare = std::max(bare, bare_embree(*rs, work).wall);
+          const Stopwatch watch;
+          tracer->nearest(rays.data(), rays.size(), hits.data());
+          ip = std::max(ip, watch.rate(double(rays.size())).wall);
+        }
+        std::printf("%s %s: bare %.2f, in-process %.2f Mrays/s, ratio %.3f\n", name.c_str(),
+                    coherent ? "coherent" : "incoherent", bare / 1e6, ip / 1e6, ip / bare);
+      }
+      continue;
+    }
     if (!profile.empty() && profile != "grpc") {
       const std::vector<WorldRay> rays = incoherent_rays(*scene, size_t(side) * size_t(side));
       const auto t0 = Clock::now();
@@ -354,6 +386,7 @@ int main(int argc, char** argv) {
     out["scenes"][name] = js;
     server->Shutdown();
   }
+  if (profile == "ratio") return 0;
   std::cout << out.dump(2) << "\n";
   if (!markdown.empty()) {
     std::ofstream(markdown, std::ios::app) << "\nrays_bench (Mrays per CPU-second of the whole process, one tracing thread; "
