@@ -83,9 +83,9 @@ void record_hit(const RTCIntersectFunctionNArguments* args, unsigned i, float t,
   RTCHitN_instID(hit, N, i, 0) = args->context->instID[0];
 }
 
-const Vec3f* triangle_vertices(const TriangleGeomData* data, uint32_t prim) {
-  return &data->bucket->positions[3 * size_t(prim)];  // buckets store 3 unshared vertices each
-}
+// Vertex j of the triangle in lane k: the cluster holds the bucket's vertices, the same floats,
+// already in cache during traversal (the bucket's positions array, on a large mesh, is not).
+Vec3f cluster_vertex(const TriangleCluster& c, int j, int k) { return {c.v[j][0][k], c.v[j][1][k], c.v[j][2][k]}; }
 
 // A user primitive is a cluster of up to 8 triangles (render/triangle_cluster.h).
 void cluster_bounds(const RTCBoundsFunctionArguments* args) {
@@ -134,8 +134,8 @@ void cluster_intersect(const RTCIntersectFunctionNArguments* args) {
           std::pair(RTCHitN_geomID(hit, N, i), RTCHitN_primID(hit, N, i)) < std::pair(args->geomID, c.tri[k])) {
         continue;
       }
-      const Vec3f* v = triangle_vertices(data, c.tri[k]);
-      record_hit(args, i, th[k].t, cross(v[1] - v[0], v[2] - v[0]), th[k].u, th[k].v, c.tri[k]);
+      const Vec3f v0 = cluster_vertex(c, 0, k), v1 = cluster_vertex(c, 1, k), v2 = cluster_vertex(c, 2, k);
+      record_hit(args, i, th[k].t, cross(v1 - v0, v2 - v0), th[k].u, th[k].v, c.tri[k]);
     }
   }
 }
@@ -605,6 +605,8 @@ void RenderScene::intersect_each(const Ray* rays, size_t n, Hit* hits, bool* fou
       for (const TriangleBucket& b : triangles_) {
         if (rh[i].hit.geomID != b.geom_id) continue;
         const uint32_t pid = rh[i].hit.primID;
+        __builtin_prefetch(&b.positions[3 * size_t(pid)]);  // 36 bytes: one or two lines
+        __builtin_prefetch(&b.positions[3 * size_t(pid) + 2]);
         __builtin_prefetch(&b.material_ids[pid]);
         __builtin_prefetch(&b.sources[pid]);
         if (!b.normals.empty()) __builtin_prefetch(&b.normals[9 * size_t(pid)]);
