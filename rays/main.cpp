@@ -119,6 +119,14 @@ int main(int argc, char** argv) {
     std::cerr << "tessera-rays: " << e.what() << "\n";
     return 1;
   }
+  if (!no_announce) {
+    try {
+      rays::advertised_address(listen, advertise, 0);  // refuses a wildcard --listen before it is bound
+    } catch (const std::invalid_argument& e) {
+      std::cerr << "tessera-rays: " << e.what() << "\n";
+      return 2;
+    }
+  }
   rays::RayServiceImpl service(scenes->source(), auth, options);
 
   grpc::EnableDefaultHealthCheckService(true);
@@ -136,16 +144,7 @@ int main(int argc, char** argv) {
     std::cerr << "tessera-rays: cannot listen on " << listen << "\n";
     return 1;
   }
-  std::string advertised;
-  if (!no_announce) {
-    try {
-      advertised = rays::advertised_address(listen, advertise, port);
-    } catch (const std::invalid_argument& e) {
-      std::cerr << "tessera-rays: " << e.what() << "\n";
-      server->Shutdown();
-      return 2;
-    }
-  }
+  const std::string advertised = no_announce ? "" : rays::advertised_address(listen, advertise, port);
   const std::string host = listen.substr(0, listen.rfind(':'));
   spdlog::info("{}: bundles from {}, {} threads per batch, at most {} rays per batch, Embree {}", kVersion,
                coordinator, options.threads, options.max_batch_rays, embree_isa());
