@@ -24,12 +24,19 @@ Announcer::~Announcer() {
   }
   cv_.notify_all();
   thread_.join();
+  if (!listed_) return;  // nothing to take back
+  std::chrono::milliseconds deadline = 1s;
+  int expiry_ms = 0;
+  if (const std::string problem = announce_once(&deadline, &expiry_ms, true); !problem.empty()) {
+    spdlog::warn("{}: the coordinator lists this server until it expires", problem);
+  }
 }
 
-std::string Announcer::announce_once(std::chrono::milliseconds* period, int* expiry_ms) {
+std::string Announcer::announce_once(std::chrono::milliseconds* period, int* expiry_ms, bool leaving) {
   v1::RayServerAnnouncement a;
   *a.mutable_server() = describe_();
   a.set_period_ms(int32_t(period_.count()));
+  a.set_leaving(leaving);
   v1::RayServerAnnouncementAck ack;
   grpc::ClientContext ctx;
   // A call that outlives a period would delay the next announcement past the coordinator's patience.
@@ -85,6 +92,7 @@ void Announcer::loop() {
     }
     problem = now;
     lock.lock();
+    listed_ = now.empty();
     cv_.wait_for(lock, wait, [this] { return stopping_; });
   }
 }

@@ -25,14 +25,16 @@ class Announcer {
   // coordinator in messages. The thread starts here and announces at once.
   Announcer(tessera::v1::WorkerService::Stub& stub, std::string coordinator, std::chrono::milliseconds period,
             std::function<tessera::v1::RayServerDescription()> describe);
-  ~Announcer();  // stops the thread (the coordinator then expires this server)
+  // Stops the thread and tells the coordinator this server is leaving (one try, 1 s), so clients
+  // stop picking it at once rather than after the expiry.
+  ~Announcer();
   Announcer(const Announcer&) = delete;
   Announcer& operator=(const Announcer&) = delete;
 
  private:
   void loop();
   // Announces once; on success `*period` becomes the coordinator's. The problem, or "".
-  std::string announce_once(std::chrono::milliseconds* period, int* expiry_ms);
+  std::string announce_once(std::chrono::milliseconds* period, int* expiry_ms, bool leaving = false);
 
   tessera::v1::WorkerService::Stub& stub_;
   std::string coordinator_;
@@ -41,6 +43,7 @@ class Announcer {
   std::mutex mu_;
   std::condition_variable cv_;
   bool stopping_ = false;
+  bool listed_ = false;  // the last announcement was accepted (read after the thread ended)
   std::thread thread_;
 };
 

@@ -50,6 +50,15 @@ Status RayServers::announce(const v1::RayServerAnnouncement& a, const std::strin
   expire_locked(now);
   auto it = std::find_if(entries_.begin(), entries_.end(),
                          [&](const Entry& e) { return e.server.server_id() == s.server_id(); });
+  ack->set_period_ms(int32_t(period.count()));
+  ack->set_expiry_ms(int32_t(expiry.count()));
+  if (a.leaving()) {
+    if (it != entries_.end()) {
+      spdlog::info("ray server {} at {} is shutting down, no longer listed", s.server_id(), it->server.address());
+      entries_.erase(it);
+    }
+    return Status::OK;
+  }
   if (it == entries_.end()) {
     // The same address under a new id: that server restarted on its port; the old entry is stale.
     std::erase_if(entries_, [&](const Entry& e) {
@@ -75,8 +84,6 @@ Status RayServers::announce(const v1::RayServerAnnouncement& a, const std::strin
     it->last = now;
     it->expiry = expiry;
   }
-  ack->set_period_ms(int32_t(period.count()));
-  ack->set_expiry_ms(int32_t(expiry.count()));
   return Status::OK;
 }
 

@@ -45,7 +45,8 @@ class RayServers {
   // Records an announcement from `peer`; the ack says when to announce again and when the server
   // expires. INVALID_ARGUMENT for a missing id or an address that is not HOST:PORT,
   // RESOURCE_EXHAUSTED when max_servers are listed and this is a new one. A new server id at an
-  // address already listed replaces the old entry (the server restarted on the same port).
+  // address already listed replaces the old entry (the server restarted on the same port). A
+  // `leaving` announcement removes the server at once (it is shutting down).
   grpc::Status announce(const tessera::v1::RayServerAnnouncement& a, const std::string& peer,
                         tessera::v1::RayServerAnnouncementAck* ack);
   // The servers not expired, in the order they first announced.

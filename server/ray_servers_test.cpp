@@ -1,6 +1,6 @@
 // The ray server registry with a clock the test moves: listing, expiry after 3 periods of
 // silence (not before), renewal by a later announcement, the period bounds, a restart on the same
-// address, and refused announcements.
+// address, a server leaving, and refused announcements.
 #include "ray_servers.h"
 
 #include <gtest/gtest.h>
@@ -90,6 +90,21 @@ TEST(RayServers, NewIdAtTheSameAddressReplacesTheOldEntry) {
   // The same id at a new address moves (a server re-advertised).
   ASSERT_TRUE(r.announce("new", "h:7881").ok());
   EXPECT_EQ(r.addresses(), (std::vector<std::string>{"h:7880", "h:7881"}));
+}
+
+TEST(RayServers, LeavingServerIsDroppedAtOnce) {
+  Registry r;
+  ASSERT_TRUE(r.announce("a", "h:1").ok());
+  ASSERT_TRUE(r.announce("b", "h:2").ok());
+  v1::RayServerAnnouncement bye;
+  bye.mutable_server()->set_server_id("a");
+  bye.mutable_server()->set_address("h:1");
+  bye.set_leaving(true);
+  v1::RayServerAnnouncementAck ack;
+  ASSERT_TRUE(r.servers.announce(bye, "p", &ack).ok());
+  EXPECT_EQ(r.addresses(), (std::vector<std::string>{"h:2"}));
+  ASSERT_TRUE(r.servers.announce(bye, "p", &ack).ok());  // twice, or unknown: nothing to do
+  EXPECT_EQ(r.addresses(), (std::vector<std::string>{"h:2"}));
 }
 
 TEST(RayServers, RefusesWhatClientsCouldNotUse) {

@@ -1,11 +1,12 @@
 // Ray servers found through the coordinator (issue 18, docs/rays.md "Where it is served"), with
 // real processes: tessera-rays announces itself, `tessera rayservers` lists it, `tessera rays
 // --coordinator` without --server uses it (answers byte-identical to the in-process run), a
-// killed server expires and the client says so, a restarted coordinator lists it again, a wrong
+// killed server expires and the client says so, a stopped one leaves at once, a restarted coordinator lists it again, a wrong
 // worker token is refused, and a dead listed server is skipped for the next one.
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <algorithm>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <regex>
@@ -107,6 +108,20 @@ TEST(RaysDiscovery, KilledServerExpiresAndTheClientSaysSo) {
   EXPECT_FALSE(fs::exists(farm.dir() / "o.csv"));
 }
 
+// A server stopped with SIGTERM says it is leaving: gone from the list at once, not after 3 periods.
+TEST(RaysDiscovery, StoppedServerLeavesTheListAtOnce) {
+  Farm farm;
+  farm.start_server();
+  std::unique_ptr<Process> rays;
+  const std::string addr = start_rays(farm, &rays, {"--announce-seconds", "60"});  // would stay listed for 3 min
+  ASSERT_TRUE(eventually([&] { return lists(farm, addr); })) << rays->log();
+  rays->signal(SIGTERM);
+  ASSERT_EQ(rays->wait(30s), 0) << rays->log();
+  EXPECT_TRUE(listed(farm).empty()) << listed(farm).dump();
+  EXPECT_NE(farm.server_logs().find("at " + addr + " is shutting down, no longer listed"), std::string::npos)
+      << farm.server_logs();
+}
+
 // The registry is memory only: a restarted coordinator knows no ray server until they announce
 // again, which they keep trying while it is down, serving clients all along.
 TEST(RaysDiscovery, ListedAgainAfterTheCoordinatorRestarts) {
@@ -172,7 +187,9 @@ TEST(RaysDiscovery, DeadListedServerIsSkippedForTheNext) {
   ASSERT_EQ(r.code, 0) << r.output;
   ASSERT_TRUE(eventually([&] {
     const json all = listed(farm);
-    return all.size() == 2 && all[0]["rays"] == 1;
+    return all.size() == 2 && std::any_of(all.begin(), all.end(), [&](const json& s) {
+             return s["address"] == busy_addr && s["rays"] == 1;
+           });
   })) << listed(farm).dump();
   dead->signal(SIGKILL);
   dead->wait(10s);
