@@ -1,5 +1,6 @@
 // tessera-rays: the ray service (docs/rays.md). Answers nearest-hit and line-of-sight queries on
-// scene bundles uploaded to the coordinator, which it fetches like a worker does.
+// scene bundles uploaded to the coordinator, which it fetches like a worker does, and announces
+// itself to the coordinator so that clients can find it (announcer.h).
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <signal.h>

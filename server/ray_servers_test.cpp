@@ -12,8 +12,9 @@ namespace v1 = tessera::v1;
 using namespace std::chrono_literals;
 
 struct Registry {
+  explicit Registry(RayServerOptions options = {}) : servers(options, [this] { return t; }) {}
   TimePoint t{};
-  RayServers servers{RayServerOptions{}, [this] { return t; }};
+  RayServers servers;
 
   grpc::Status announce(const std::string& id, const std::string& address, int period_ms = 1000,
                         v1::RayServerAnnouncementAck* ack_out = nullptr) {
@@ -120,24 +121,15 @@ TEST(RayServers, RefusesWhatClientsCouldNotUse) {
 }
 
 TEST(RayServers, BoundedCount) {
-  TimePoint t{};
   RayServerOptions o;
   o.max_servers = 2;
-  RayServers servers(o, [&] { return t; });
-  auto announce = [&](const std::string& id, const std::string& address) {
-    v1::RayServerAnnouncement a;
-    a.mutable_server()->set_server_id(id);
-    a.mutable_server()->set_address(address);
-    a.set_period_ms(1000);
-    v1::RayServerAnnouncementAck ack;
-    return servers.announce(a, "p", &ack);
-  };
-  ASSERT_TRUE(announce("a", "h:1").ok());
-  ASSERT_TRUE(announce("b", "h:2").ok());
-  EXPECT_EQ(announce("c", "h:3").error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
-  EXPECT_TRUE(announce("a", "h:1").ok());  // a known one still renews
-  t += 3001ms;                              // both expire: room again
-  EXPECT_TRUE(announce("c", "h:3").ok());
+  Registry r(o);
+  ASSERT_TRUE(r.announce("a", "h:1").ok());
+  ASSERT_TRUE(r.announce("b", "h:2").ok());
+  EXPECT_EQ(r.announce("c", "h:3").error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_TRUE(r.announce("a", "h:1").ok());  // a known one still renews
+  r.t += 3001ms;                              // both expire: room again
+  EXPECT_TRUE(r.announce("c", "h:3").ok());
 }
 
 }  // namespace

@@ -41,6 +41,14 @@ bool lists(Farm& farm, const std::string& address, const std::vector<std::string
   return false;
 }
 
+// A farm's coordinator and one tessera-rays announcing itself every 0.2 s, once it is listed.
+std::string start_listed_rays(Farm& farm, std::unique_ptr<Process>* rays) {
+  farm.start_server();
+  const std::string addr = start_rays(farm, rays, kFastAnnounce);
+  EXPECT_TRUE(eventually([&] { return lists(farm, addr); })) << (*rays)->log() << farm.server_logs();
+  return addr;
+}
+
 std::string sphere_scene() { return source("tests/rays/sphere_scene.json").string(); }
 
 fs::path one_ray(Farm& farm) {
@@ -51,10 +59,9 @@ fs::path one_ray(Farm& farm) {
 
 TEST(RaysDiscovery, AnnouncedServerIsListedAndAnswersLikeInProcess) {
   Farm farm;
-  farm.start_server();
   std::unique_ptr<Process> rays;
-  const std::string addr = start_rays(farm, &rays, kFastAnnounce);
-  ASSERT_TRUE(eventually([&] { return lists(farm, addr); })) << rays->log() << farm.server_logs();
+  const std::string addr = start_listed_rays(farm, &rays);
+  ASSERT_FALSE(::testing::Test::HasFailure());
   const json s = listed(farm)[0];
   std::smatch isa;
   const std::string log = rays->log();
@@ -90,10 +97,9 @@ TEST(RaysDiscovery, AnnouncedServerIsListedAndAnswersLikeInProcess) {
 
 TEST(RaysDiscovery, KilledServerExpiresAndTheClientSaysSo) {
   Farm farm;
-  farm.start_server();
   std::unique_ptr<Process> rays;
-  const std::string addr = start_rays(farm, &rays, kFastAnnounce);
-  ASSERT_TRUE(eventually([&] { return lists(farm, addr); })) << rays->log();
+  const std::string addr = start_listed_rays(farm, &rays);
+  ASSERT_FALSE(::testing::Test::HasFailure());
   rays->signal(SIGKILL);
   rays->wait(10s);
   ASSERT_TRUE(eventually([&] { return listed(farm).empty(); })) << listed(farm).dump();
@@ -126,10 +132,9 @@ TEST(RaysDiscovery, StoppedServerLeavesTheListAtOnce) {
 // again, which they keep trying while it is down, serving clients all along.
 TEST(RaysDiscovery, ListedAgainAfterTheCoordinatorRestarts) {
   Farm farm;
-  farm.start_server();
   std::unique_ptr<Process> rays;
-  const std::string addr = start_rays(farm, &rays, kFastAnnounce);
-  ASSERT_TRUE(eventually([&] { return lists(farm, addr); })) << rays->log();
+  const std::string addr = start_listed_rays(farm, &rays);
+  ASSERT_FALSE(::testing::Test::HasFailure());
   const std::string id = listed(farm)[0]["server_id"];
   farm.stop_server();
   ASSERT_TRUE(eventually([&] { return rays->log().find("cannot reach the coordinator") != std::string::npos; }))
