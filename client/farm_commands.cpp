@@ -1,4 +1,4 @@
-// `tessera submit | watch | status | cancel | priority | workers`: the render farm's client side.
+// `tessera submit | watch | status | cancel | priority | workers | rayservers`: the render farm's client side.
 // Exit codes: 0 done, 1 failure (network, I/O), 2 bad input (scene, arguments), 3 job cancelled.
 #include <spdlog/spdlog.h>
 #include <unistd.h>
@@ -561,6 +561,44 @@ int run_workers(const JobArgs& a) {
   return 0;
 }
 
+int run_rayservers(const JobArgs& a) {
+  FarmClient client = connect(a.coordinator, a.security);
+  v1::ListRayServersResponse resp;
+  auto ctx = client.context();
+  grpc::Status s = client.stub().ListRayServers(ctx.get(), {}, &resp);
+  if (!s.ok()) throw FarmError{kExitFailure, client.describe(s, "listing ray servers")};
+  if (a.json) {
+    nlohmann::json out = nlohmann::json::array();
+    for (const auto& r : resp.servers()) {
+      const v1::RayServerDescription& d = r.server();
+      out.push_back({{"server_id", d.server_id()}, {"address", d.address()}, {"threads", d.threads()},
+                     {"embree_isa", d.embree_isa()}, {"max_batch_rays", d.max_batch_rays()}, {"tls", d.tls()},
+                     {"client_token", d.client_token()}, {"version", d.version()}, {"requests", d.requests()},
+                     {"rays", d.rays()}, {"rays_in_flight", d.rays_in_flight()}, {"peer", r.peer()},
+                     {"up_seconds", r.up_seconds()}, {"since_announcement_seconds", r.since_announcement_seconds()},
+                     {"expiry_ms", r.expiry_ms()}});
+    }
+    std::cout << out.dump(2) << "\n";
+    return 0;
+  }
+  if (resp.servers().empty()) {
+    std::printf("no ray servers announced to %s (start one with: tessera-rays --coordinator %s)\n",
+                client.address().c_str(), client.address().c_str());
+    return 0;
+  }
+  std::printf("%-16s %-22s %7s %-20s %-9s %10s %12s %9s %8s %6s\n", "ID", "ADDRESS", "THREADS", "ISA", "SECURITY",
+              "REQUESTS", "RAYS", "IN-FLIGHT", "UP", "SEEN");
+  for (const auto& r : resp.servers()) {
+    const v1::RayServerDescription& d = r.server();
+    const std::string security = std::string(d.tls() ? "tls" : "plain") + (d.client_token() ? "+tok" : "");
+    std::printf("%-16s %-22s %7d %-20s %-9s %10llu %12llu %9llu %8s %5.1fs\n", d.server_id().c_str(),
+                d.address().c_str(), d.threads(), d.embree_isa().c_str(), security.c_str(),
+                (unsigned long long)d.requests(), (unsigned long long)d.rays(), (unsigned long long)d.rays_in_flight(),
+                fmt_duration(r.up_seconds()).c_str(), r.since_announcement_seconds());
+  }
+  return 0;
+}
+
 // Runs a command, turning FarmError into a message and an exit code for CLI11.
 template <class F>
 void guarded(const char* name, F f) {
@@ -660,6 +698,14 @@ void register_farm_commands(CLI::App& app) {
     add_coordinator_option(cmd, &a->coordinator, &a->security);
     cmd->add_flag("--json", a->json, "Machine-readable output");
     cmd->callback([a] { guarded("workers", [&] { return run_workers(*a); }); });
+  }
+  {
+    auto a = std::make_shared<JobArgs>();
+    CLI::App* cmd = app.add_subcommand(
+        "rayservers", "List the ray servers (tessera-rays) announced to the coordinator, which `tessera rays` picks from");
+    add_coordinator_option(cmd, &a->coordinator, &a->security);
+    cmd->add_flag("--json", a->json, "Machine-readable output");
+    cmd->callback([a] { guarded("rayservers", [&] { return run_rayservers(*a); }); });
   }
 }
 

@@ -1,11 +1,15 @@
 // `tessera rays SCENE --in rays.csv --out hits.csv`: nearest-hit or occlusion queries for a file
-// of rays, in-process (lib/rays, the renderer's intersection code), or with --server on a
-// tessera-rays service (the scene bundle is uploaded to the coordinator first). Same answers
-// either way, bit for bit. Exit codes: 0 done, 1 failure (network, I/O), 2 bad input.
+// of rays, in-process (lib/rays, the renderer's intersection code), or on a tessera-rays service:
+// the one named with --server, or with --coordinator alone one the coordinator lists (the scene
+// bundle is uploaded to the coordinator first). Same answers either way, bit for bit. Exit codes:
+// 0 done, 1 failure (network, I/O, no ray server), 2 bad input.
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <optional>
+#include <random>
 #include <thread>
 
 #include "bundle_upload.h"
@@ -106,7 +110,80 @@ std::string describe_rays_server(const grpc::Status& s, const std::string& addre
   return "the ray service at " + address + ": " + s.error_message();
 }
 
-HitTable trace_remotely(const RaysArgs& a, const RayTable& rays) {
+// The ray servers the coordinator lists, in the order to try them: only those this client can
+// talk to (TLS or plaintext, as the client's --tls-ca says); the fewest rays in flight at their
+// last announcement first, then the fewest rays served since they started (over many queries
+// that spreads the load); ties in random order, so clients that start together do not all pick
+// the same server.
+std::vector<std::string> listed_ray_servers(FarmClient& coordinator, bool tls) {
+  v1::ListRayServersResponse resp;
+  auto ctx = coordinator.context();
+  const grpc::Status s = coordinator.stub().ListRayServers(ctx.get(), {}, &resp);
+  if (!s.ok()) throw RaysError{kExitFailure, coordinator.describe(s, "listing ray servers")};
+  std::vector<v1::RayServerDescription> usable;
+  for (const v1::RayServerInfo& r : resp.servers()) {
+    if (r.server().tls() == tls) usable.push_back(r.server());
+  }
+  const std::string& at = coordinator.address();
+  if (resp.servers().empty()) {
+    throw RaysError{kExitFailure, "no ray server is announced to the coordinator at " + at +
+                                      "; start tessera-rays --coordinator " + at + ", or pass --server HOST:PORT"};
+  }
+  if (usable.empty()) {
+    throw RaysError{kExitFailure, std::to_string(resp.servers_size()) + " ray server(s) announced to the coordinator at " +
+                                      at + ", but " +
+                                      (tls ? "none speaks TLS, which this client uses (--tls-ca / $TESSERA_TLS_CA)"
+                                           : "all need TLS: pass --tls-ca CA.pem (or set TESSERA_TLS_CA)")};
+  }
+  std::shuffle(usable.begin(), usable.end(), std::mt19937(std::random_device{}()));
+  std::stable_sort(usable.begin(), usable.end(), [](const auto& x, const auto& y) {
+    return std::pair(x.rays_in_flight(), x.rays()) < std::pair(y.rays_in_flight(), y.rays());
+  });
+  std::vector<std::string> out;
+  for (const auto& d : usable) out.push_back(d.address());
+  return out;
+}
+
+// Whether the channel connects within `within`. A refused connection answers at once (the first
+// failure counts: the server is listed but not listening, so the next one is tried).
+bool connects(grpc::Channel& channel, std::chrono::seconds within, std::string* why) {
+  const auto deadline = std::chrono::system_clock::now() + within;
+  for (auto state = channel.GetState(true); state != GRPC_CHANNEL_READY; state = channel.GetState(true)) {
+    if (state == GRPC_CHANNEL_TRANSIENT_FAILURE || state == GRPC_CHANNEL_SHUTDOWN) {
+      *why = "cannot connect";
+      return false;
+    }
+    if (!channel.WaitForStateChange(state, deadline)) {
+      *why = "no connection in " + std::to_string(within.count()) + " s";
+      return false;
+    }
+  }
+  return true;
+}
+
+// The scene as a ray server sees it (objects, materials); the first call on a server loads it.
+// A server found through the coordinator that does not connect in 5 s, or cannot reach the
+// coordinator itself, returns nullopt with `*why`: the caller tries the next one.
+std::optional<v1::SceneDescription> describe_on(v1::RayService::Stub& stub, grpc::Channel& channel,
+                                                const std::string& address, const v1::SceneRef& ref, bool listed,
+                                                std::string* why) {
+  if (listed && !connects(channel, std::chrono::seconds(5), why)) return std::nullopt;
+  grpc::ClientContext ctx;
+  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));  // first use loads the scene
+  v1::SceneDescription d;
+  const grpc::Status s = stub.DescribeScene(&ctx, ref, &d);
+  if (s.ok()) return d;
+  if (listed && s.error_code() == grpc::StatusCode::UNAVAILABLE) {
+    *why = s.error_message();
+    return std::nullopt;
+  }
+  throw RaysError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
+                  describe_rays_server(s, address)};
+}
+
+// Traces on --server, or on the first ray server the coordinator lists that answers; `*used`
+// is its address.
+HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, std::string* used) {
   Scene scene;
   try {
     scene = load_scene(a.scene);
@@ -115,10 +192,13 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays) {
   }
   farm::ChannelSecurity security;
   farm::BuiltBundle bundle;
+  std::vector<std::string> servers{a.server};
+  const bool listed = a.server.empty();
   try {
     security = resolve_security(a.security);
     bundle = farm::make_bundle(a.scene, scene.dependencies);
     FarmClient coordinator(resolve_coordinator(a.coordinator), security);
+    if (listed) servers = listed_ray_servers(coordinator, !security.tls_ca.empty());  // before the upload: fail early
     if (upload_bundle_if_missing(coordinator, bundle)) {
       std::fprintf(stderr, "uploaded scene bundle %s to %s\n", bundle.sha256.substr(0, 12).c_str(),
                    coordinator.address().c_str());
@@ -126,23 +206,32 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays) {
   } catch (const std::exception& e) {
     throw RaysError{kExitFailure, e.what()};
   }
-  auto stub = v1::RayService::NewStub(farm::make_coordinator_channel(a.server, security));
   v1::SceneRef ref;
   ref.set_bundle_sha256(bundle.sha256);
   ref.set_frame(a.frame);
   HitTable h;
   h.occlusion = a.occlusion;
-  {
-    grpc::ClientContext ctx;
-    ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));  // first use loads the scene
-    v1::SceneDescription d;
-    const grpc::Status s = stub->DescribeScene(&ctx, ref, &d);
-    if (!s.ok()) {
-      throw RaysError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
-                      describe_rays_server(s, a.server)};
+  std::unique_ptr<v1::RayService::Stub> stub;
+  std::string unreachable;
+  for (const std::string& address : servers) {
+    const auto channel = farm::make_coordinator_channel(address, security);
+    auto candidate = v1::RayService::NewStub(channel);
+    std::string why;
+    if (auto d = describe_on(*candidate, *channel, address, ref, listed, &why)) {
+      h.objects.assign(d->objects().begin(), d->objects().end());
+      h.materials.assign(d->materials().begin(), d->materials().end());
+      stub = std::move(candidate);
+      *used = address;
+      break;
     }
-    h.objects.assign(d.objects().begin(), d.objects().end());
-    h.materials.assign(d.materials().begin(), d.materials().end());
+    std::fprintf(stderr, "ray server %s (listed by the coordinator) does not answer (%s); trying the next\n",
+                 address.c_str(), why.c_str());
+    unreachable += (unreachable.empty() ? "" : "; ") + address + ": " + why;
+  }
+  if (!stub) {
+    throw RaysError{kExitFailure, "none of the " + std::to_string(servers.size()) +
+                                      " ray server(s) the coordinator lists answered (" + unreachable +
+                                      "); pass --server HOST:PORT to name one"};
   }
   // One stream; a writer thread keeps every batch in flight while this one reads the answers
   // (they come back in order), so the network and the tracing overlap.
@@ -175,12 +264,12 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays) {
   }
   writer.join();
   const grpc::Status s = stream->Finish();
-  if (!problem.empty()) throw RaysError{kExitFailure, "the ray service at " + a.server + " answered badly: " + problem};
+  if (!problem.empty()) throw RaysError{kExitFailure, "the ray service at " + *used + " answered badly: " + problem};
   if (!s.ok()) {
     throw RaysError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
-                    describe_rays_server(s, a.server)};
+                    describe_rays_server(s, *used)};
   }
-  if (h.hits.size() != n) throw RaysError{kExitFailure, "the ray service at " + a.server + " ended the stream early"};
+  if (h.hits.size() != n) throw RaysError{kExitFailure, "the ray service at " + *used + " ended the stream early"};
   return h;
 }
 
@@ -188,13 +277,17 @@ int run_rays(const RaysArgs& a) {
   const RayTable rays = read_rays(a.in);
   check_rays(rays, a.in);
   const auto start = std::chrono::steady_clock::now();
-  const HitTable hits = a.server.empty() ? trace_locally(a, rays) : trace_remotely(a, rays);
+  // In-process unless a server is named or the coordinator is given to find one: an environment
+  // variable ($TESSERA_COORDINATOR) alone does not move the tracing off this machine.
+  std::string used;
+  const HitTable hits =
+      a.server.empty() && a.coordinator.empty() ? trace_locally(a, rays) : trace_remotely(a, rays, &used);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   write_hits(a.out, rays, hits);
   size_t n_hit = 0;
   for (const rays::WorldHit& w : hits.hits) n_hit += w.hit;
   std::printf("%zu rays, %zu %s, %.3f s (scene load included)%s\n", rays.rays.size(), n_hit,
-              a.occlusion ? "occluded" : "hits", seconds, a.server.empty() ? "" : (", via " + a.server).c_str());
+              a.occlusion ? "occluded" : "hits", seconds, used.empty() ? "" : (", via " + used).c_str());
   return 0;
 }
 
@@ -211,9 +304,9 @@ void register_rays_command(CLI::App& app) {
   cmd->add_flag("--occlusion", a->occlusion, "Only whether something lies in (tmin, tmax): line of sight");
   cmd->add_option("--server", a->server, "tessera-rays HOST:PORT: trace there instead of in-process");
   cmd->add_option("--coordinator", a->coordinator,
-                  "With --server: the coordinator the bundle is uploaded to (default: $TESSERA_COORDINATOR, else "
-                  "127.0.0.1:7878)");
-  cmd->add_option("--batch", a->batch, "With --server: rays per request")
+                  "The coordinator the bundle is uploaded to (with --server; default: $TESSERA_COORDINATOR, else "
+                  "127.0.0.1:7878). Without --server: also trace on a ray server it lists (`tessera rayservers`)");
+  cmd->add_option("--batch", a->batch, "With a ray server: rays per request")
       ->check(CLI::Range(1, 1 << 24))->capture_default_str();
   // The farm commands' flags: one client token and CA for the coordinator and the ray server.
   cmd->add_option("--token-file", a->security.token_file, "File holding the client token (else $TESSERA_CLIENT_TOKEN)")

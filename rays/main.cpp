@@ -1,5 +1,6 @@
 // tessera-rays: the ray service (docs/rays.md). Answers nearest-hit and line-of-sight queries on
-// scene bundles uploaded to the coordinator, which it fetches like a worker does.
+// scene bundles uploaded to the coordinator, which it fetches like a worker does, and announces
+// itself to the coordinator so that clients can find it (announcer.h).
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <signal.h>
@@ -12,6 +13,7 @@
 #include <iostream>
 #include <thread>
 
+#include "announcer.h"
 #include "auth.h"
 #include "bundle_scenes.h"
 #include "farm/bundle_fetch.h"
@@ -33,6 +35,10 @@ int main(int argc, char** argv) {
   options.threads = int(std::max(1u, std::thread::hardware_concurrency()));
   int64_t max_message_bytes = server::Limits{}.max_message_bytes;
   int max_frames = 8;
+  std::string advertise;
+  double announce_seconds = 5;
+  bool no_announce = false;
+  constexpr const char* kVersion = "tessera-rays 0.1.0";
 
   CLI::App app{"tessera-rays: nearest-hit and line-of-sight queries over gRPC (tessera.v1.RayService)"};
   app.add_option("--listen", listen, "HOST:PORT to serve on (port 0 picks a free one)")->capture_default_str();
@@ -45,6 +51,17 @@ int main(int argc, char** argv) {
   app.add_option("--max-frames", max_frames, "Built frames (Embree scenes) kept in memory")
       ->check(CLI::Range(1, 1024))->capture_default_str();
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
+  // Discovery (docs/rays.md): the coordinator lists this server to clients while it announces itself.
+  app.add_option("--advertise", advertise,
+                 "HOST[:PORT] clients should dial, announced to the coordinator (default: the --listen host and the "
+                 "bound port; required when --listen is 0.0.0.0 or [::])")
+      ->group("Discovery");
+  app.add_option("--announce-seconds", announce_seconds,
+                 "Announce this server to the coordinator this often; it is listed until 3 periods pass without one")
+      ->check(CLI::Range(0.1, 300.0))->capture_default_str()->group("Discovery");
+  app.add_flag("--no-announce", no_announce,
+               "Do not announce this server: clients must name it with --server (standalone use)")
+      ->group("Discovery");
   // Inbound: the same flags, files and environment variables as tessera-server's client side.
   server::ServerSecurity inbound;
   app.add_option("--client-token-file", inbound.client_token_file,
@@ -71,7 +88,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(int64_t(2) << 20, int64_t(1) << 30))->capture_default_str()->group("Limits");
   app.add_option("--max-batch-rays", options.max_batch_rays, "Most rays in one request (larger: INVALID_ARGUMENT)")
       ->check(CLI::Range(int64_t(1), int64_t(1) << 24))->capture_default_str()->group("Limits");
-  app.set_version_flag("--version", "tessera-rays 0.1.0");
+  app.set_version_flag("--version", kVersion);
   CLI11_PARSE(app, argc, argv);
 
   server::Authenticator auth;
@@ -103,6 +120,14 @@ int main(int argc, char** argv) {
     std::cerr << "tessera-rays: " << e.what() << "\n";
     return 1;
   }
+  if (!no_announce) {
+    try {
+      rays::advertised_address(listen, advertise, 0);  // refuses a wildcard --listen before it is bound
+    } catch (const std::invalid_argument& e) {
+      std::cerr << "tessera-rays: " << e.what() << "\n";
+      return 2;
+    }
+  }
   rays::RayServiceImpl service(scenes->source(), auth, options);
 
   grpc::EnableDefaultHealthCheckService(true);
@@ -120,17 +145,44 @@ int main(int argc, char** argv) {
     std::cerr << "tessera-rays: cannot listen on " << listen << "\n";
     return 1;
   }
+  const std::string advertised = no_announce ? "" : rays::advertised_address(listen, advertise, port);
   const std::string host = listen.substr(0, listen.rfind(':'));
-  spdlog::info("tessera-rays 0.1.0: bundles from {}, {} threads per batch, at most {} rays per batch, Embree {}",
+  spdlog::info("{}: bundles from {}, {} threads per batch, at most {} rays per batch, Embree {}", kVersion,
                coordinator, options.threads, options.max_batch_rays, embree_isa());
   spdlog::info("security: {}, clients {}", inbound.tls_cert.empty() ? "plaintext" : "TLS",
                auth.open(server::PeerRole::kClient) ? "open" : "need the client token");
   std::printf("listening on %s:%d\n", host.c_str(), port);  // the line tests and scripts wait for
   std::fflush(stdout);
+  std::unique_ptr<rays::Announcer> announcer;
+  if (no_announce) {
+    spdlog::info("not announced to the coordinator (--no-announce): clients must name this server with --server");
+  } else {
+    v1::RayServerDescription self;
+    self.set_server_id(rays::new_server_id());
+    self.set_address(advertised);
+    self.set_threads(options.threads);
+    self.set_embree_isa(embree_isa());
+    self.set_max_batch_rays(options.max_batch_rays);
+    self.set_tls(!inbound.tls_cert.empty());
+    self.set_client_token(!auth.open(server::PeerRole::kClient));
+    self.set_version(kVersion);
+    spdlog::info("announcing {} as ray server {} to the coordinator every {} s", advertised, self.server_id(),
+                 announce_seconds);
+    announcer = std::make_unique<rays::Announcer>(
+        *stub, coordinator, std::chrono::milliseconds(int64_t(announce_seconds * 1000)), [&service, self] {
+          v1::RayServerDescription d = self;
+          const rays::RayServiceCounters c = service.counters();
+          d.set_requests(c.requests);
+          d.set_rays(c.rays);
+          d.set_rays_in_flight(c.rays_in_flight);
+          return d;
+        });
+  }
 
   int sig = 0;
   sigwait(&sigs, &sig);
   spdlog::info("signal {}: shutting down", sig);
+  announcer.reset();
   server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
   server->Wait();
   return 0;

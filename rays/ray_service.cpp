@@ -27,10 +27,19 @@ Status RayServiceImpl::answer(const RayTracer& tracer, const v1::TraceRequest& r
     return Status(StatusCode::INVALID_ARGUMENT, p->message + " (field " + p->field + ")");
   }
   std::vector<WorldHit> hits;
+  // Counted while traced: the load a ray server announces to the coordinator (announcer.h).
+  in_flight_ += rays.size();
+  struct Done {
+    std::atomic<uint64_t>& in_flight;
+    size_t n;
+    ~Done() { in_flight -= n; }
+  } done{in_flight_, rays.size()};
   // Small batches run on the gRPC thread that received them (concurrent clients in parallel);
   // large ones are split on the service's arena, so --threads bounds the cores they take.
   if (rays.size() <= kParallelBatch) trace_batch(tracer, rays, req.occlusion(), &hits);
   else arena_.execute([&] { trace_batch(tracer, rays, req.occlusion(), &hits); });
+  requests_ += 1;
+  rays_ += rays.size();
   encode_hits(hits, req.occlusion(), resp);
   *resp->mutable_ids() = req.ids();
   return Status::OK;
@@ -86,6 +95,10 @@ Status RayServiceImpl::DescribeScene(grpc::ServerContext* ctx, const v1::SceneRe
   resp->set_embree_isa(embree_isa());
   resp->set_max_batch_rays(options_.max_batch_rays);
   return Status::OK;
+}
+
+RayServiceCounters RayServiceImpl::counters() const {
+  return RayServiceCounters{requests_.load(), rays_.load(), in_flight_.load()};
 }
 
 }  // namespace tessera::rays

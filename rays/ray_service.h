@@ -5,6 +5,7 @@
 
 #include <tbb/task_arena.h>
 
+#include <atomic>
 #include <cstdint>
 
 #include "auth.h"
@@ -21,6 +22,13 @@ struct RayServiceOptions {
   int threads = 1;
 };
 
+// What the service has done since it started (announced to the coordinator, announcer.h).
+struct RayServiceCounters {
+  uint64_t requests = 0;        // batches answered: Trace calls and stream requests
+  uint64_t rays = 0;            // rays traced
+  uint64_t rays_in_flight = 0;  // rays being traced now
+};
+
 class RayServiceImpl final : public tessera::v1::RayService::Service {
  public:
   RayServiceImpl(SceneSource scenes, server::Authenticator auth, RayServiceOptions options);
@@ -32,6 +40,7 @@ class RayServiceImpl final : public tessera::v1::RayService::Service {
       grpc::ServerReaderWriter<tessera::v1::TraceResponse, tessera::v1::TraceRequest>* stream) override;
   grpc::Status DescribeScene(grpc::ServerContext* ctx, const tessera::v1::SceneRef* req,
                              tessera::v1::SceneDescription* resp) override;
+  RayServiceCounters counters() const;
 
  private:
   // One batch on a tracer: INVALID_ARGUMENT naming the ray and field for bad input.
@@ -42,6 +51,7 @@ class RayServiceImpl final : public tessera::v1::RayService::Service {
   server::Authenticator auth_;
   RayServiceOptions options_;
   tbb::task_arena arena_;
+  std::atomic<uint64_t> requests_{0}, rays_{0}, in_flight_{0};
 };
 
 }  // namespace tessera::rays

@@ -7,7 +7,7 @@
 // interceptor cannot end a call with a status of its choosing (only cancel it: the peer would see
 // CANCELLED, not UNAUTHENTICATED), and an AuthMetadataProcessor only runs on TLS credentials
 // (tokens must also work on plaintext loopback) and would also guard health and reflection,
-// which stay open for container health checks. Eleven one-line checks, each tested, are simpler.
+// which stay open for container health checks. One-line checks, each tested, are simpler.
 #pragma once
 
 #include <grpcpp/grpcpp.h>

@@ -250,4 +250,12 @@ grpc::ServerUnaryReactor* ClientServiceImpl::ListWorkers(grpc::CallbackServerCon
   return reply(ctx, Status::OK);
 }
 
+grpc::ServerUnaryReactor* ClientServiceImpl::ListRayServers(grpc::CallbackServerContext* ctx,
+                                                            const v1::ListRayServersRequest*,
+                                                            v1::ListRayServersResponse* resp) {
+  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
+  coord_.ray_servers().list(resp);
+  return reply(ctx, Status::OK);
+}
+
 }  // namespace tessera::server

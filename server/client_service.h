@@ -46,6 +46,8 @@ class ClientServiceImpl final : public tessera::v1::ClientService::CallbackServi
                                            tessera::v1::JobStatus*) override;
   grpc::ServerUnaryReactor* ListWorkers(grpc::CallbackServerContext*, const tessera::v1::ListWorkersRequest*,
                                         tessera::v1::ListWorkersResponse*) override;
+  grpc::ServerUnaryReactor* ListRayServers(grpc::CallbackServerContext*, const tessera::v1::ListRayServersRequest*,
+                                           tessera::v1::ListRayServersResponse*) override;
 
  private:
   // Checks the client token; on success `*caller` is who is calling.

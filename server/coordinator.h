@@ -22,6 +22,7 @@
 
 #include "bundle_store.h"
 #include "job_store.h"
+#include "ray_servers.h"
 #include "scheduler.h"
 #include "scene/scene.h"
 #include "stream_outbox.h"
@@ -93,6 +94,9 @@ class Coordinator : private SchedulerListener {
   Coordinator& operator=(const Coordinator&) = delete;
 
   BundleStore& bundles() { return store_; }
+  // The tessera-rays servers announced to this coordinator: their own lock, nothing to do with
+  // scheduling (liveness only, in memory: ray_servers.h).
+  RayServers& ray_servers() { return ray_servers_; }
 
   // --- client service -----------------------------------------------------------------------
   grpc::Status submit(const tessera::v1::SubmitJobRequest& req, tessera::v1::JobStatus* out,
@@ -173,6 +177,7 @@ class Coordinator : private SchedulerListener {
   CoordinatorOptions options_;
   BundleStore& store_;
   JobStore* jobs_store_;
+  RayServers ray_servers_;
   std::mutex mu_;
   Scheduler scheduler_;
   std::map<WorkerId, std::shared_ptr<WorkerSink>> workers_;

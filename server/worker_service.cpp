@@ -142,4 +142,19 @@ grpc::ServerWriteReactor<v1::BundleChunk>* WorkerServiceImpl::FetchBundle(grpc::
   return new FetchReactor(coord_.bundles(), req->sha256());
 }
 
+grpc::ServerUnaryReactor* WorkerServiceImpl::AnnounceRayServer(grpc::CallbackServerContext* ctx,
+                                                               const v1::RayServerAnnouncement* req,
+                                                               v1::RayServerAnnouncementAck* ack) {
+  Status s = auth_.check(*ctx, PeerRole::kWorker);
+  if (!s.ok()) {
+    // Said here too: the operator looking at the coordinator sees why a ray server is not listed.
+    spdlog::warn("ray server announcement from {} refused: {}", ctx->peer(), s.error_message());
+  } else {
+    s = coord_.ray_servers().announce(*req, ctx->peer(), ack);
+  }
+  auto* r = ctx->DefaultReactor();
+  r->Finish(std::move(s));
+  return r;
+}
+
 }  // namespace tessera::server

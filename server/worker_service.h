@@ -10,13 +10,17 @@ namespace tessera::server {
 
 class WorkerServiceImpl final : public tessera::v1::WorkerService::CallbackService {
  public:
-  // Both methods first check the worker token (auth.h).
+  // Every method first checks the worker token (auth.h).
   explicit WorkerServiceImpl(Coordinator& c, Authenticator auth = {}) : coord_(c), auth_(std::move(auth)) {}
 
   grpc::ServerBidiReactor<tessera::v1::WorkerMessage, tessera::v1::CoordinatorMessage>* Connect(
       grpc::CallbackServerContext* ctx) override;
   grpc::ServerWriteReactor<tessera::v1::BundleChunk>* FetchBundle(grpc::CallbackServerContext* ctx,
                                                                   const tessera::v1::FetchBundleRequest* req) override;
+  // A tessera-rays server announcing itself (ray_servers.h), with the worker token.
+  grpc::ServerUnaryReactor* AnnounceRayServer(grpc::CallbackServerContext* ctx,
+                                              const tessera::v1::RayServerAnnouncement* req,
+                                              tessera::v1::RayServerAnnouncementAck* ack) override;
 
  private:
   Coordinator& coord_;

@@ -69,7 +69,10 @@ FarmMetrics::FarmMetrics(Coordinator& coordinator, JobStore* jobs)
       watch_backlog_(gauges(registry_, "tessera_watch_backlog_messages",
                             "Messages queued for clients' watch streams and not yet sent")
                          .Add({})),
-      store_queued_(gauges(registry_, "tessera_store_queued_writes", "Writes waiting for the store's next batch").Add({})) {
+      store_queued_(gauges(registry_, "tessera_store_queued_writes", "Writes waiting for the store's next batch").Add({})),
+      ray_servers_(gauges(registry_, "tessera_ray_servers",
+                          "Ray servers (tessera-rays) announced to the coordinator and not expired")
+                       .Add({})) {
   coordinator.add_observer(this);
   if (jobs) jobs->set_batch_observer([this](double s, uint64_t bytes) { store_batch(s, bytes); });
   // Every state is exported from the first scrape on, at 0 when empty, so a query for one
@@ -133,6 +136,7 @@ std::string FarmMetrics::scrape() {
   }
   watch_backlog_.Set(double(f.watch_backlog));
   store_queued_.Set(double(f.store.queued));
+  ray_servers_.Set(double(coordinator_.ray_servers().live()));
   advance(store_failures_, double(f.store.failures));
   advance(bundle_stored_bytes_, double(coordinator_.bundles().bytes_stored()));
   advance(bundle_served_bytes_, double(coordinator_.bundles().bytes_served()));

@@ -6,7 +6,7 @@
 //   - events (tiles completed, rays, leases expired, speculative copies, faults, store batches):
 //     counted as they happen, as a scheduler observer (Coordinator::add_observer). Each event
 //     costs an atomic add or a histogram bucket, under the coordinator's mutex;
-//   - levels (jobs by state, tiles queued / leased / done, workers, watch backlog): read from a
+//   - levels (jobs by state, tiles queued / leased / done, workers, ray servers, watch backlog): read from a
 //     Coordinator::snapshot() when Prometheus scrapes, so they cost nothing in between.
 //
 // Labels stay bounded: job states and tile states are fixed sets, workers are counted per
@@ -73,6 +73,7 @@ class FarmMetrics : public SchedulerListener {
   std::set<prometheus::Gauge*> workers_isa_seen_;
   prometheus::Gauge& watch_backlog_;
   prometheus::Gauge& store_queued_;
+  prometheus::Gauge& ray_servers_;
   std::mutex scrape_mu_;  // one scrape at a time sets the levels
 };
 

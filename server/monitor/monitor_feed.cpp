@@ -305,7 +305,24 @@ nlohmann::json MonitorFeed::farm() {
                        {"last_fault", f == faults_.end() ? "" : f->second.last_reason},
                        {"blocklisted_for", blocklisted[w.info.name]}});
   }
-  return json{{"jobs", jobs}, {"workers", workers}, {"tiles_queued", snap.tiles_queued}};
+  // Ray servers (tessera-rays) announced to the coordinator: their registry's lock is a leaf.
+  json ray_servers = json::array();
+  tessera::v1::ListRayServersResponse announced;
+  coordinator_.ray_servers().list(&announced);
+  for (const auto& r : announced.servers()) {
+    const auto& d = r.server();
+    ray_servers.push_back({{"id", d.server_id()},
+                           {"address", d.address()},
+                           {"threads", d.threads()},
+                           {"embree_isa", d.embree_isa()},
+                           {"tls", d.tls()},
+                           {"requests", d.requests()},
+                           {"rays", d.rays()},
+                           {"rays_in_flight", d.rays_in_flight()},
+                           {"up_seconds", r.up_seconds()},
+                           {"since_announcement_seconds", r.since_announcement_seconds()}});
+  }
+  return json{{"jobs", jobs}, {"workers", workers}, {"ray_servers", ray_servers}, {"tiles_queued", snap.tiles_queued}};
 }
 
 std::optional<nlohmann::json> MonitorFeed::job(const std::string& id, std::optional<int> frame) {

@@ -42,7 +42,7 @@ class MonitorFeed : public SchedulerListener {
 
   explicit MonitorFeed(Coordinator& coordinator);  // registers itself as an observer
 
-  // The jobs and workers, as the monitor's main page shows them.
+  // The jobs, workers and ray servers, as the monitor's main page shows them.
   nlohmann::json farm();
   // One job: its status, its frames' statistics, and the preview's tile map (frame `frame`, or
   // the newest frame with tiles). nullopt for a job not in memory.

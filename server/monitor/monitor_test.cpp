@@ -120,6 +120,26 @@ TEST_F(FarmMetricsTest, CountsEventsAndExportsLevelsInTheTextFormat) {
   }
 }
 
+// Ray servers announced to the coordinator: a gauge at each scrape, rows on the farm page.
+TEST_F(FarmMetricsTest, RayServersInTheGaugeAndOnTheFarmPage) {
+  FarmMetrics metrics(coordinator, nullptr);
+  MonitorFeed feed(coordinator);
+  EXPECT_NE(metrics.scrape().find("tessera_ray_servers 0\n"), std::string::npos) << metrics.scrape();
+  EXPECT_TRUE(feed.farm().at("ray_servers").empty());
+  tessera::v1::RayServerAnnouncement a;
+  a.mutable_server()->set_server_id("abc");
+  a.mutable_server()->set_address("10.0.0.9:7879");
+  a.mutable_server()->set_rays(1234);
+  a.set_period_ms(60000);
+  tessera::v1::RayServerAnnouncementAck ack;
+  ASSERT_TRUE(coordinator.ray_servers().announce(a, "ipv4:10.0.0.9:5000", &ack).ok());
+  EXPECT_NE(metrics.scrape().find("tessera_ray_servers 1\n"), std::string::npos) << metrics.scrape();
+  const nlohmann::json rays = feed.farm().at("ray_servers");
+  ASSERT_EQ(rays.size(), 1u);
+  EXPECT_EQ(rays[0].at("address"), "10.0.0.9:7879");
+  EXPECT_EQ(rays[0].at("rays"), 1234);
+}
+
 using MonitorFeedTest = CoordinatorFixture;
 
 TEST_F(MonitorFeedTest, KeepsNothingWhileNoPageIsOpenAndEverythingOnceOneIs) {

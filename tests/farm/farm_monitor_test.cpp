@@ -1,6 +1,7 @@
 // The coordinator's HTTP side (issue 16), end to end: a real coordinator with --http-listen,
 // real workers and the real CLI on 127.0.0.1; the monitor's API under tokens, owners and TLS;
-// a real Prometheus server scraping /metrics; and the monitor in headless Chromium.
+// a real Prometheus server scraping /metrics; and the monitor in headless Chromium (jobs, workers,
+// a ray server).
 #include <gtest/gtest.h>
 #include <httplib.h>
 #include <netinet/in.h>
@@ -14,6 +15,7 @@
 #include <thread>
 
 #include "color/png_io.h"
+#include "../rays/rays_harness.h"
 #include "farm_harness.h"
 
 namespace tessera::farmtest {
@@ -268,6 +270,8 @@ TEST(MonitorBrowser, ChromiumShowsTheJobTheWorkersTheFinishedFrameAndCancels) {
   // Slowed so that the page sees the job running and the second job is still live when cancelled.
   farm.start_worker("w1", 1, 200);
   farm.start_worker("w2", 1, 200);
+  std::unique_ptr<Process> rays;
+  const std::string rays_address = start_rays(farm, &rays, {"--announce-seconds", "0.2"});
   const std::vector<std::string> auth{"--coordinator", farm.address(), "--token-file",
                                       (farm.dir() / "client.token").string(), "--tile", "16"};
   auto with = [&](std::vector<std::string> args) {
@@ -301,6 +305,7 @@ TEST(MonitorBrowser, ChromiumShowsTheJobTheWorkersTheFinishedFrameAndCancels) {
   EXPECT_EQ(report.at("job").at("id"), done_job);
   EXPECT_EQ(report.at("job").at("name"), "monitored");
   EXPECT_EQ(report.at("workers"), json::array({"w1", "w2"}));
+  EXPECT_EQ(report.at("ray_servers"), json::array({rays_address}));
   EXPECT_EQ(report.at("preview_tiles"), kTilesPerFrame);
   EXPECT_EQ(report.at("frames_rows"), 1);
   EXPECT_TRUE(report.at("cancelled").get<bool>());

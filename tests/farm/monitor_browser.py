@@ -6,7 +6,7 @@ Usage: monitor_browser.py URL TOKEN OUT_DIR
 Opens URL, gives TOKEN to the login form (the farm requires one), writes OUT_DIR/ready once the
 farm page shows, and waits for OUT_DIR/jobs.json ({"done": JOB_DONE, "cancel": JOB_CANCEL}: the
 test submits the jobs once the page is open, so the page sees them render). Then:
-  1. reads job JOB_DONE's row and the workers' rows from the farm page;
+  1. reads job JOB_DONE's row, the workers' rows and the ray servers' from the farm page;
   2. opens JOB_DONE's page, waits until it says the job is done and the preview holds every
      tile of the frame, and writes the pixels the browser decoded from the preview image
      (RGBA, row-major) to OUT_DIR/preview.rgba, its size to OUT_DIR/preview.json;
@@ -88,6 +88,10 @@ try:
         }["name"]
         for r in driver.find_elements(By.CSS_SELECTOR, "#workers tr[data-worker]")
     )
+    # ... and the ray server announced to the coordinator.
+    wait.until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#rayservers tr[data-rayserver]")) >= 1)
+    report["ray_servers"] = sorted(r.find_element(By.CLASS_NAME, "rayserver-address").text
+                                   for r in driver.find_elements(By.CSS_SELECTOR, "#rayservers tr[data-rayserver]"))
 
     # 2. The job's page, reached by clicking its row; the job finishes while it is open.
     driver.save_screenshot(out_dir + "/monitor-farm.png")

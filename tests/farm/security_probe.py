@@ -170,6 +170,15 @@ def main():
             expect(grpc.StatusCode.UNAUTHENTICATED,
                    lambda: list(wstub.Connect(iter([ws.WorkerMessage()]), timeout=10, metadata=cmd)),
                    "Connect with the client token", "invalid worker token")
+            # Ray servers: announcing takes the worker token, listing the client token.
+            expect(grpc.StatusCode.UNAUTHENTICATED,
+                   lambda: wstub.AnnounceRayServer(ws.RayServerAnnouncement(
+                       server=common.RayServerDescription(server_id="x", address="127.0.0.1:1"), period_ms=1000),
+                       timeout=10, metadata=cmd),
+                   "AnnounceRayServer with the client token", "invalid worker token")
+            expect(grpc.StatusCode.UNAUTHENTICATED,
+                   lambda: stub.ListRayServers(cs.ListRayServersRequest(), timeout=10, metadata=md),
+                   "ListRayServers with the worker token", "invalid client token")
         else:
             raise SystemExit("unknown check " + check)
         print("ok", check)

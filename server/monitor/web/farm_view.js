@@ -1,4 +1,4 @@
-// The main page: every job and every worker, refreshed by app.js.
+// The main page: every job, every worker and every ray server, refreshed by app.js.
 import * as fmt from './format.js';
 
 function cell(row, text, className) {
@@ -46,5 +46,19 @@ export function render(farm) {
     cell(row, String(w.tiles_done), 'worker-tiles-done');
     cell(row, String(w.faults), 'worker-faults').title = w.last_fault;
     cell(row, w.blocklisted_for.join(', ') || '—', 'worker-blocklisted');
+  }
+  const rays = document.querySelector('#rayservers tbody');
+  rays.replaceChildren();
+  for (const r of farm.ray_servers) {
+    const row = rays.insertRow();
+    row.dataset.rayserver = r.id;
+    cell(row, r.address, 'rayserver-address');
+    cell(row, String(r.threads), 'rayserver-threads');
+    cell(row, r.embree_isa, 'rayserver-isa');
+    cell(row, r.tls ? 'TLS' : 'plaintext', 'rayserver-security');
+    cell(row, String(r.requests), 'rayserver-requests');
+    cell(row, String(r.rays), 'rayserver-rays');
+    cell(row, String(r.rays_in_flight), 'rayserver-in-flight');
+    cell(row, fmt.seconds(r.up_seconds), 'rayserver-up');
   }
 }
