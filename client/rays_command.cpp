@@ -46,6 +46,7 @@ struct RaysArgs {
   int frame = 0;
   bool occlusion = false;
   int batch = 65536;
+  int timeout = 3600;  // seconds for the whole stream of batches
 };
 
 bool is_npy(const std::string& path) { return path.size() >= 4 && path.compare(path.size() - 4, 4, ".npy") == 0; }
@@ -166,16 +167,19 @@ bool connects(grpc::Channel& channel, std::chrono::seconds within, std::string* 
 // coordinator itself, returns nullopt with `*why`: the caller tries the next one.
 std::optional<v1::SceneDescription> describe_on(v1::RayService::Stub& stub, grpc::Channel& channel,
                                                 const std::string& address, const v1::SceneRef& ref, bool listed,
-                                                std::string* why) {
+                                                std::chrono::system_clock::time_point deadline, std::string* why) {
   if (listed && !connects(channel, std::chrono::seconds(5), why)) return std::nullopt;
   grpc::ClientContext ctx;
-  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));  // first use loads the scene
+  ctx.set_deadline(deadline);  // the run's: the first use of a scene on a server loads it
   v1::SceneDescription d;
   const grpc::Status s = stub.DescribeScene(&ctx, ref, &d);
   if (s.ok()) return d;
   if (listed && s.error_code() == grpc::StatusCode::UNAVAILABLE) {
     *why = s.error_message();
     return std::nullopt;
+  }
+  if (s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED) {
+    throw RaysError{kExitFailure, "the ray service at " + address + " did not describe the scene within --timeout"};
   }
   throw RaysError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
                   describe_rays_server(s, address)};
@@ -184,6 +188,7 @@ std::optional<v1::SceneDescription> describe_on(v1::RayService::Stub& stub, grpc
 // Traces on --server, or on the first ray server the coordinator lists that answers; `*used`
 // is its address.
 HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, std::string* used) {
+  const auto deadline = std::chrono::system_clock::now() + std::chrono::seconds(a.timeout);
   Scene scene;
   try {
     scene = load_scene(a.scene);
@@ -217,7 +222,7 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, std::string* us
     const auto channel = farm::make_coordinator_channel(address, security);
     auto candidate = v1::RayService::NewStub(channel);
     std::string why;
-    if (auto d = describe_on(*candidate, *channel, address, ref, listed, &why)) {
+    if (auto d = describe_on(*candidate, *channel, address, ref, listed, deadline, &why)) {
       h.objects.assign(d->objects().begin(), d->objects().end());
       h.materials.assign(d->materials().begin(), d->materials().end());
       stub = std::move(candidate);
@@ -236,6 +241,9 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, std::string* us
   // One stream; a writer thread keeps every batch in flight while this one reads the answers
   // (they come back in order), so the network and the tracing overlap.
   grpc::ClientContext ctx;
+  // The run's deadline for the whole stream too: a server that stops answering mid-way ends the
+  // run instead of hanging it.
+  ctx.set_deadline(deadline);
   auto stream = stub->TraceStream(&ctx);
   const size_t n = rays.rays.size(), batch = size_t(a.batch);
   std::thread writer([&] {
@@ -265,6 +273,10 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, std::string* us
   writer.join();
   const grpc::Status s = stream->Finish();
   if (!problem.empty()) throw RaysError{kExitFailure, "the ray service at " + *used + " answered badly: " + problem};
+  if (s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED) {
+    throw RaysError{kExitFailure, "the ray service at " + *used + " did not answer all " + std::to_string(n) +
+                                      " rays within --timeout " + std::to_string(a.timeout) + " s"};
+  }
   if (!s.ok()) {
     throw RaysError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
                     describe_rays_server(s, *used)};
@@ -308,6 +320,8 @@ void register_rays_command(CLI::App& app) {
                   "127.0.0.1:7878). Without --server: also trace on a ray server it lists (`tessera rayservers`)");
   cmd->add_option("--batch", a->batch, "With a ray server: rays per request")
       ->check(CLI::Range(1, 1 << 24))->capture_default_str();
+  cmd->add_option("--timeout", a->timeout, "With a ray server: seconds the whole run may take")
+      ->check(CLI::Range(1, 7 * 24 * 3600))->capture_default_str();
   // The farm commands' flags: one client token and CA for the coordinator and the ray server.
   cmd->add_option("--token-file", a->security.token_file, "File holding the client token (else $TESSERA_CLIENT_TOKEN)")
       ->group("Security");

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <csignal>
 #include <fstream>
 #include <random>
 #include <regex>
@@ -48,6 +49,33 @@ TEST(RaysCli, InProcessAndServiceAnswersAreIdentical) {
   EXPECT_EQ(lines, 3000u);
   EXPECT_GT(hits, 1000u);
   EXPECT_LT(hits, 3000u);
+}
+
+// A ray server that stops answering (here: stopped with SIGSTOP, its socket still open) ends
+// the run at --timeout with a message naming it, rather than hanging the client.
+TEST(RaysCli, AServerThatStopsAnsweringEndsTheRunAtTheTimeout) {
+  Farm farm;
+  farm.start_server();
+  std::unique_ptr<Process> rays;
+  const std::string addr = start_rays(farm, &rays, {"--no-announce"});
+  const fs::path in = farm.dir() / "rays.csv";
+  write_bunny_rays(in, 200);
+  const std::string scene = source("scenes/bunny.json").string();
+  // Once answering (the scene loaded), then stopped.
+  CliResult r = farm.cli({"rays", scene, "--in", in.string(), "--out", (farm.dir() / "a.csv").string(), "--server",
+                          addr, "--coordinator", farm.address()});
+  ASSERT_EQ(r.code, 0) << r.output << rays->log();
+  ASSERT_EQ(kill(rays->pid(), SIGSTOP), 0);
+  const auto t0 = std::chrono::steady_clock::now();
+  r = farm.cli({"rays", scene, "--in", in.string(), "--out", (farm.dir() / "b.csv").string(), "--server", addr,
+                "--coordinator", farm.address(), "--timeout", "3"});
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  kill(rays->pid(), SIGCONT);
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("--timeout"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(addr), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(farm.dir() / "b.csv"));  // nothing written over a missing answer
+  EXPECT_LT(took, 60.0);  // not a wall-clock assertion on speed: only that it did not hang
 }
 
 TEST(RaysCli, CsvCarriesTheAnalyticHit) {
