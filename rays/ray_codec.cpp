@@ -1,12 +1,30 @@
 #include "ray_codec.h"
 
+#include <cfloat>
+#include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace tessera::rays {
 
 namespace v1 = tessera::v1;
 
-std::optional<RayProblem> decode_rays(const v1::TraceRequest& req, std::vector<WorldRay>* rays) {
+namespace {
+
+// `field` holding exactly `count` values, uninitialized: the caller writes every one. Resize()
+// would first zero what is then overwritten.
+template <class T>
+T* exactly(google::protobuf::RepeatedField<T>* field, size_t count) {
+  field->Clear();
+  field->Reserve(int(count));
+  return field->AddNAlreadyReserved(int(count));
+}
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+}  // namespace
+
+std::optional<RayProblem> check_rays(const v1::TraceRequest& req) {
   const size_t n = size_t(req.directions_size()) / 3;
   auto length_problem = [&](const char* field, size_t got, size_t per_ray, bool optional) {
     return RayProblem{n, field,
@@ -22,80 +40,107 @@ std::optional<RayProblem> decode_rays(const v1::TraceRequest& req, std::vector<W
   if (req.t_min_size() != 0 && size_t(req.t_min_size()) != n) return length_problem("t_min", size_t(req.t_min_size()), 1, true);
   if (req.t_max_size() != 0 && size_t(req.t_max_size()) != n) return length_problem("t_max", size_t(req.t_max_size()), 1, true);
   if (req.ids_size() != 0 && size_t(req.ids_size()) != n) return length_problem("ids", size_t(req.ids_size()), 1, true);
-  rays->resize(n);
   const double* o = req.origins().data();
   const double* d = req.directions().data();
   const float* tmin = req.t_min_size() ? req.t_min().data() : nullptr;
   const float* tmax = req.t_max_size() ? req.t_max().data() : nullptr;
+  // check_ray()'s rules, screened array by array with no branch (NaN fails every comparison;
+  // RayCodec.CheckRaysNamesTheFirstBadRayAsCheckRayDoes): a good batch costs one read of its
+  // arrays, no struct per ray. Only a batch with a bad ray pays for check_ray(), to name the
+  // first one.
+  bool ok = true;
+  for (size_t k = 0; k < 3 * n; ++k) ok &= (std::abs(o[k]) <= kMaxOrigin) & (std::abs(d[k]) <= DBL_MAX);
+  for (size_t i = 0; i < n; ++i) ok &= (d[3 * i] != 0.0) | (d[3 * i + 1] != 0.0) | (d[3 * i + 2] != 0.0);
+  if (tmin) {
+    for (size_t i = 0; i < n; ++i) ok &= (tmin[i] >= 0.0f) & (tmin[i] <= FLT_MAX);
+  }
+  if (tmin && tmax) {
+    for (size_t i = 0; i < n; ++i) ok &= tmin[i] <= tmax[i];
+  } else if (tmax) {
+    for (size_t i = 0; i < n; ++i) ok &= tmax[i] >= 0.0f;  // t_min 0: not NaN, not below it
+  }
+  if (ok) return std::nullopt;
   for (size_t i = 0; i < n; ++i) {
-    WorldRay& r = (*rays)[i];
+    WorldRay r;
+    read_rays(req, i, i + 1, &r);
+    if (auto p = check_ray(r, i)) return p;
+  }
+  return std::nullopt;  // not reached: the screen fails only where check_ray() names a ray
+}
+
+void read_rays(const v1::TraceRequest& req, size_t begin, size_t end, WorldRay* out) {
+  const double* o = req.origins().data();
+  const double* d = req.directions().data();
+  const float* tmin = req.t_min_size() ? req.t_min().data() : nullptr;
+  const float* tmax = req.t_max_size() ? req.t_max().data() : nullptr;
+  for (size_t i = begin; i < end; ++i) {
+    WorldRay& r = out[i - begin];
     r.o = Vec3d(o[3 * i], o[3 * i + 1], o[3 * i + 2]);
     r.d = Vec3d(d[3 * i], d[3 * i + 1], d[3 * i + 2]);
     r.tmin = tmin ? tmin[i] : 0.0f;
-    r.tmax = tmax ? tmax[i] : std::numeric_limits<float>::infinity();
-    if (auto p = check_ray(r, i)) return p;
+    r.tmax = tmax ? tmax[i] : kInf;
   }
-  return std::nullopt;
 }
 
-void encode_rays(const std::vector<WorldRay>& rays, const std::vector<uint64_t>& ids, v1::TraceRequest* req) {
-  const int n = int(rays.size());
-  // Resize then fill through the raw arrays: no per-element capacity checks.
-  req->mutable_origins()->Resize(3 * n, 0.0);
-  req->mutable_directions()->Resize(3 * n, 0.0);
-  double* o = req->mutable_origins()->mutable_data();
-  double* d = req->mutable_directions()->mutable_data();
+void encode_rays(std::span<const WorldRay> rays, std::span<const uint64_t> ids, v1::TraceRequest* req) {
+  const size_t n = rays.size();
+  double* o = exactly(req->mutable_origins(), 3 * n);
+  double* d = exactly(req->mutable_directions(), 3 * n);
   bool tmin = false, tmax = false;
-  for (int i = 0; i < n; ++i) {
-    const WorldRay& r = rays[size_t(i)];
+  for (size_t i = 0; i < n; ++i) {
+    const WorldRay& r = rays[i];
     for (int k = 0; k < 3; ++k) {
       o[3 * i + k] = r.o[k];
       d[3 * i + k] = r.d[k];
     }
-    tmin = tmin || r.tmin != 0.0f;
-    tmax = tmax || r.tmax != std::numeric_limits<float>::infinity();
+    tmin |= r.tmin != 0.0f;
+    tmax |= r.tmax != kInf;
   }
+  req->clear_t_min();
+  req->clear_t_max();
   if (tmin) {
-    for (const WorldRay& r : rays) req->add_t_min(r.tmin);
+    float* t = exactly(req->mutable_t_min(), n);
+    for (size_t i = 0; i < n; ++i) t[i] = rays[i].tmin;
   }
   if (tmax) {
-    for (const WorldRay& r : rays) req->add_t_max(r.tmax);
+    float* t = exactly(req->mutable_t_max(), n);
+    for (size_t i = 0; i < n; ++i) t[i] = rays[i].tmax;
   }
-  for (uint64_t id : ids) req->add_ids(id);
+  req->mutable_ids()->Assign(ids.begin(), ids.end());
 }
 
-void encode_hits(const std::vector<WorldHit>& hits, bool occlusion, v1::TraceResponse* resp) {
-  const int n = int(hits.size());
+HitArrays::HitArrays(v1::TraceResponse* resp, size_t n, bool occlusion) : occlusion_(occlusion) {
   std::string* flags = resp->mutable_hit();
-  flags->resize(size_t(n));
-  for (int i = 0; i < n; ++i) (*flags)[size_t(i)] = hits[size_t(i)].hit ? 1 : 0;
+  flags->resize(n);
+  hit_ = flags->data();
   if (occlusion) return;
-  // Resize then fill: one allocation per array, no per-element capacity checks.
-  auto sized = [n](auto* field, int per_ray) {
-    field->Resize(per_ray * n, 0);
-    return field->mutable_data();
-  };
-  float* t = sized(resp->mutable_t(), 1);
-  double* p = sized(resp->mutable_points(), 3);
-  float* nn = sized(resp->mutable_normals(), 3);
-  float* ns = sized(resp->mutable_shading_normals(), 3);
-  float* uv = sized(resp->mutable_barycentrics(), 2);
-  uint32_t* obj = sized(resp->mutable_objects(), 1);
-  uint32_t* prim = sized(resp->mutable_primitives(), 1);
-  uint32_t* mat = sized(resp->mutable_materials(), 1);
-  for (int i = 0; i < n; ++i) {
-    const WorldHit& h = hits[size_t(i)];
-    t[i] = h.t;
-    for (int k = 0; k < 3; ++k) {
-      p[3 * i + k] = h.p[k];
-      nn[3 * i + k] = h.n[k];
-      ns[3 * i + k] = h.ns[k];
+  t_ = exactly(resp->mutable_t(), n);
+  p_ = exactly(resp->mutable_points(), 3 * n);
+  n_ = exactly(resp->mutable_normals(), 3 * n);
+  ns_ = exactly(resp->mutable_shading_normals(), 3 * n);
+  uv_ = exactly(resp->mutable_barycentrics(), 2 * n);
+  object_ = exactly(resp->mutable_objects(), n);
+  primitive_ = exactly(resp->mutable_primitives(), n);
+  material_ = exactly(resp->mutable_materials(), n);
+}
+
+void HitArrays::write(size_t begin, std::span<const WorldHit> hits) const {
+  for (size_t k = 0; k < hits.size(); ++k) hit_[begin + k] = hits[k].hit ? 1 : 0;
+  if (occlusion_) return;
+  for (size_t k = 0; k < hits.size(); ++k) {
+    const WorldHit& h = hits[k];
+    const size_t i = begin + k;
+    t_[i] = h.t;
+    for (int c = 0; c < 3; ++c) {
+      p_[3 * i + c] = h.p[c];
+      n_[3 * i + c] = h.n[c];
+      ns_[3 * i + c] = h.ns[c];
     }
-    uv[2 * i] = h.u;
-    uv[2 * i + 1] = h.v;
-    obj[i] = h.object;
-    prim[i] = h.primitive;
-    mat[i] = h.material;
+    uv_[2 * i] = h.u;
+    uv_[2 * i + 1] = h.v;
+    object_[i] = h.object;
+    primitive_[i] = h.primitive;
+    material_[i] = h.material;
   }
 }
 
@@ -108,8 +153,12 @@ std::vector<WorldHit> decode_hits(const v1::TraceResponse& r, size_t n, bool occ
   };
   need("hit", r.hit().size(), 1);
   std::vector<WorldHit> hits(n);
-  for (size_t i = 0; i < n; ++i) hits[i].hit = r.hit()[i] != 0;
-  if (occlusion) return hits;
+  WorldHit* out = hits.data();
+  const char* f = r.hit().data();
+  if (occlusion) {
+    for (size_t i = 0; i < n; ++i) out[i].hit = f[i] != 0;
+    return hits;
+  }
   need("t", size_t(r.t_size()), 1);
   need("points", size_t(r.points_size()), 3);
   need("normals", size_t(r.normals_size()), 3);
@@ -121,17 +170,20 @@ std::vector<WorldHit> decode_hits(const v1::TraceResponse& r, size_t n, bool occ
   const float *t = r.t().data(), *nn = r.normals().data(), *ns = r.shading_normals().data(),
               *uv = r.barycentrics().data();
   const double* p = r.points().data();
+  const uint32_t *obj = r.objects().data(), *prim = r.primitives().data(), *mat = r.materials().data();
+  // Through raw pointers: RepeatedField's operator[] is not free in a loop this hot.
   for (size_t i = 0; i < n; ++i) {
-    WorldHit& h = hits[i];
+    WorldHit& h = out[i];
+    h.hit = f[i] != 0;
     h.t = t[i];
     h.p = Vec3d(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
     h.n = Vec3f(nn[3 * i], nn[3 * i + 1], nn[3 * i + 2]);
     h.ns = Vec3f(ns[3 * i], ns[3 * i + 1], ns[3 * i + 2]);
     h.u = uv[2 * i];
     h.v = uv[2 * i + 1];
-    h.object = r.objects()[int(i)];
-    h.primitive = r.primitives()[int(i)];
-    h.material = r.materials()[int(i)];
+    h.object = obj[i];
+    h.primitive = prim[i];
+    h.material = mat[i];
   }
   return hits;
 }

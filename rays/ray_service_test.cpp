@@ -16,6 +16,7 @@
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
 #include "ray_codec.h"
+#include "rays/parallel_trace.h"
 #include "scene/scene_parser.h"
 
 namespace tessera::rays {
@@ -99,9 +100,19 @@ void expect_same(const std::vector<WorldHit>& got, const std::vector<WorldHit>& 
     ASSERT_EQ(std::memcmp(&got[i].t, &want[i].t, 4), 0) << i;
     ASSERT_EQ(got[i].p, want[i].p) << i;
     ASSERT_EQ(got[i].n, want[i].n) << i;
+    ASSERT_EQ(got[i].ns, want[i].ns) << i;
+    ASSERT_EQ(std::memcmp(&got[i].u, &want[i].u, 4), 0) << i;
+    ASSERT_EQ(std::memcmp(&got[i].v, &want[i].v, 4), 0) << i;
     ASSERT_EQ(got[i].object, want[i].object) << i;
+    ASSERT_EQ(got[i].primitive, want[i].primitive) << i;
     ASSERT_EQ(got[i].material, want[i].material) << i;
   }
+}
+
+std::vector<WorldHit> in_process(const RayTracer& tracer, const std::vector<WorldRay>& rays) {
+  std::vector<WorldHit> hits(rays.size());
+  tracer.nearest(rays.data(), rays.size(), hits.data());
+  return hits;
 }
 
 TEST_F(RayServiceTest, TraceAnswersAsTheTracerDoesAndAnalytically) {
@@ -137,6 +148,39 @@ TEST_F(RayServiceTest, ParallelBatchesEqualSerialOnes) {
   std::vector<WorldHit> want(rays.size());
   tracer_->nearest(rays.data(), rays.size(), want.data());
   expect_same(decode_hits(resp, rays.size(), false), want);
+}
+
+// The server decodes, traces and encodes a batch a chunk at a time, reusing its buffers (per
+// thread, and a stream's messages): misses after hits, a batch of several chunks on one thread,
+// and an occlusion batch after a nearest one all come back as the tracer's answers.
+TEST_F(RayServiceTest, ReusedBuffersLeaveNothingBehind) {
+  start({.max_batch_rays = 1 << 18, .threads = 1});
+  std::vector<WorldRay> hits = fan(2 * kParallelBatch), misses = hits;
+  for (WorldRay& r : misses) r.d = -r.d;  // up and away: no sphere, and the floor is behind
+  grpc::ClientContext ctx;
+  auto s = stub()->TraceStream(&ctx);
+  ASSERT_TRUE(s->Write(request(hits)));
+  ASSERT_TRUE(s->Write(request(misses, false)));
+  v1::TraceRequest occ = request(hits, false);
+  occ.set_occlusion(true);
+  ASSERT_TRUE(s->Write(occ));
+  ASSERT_TRUE(s->Write(request(fan(3), false)));
+  s->WritesDone();
+  v1::TraceResponse resp;
+  ASSERT_TRUE(s->Read(&resp));
+  expect_same(decode_hits(resp, hits.size(), false), in_process(*tracer_, hits));
+  ASSERT_TRUE(s->Read(&resp));
+  const std::vector<WorldHit> got = decode_hits(resp, misses.size(), false);
+  EXPECT_FALSE(got[misses.size() / 2].hit);
+  expect_same(got, in_process(*tracer_, misses));
+  ASSERT_TRUE(s->Read(&resp));
+  EXPECT_EQ(resp.t_size(), 0);
+  std::vector<WorldHit> blocked(hits.size());
+  tracer_->occluded(hits.data(), hits.size(), blocked.data());
+  for (size_t i = 0; i < hits.size(); ++i) ASSERT_EQ(resp.hit()[i] != 0, blocked[i].hit) << i;
+  ASSERT_TRUE(s->Read(&resp));
+  expect_same(decode_hits(resp, 3, false), in_process(*tracer_, fan(3)));
+  EXPECT_TRUE(s->Finish().ok());
 }
 
 TEST_F(RayServiceTest, OcclusionSendsOnlyTheFlags) {
@@ -199,10 +243,54 @@ TEST_F(RayServiceTest, BadInputIsInvalidArgumentNamingTheRayAndField) {
   req.add_t_max(1.0f);  // one t_max for ten rays
   expect_refused(req, "t_max has 1 values");
   expect_refused(request(fan(101)), "batch of 101 rays (directions / 3) is over this server's limit 100 (tessera-rays --max-batch-rays)");
+  rays = fan(100);
+  rays[98].tmin = NAN;  // the first bad ray is named, not a later one
+  rays[99].d = Vec3d(0, 0, 0);
+  expect_refused(request(rays), "ray 98: t_min must be finite and >= 0");
   req = request(fan(2));
   req.mutable_scene()->set_bundle_sha256(std::string(64, 'b'));
   expect_refused(req, "scene.bundle_sha256: unknown bundle bbbb");
   expect_refused(request(fan(2), false), "scene: required");
+}
+
+// check_rays() screens whole arrays at once and asks check_ray() only when something is wrong:
+// for every kind of bad value, with and without t_min/t_max arrays, it names the first bad ray
+// exactly as check_ray() over the decoded rays does.
+TEST(RayCodec, CheckRaysNamesTheFirstBadRayAsCheckRayDoes) {
+  const double bad_d[] = {NAN, INFINITY, -INFINITY, 2e30};
+  const float bad_t[] = {NAN, -1.0f, INFINITY, -0.5f};
+  for (int arrays = 0; arrays < 4; ++arrays) {
+    for (int kind = 0; kind < 12; ++kind) {
+      std::vector<WorldRay> rays = fan(50);
+      for (WorldRay& r : rays) {
+        if (arrays & 1) r.tmin = 0.25f;
+        if (arrays & 2) r.tmax = 100.0f;
+      }
+      WorldRay& r = rays[size_t(7 + kind)];
+      if (kind < 4) r.o[kind % 3] = bad_d[kind];
+      else if (kind < 7) r.d[kind - 4] = bad_d[kind - 4];
+      else if (kind == 7) r.d = Vec3d(0, 0, 0);
+      else if (kind < 10) r.tmin = bad_t[kind - 8];
+      else if (kind == 10) r.tmax = NAN;
+      else r.tmin = 2 * r.tmax;
+      v1::TraceRequest req;
+      encode_rays(rays, {}, &req);
+      std::optional<RayProblem> want;
+      for (size_t i = 0; i < rays.size() && !want; ++i) {
+        WorldRay back;
+        read_rays(req, i, i + 1, &back);
+        want = check_ray(back, i);
+      }
+      const std::optional<RayProblem> got = check_rays(req);
+      ASSERT_EQ(got.has_value(), want.has_value()) << arrays << " " << kind;
+      if (got) {
+        EXPECT_EQ(got->message, want->message) << arrays << " " << kind;
+      }
+    }
+  }
+  v1::TraceRequest good;
+  encode_rays(fan(50), {}, &good);
+  EXPECT_FALSE(check_rays(good));
 }
 
 TEST_F(RayServiceTest, ABadBatchEndsTheStreamNamingIt) {
