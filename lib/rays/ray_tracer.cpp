@@ -129,6 +129,13 @@ bool RayTracer::blocked(const WorldRay& w) const {
 void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
   // Rays go to RenderScene::intersect_each in groups (it overlaps their latencies; each answer is
   // still intersect()'s for that ray alone); a far ray, which needs two queries, goes alone.
+  if (n < 4) {  // a few rays: the groups' set-up would cost more than the overlap saves
+    for (size_t i = 0; i < n; ++i) {
+      if (trace(rays[i], &hits[i])) hits[i].hit = true;
+      else hits[i] = WorldHit{};
+    }
+    return;
+  }
   constexpr size_t kGroup = 64;
   Ray rs_rays[kGroup];
   Hit rs_hits[kGroup];
