@@ -3,6 +3,7 @@
 // --max-faults of them, the good worker finishes the job bit-identical; and a job that every
 // worker fails on fails with a clear error instead of hanging.
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
 #include <nlohmann/json.hpp>
 #include <thread>
@@ -74,6 +75,28 @@ TEST(FarmFaults, BadResultsAreRefusedAndTheirWorkersBlocklisted) {
   }
 }
 
+// Whether the coordinator's database holds (job, worker) in its blocklist within 10 s, read with
+// SQLite beside the running coordinator (WAL: readers never block its writer).
+bool eventually_stored(const fs::path& db_path, const std::string& job, const std::string& worker) {
+  for (int i = 0; i < 400; ++i) {
+    sqlite3* db = nullptr;
+    bool found = false;
+    if (sqlite3_open_v2(db_path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
+      sqlite3_stmt* st = nullptr;
+      if (sqlite3_prepare_v2(db, "SELECT 1 FROM blocklist WHERE job=?1 AND worker=?2", -1, &st, nullptr) == SQLITE_OK) {
+        sqlite3_bind_text(st, 1, job.c_str(), -1, SQLITE_TRANSIENT);
+        sqlite3_bind_text(st, 2, worker.c_str(), -1, SQLITE_TRANSIENT);
+        found = sqlite3_step(st) == SQLITE_ROW;
+      }
+      sqlite3_finalize(st);
+    }
+    sqlite3_close(db);
+    if (found) return true;
+    std::this_thread::sleep_for(25ms);
+  }
+  return false;
+}
+
 TEST(FarmFaults, BlocklistSurvivesACoordinatorRestart) {
   Farm farm;
   farm.start_server({"--max-faults", "2"});
@@ -88,6 +111,11 @@ TEST(FarmFaults, BlocklistSurvivesACoordinatorRestart) {
   const std::string blocked = "'liar' is blocklisted for job " + job;
   for (int i = 0; i < 400 && farm.server().log().find(blocked) == std::string::npos; ++i) std::this_thread::sleep_for(25ms);
   ASSERT_NE(farm.server().log().find(blocked), std::string::npos) << farm.server_logs();
+  // The store commits in groups on its own thread (server/job_store.h), a few milliseconds after
+  // the log line: kill -9 in between would lose the entry (the liar would then fault twice more
+  // and be blocklisted again). What this test asserts is that a stored blocklist is loaded after
+  // a crash, so it crashes the coordinator once the row is in the database file.
+  ASSERT_TRUE(eventually_stored(farm.data_dir() / "tessera.db", job, "liar")) << farm.server_logs();
   farm.restart_server();
   // Straight from the database: the restarted coordinator already refuses the liar this job.
   CliResult st = farm.cli({"status", job, "--json", "--coordinator", farm.address()});
