@@ -550,11 +550,11 @@ int run_workers(const JobArgs& a) {
     std::printf("no workers connected to %s\n", client.address().c_str());
     return 0;
   }
-  std::printf("%-4s %-20s %-22s %7s %-18s %9s %8s %8s %8s\n", "ID", "NAME", "PEER", "THREADS", "ISA", "IN-FLIGHT",
+  std::printf("%-4s %-20s %-22s %7s %-20s %9s %8s %8s %8s\n", "ID", "NAME", "PEER", "THREADS", "ISA", "IN-FLIGHT",
               "TILES", "MRAYS/S", "UP");
   for (const auto& w : resp.workers()) {
     const double mrays = w.render_seconds() > 0 ? double(w.rays()) / w.render_seconds() * w.threads() / 1e6 : 0;
-    std::printf("%-4s %-20s %-22s %7d %-18s %9d %8lld %8.1f %8s\n", w.worker_id().c_str(), w.name().c_str(),
+    std::printf("%-4s %-20s %-22s %7d %-20s %9d %8lld %8.1f %8s\n", w.worker_id().c_str(), w.name().c_str(),
                 w.peer().c_str(), w.threads(), w.embree_isa().c_str(), w.tiles_in_flight(),
                 (long long)w.tiles_done(), mrays, fmt_duration(w.connected_seconds()).c_str());
   }
