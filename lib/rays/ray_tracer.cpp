@@ -15,9 +15,9 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // The unit direction, in double. One that is unit length to within 2^-20 already is kept as
 // given, so a float direction passes to the renderer bit for bit (its own camera rays are
 // normalized floats: replaying one must give the renderer's exact hit).
-constexpr double kUnitTolerance = 0x1p-20;
-[[gnu::always_inline]] inline Vec3d unit_direction(const Vec3d& d) {
-  if (std::abs(length(d) - 1.0) <= kUnitTolerance) return d;
+// `len` is length(d) (nearest() computes a group's lengths ahead).
+[[gnu::always_inline]] inline Vec3d unit_direction(const Vec3d& d, double len) {
+  if (std::abs(len - 1.0) <= 0x1p-20) return d;
   const Vec3d s = d / max_component(abs(d));  // scaled first: |d| of 1e-300 or 1e300 is fine
   return s / length(s);
 }
@@ -56,7 +56,7 @@ RayTracer::RayTracer(std::shared_ptr<const Scene> scene, std::shared_ptr<const R
 [[gnu::always_inline]] inline RayTracer::Query RayTracer::query(const WorldRay& w) const {
   const RenderScene& rs = *frame_;
   Query q;
-  q.dd = unit_direction(w.d);
+  q.dd = unit_direction(w.d, length(w.d));
   const Vec3f d(q.dd);
   // Render space is world minus the eye, formed in double. A ray from the eye (a camera ray)
   // starts at exactly 0, as the renderer's do.
@@ -129,13 +129,17 @@ bool RayTracer::blocked(const WorldRay& w) const {
 void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
   // Rays go to RenderScene::intersect_each in groups (it overlaps their latencies; each answer is
   // still intersect()'s for that ray alone); a far ray, which needs two queries, goes alone.
+  // trace() writes every field of a hit, and nothing of a miss.
+  auto alone = [&](size_t i) {
+    if (trace(rays[i], &hits[i])) hits[i].hit = true;
+    else hits[i] = WorldHit{};
+  };
   if (n < 4) {  // a few rays: the groups' set-up would cost more than the overlap saves
-    for (size_t i = 0; i < n; ++i) {
-      if (trace(rays[i], &hits[i])) hits[i].hit = true;
-      else hits[i] = WorldHit{};
-    }
+    for (size_t i = 0; i < n; ++i) alone(i);
     return;
   }
+  const RenderScene& rs = *frame_;
+  const double far = 16.0 * double(rs.bounds_radius());
   constexpr size_t kGroup = 64;
   Ray rs_rays[kGroup];
   Hit rs_hits[kGroup];
@@ -145,8 +149,6 @@ void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
   for (size_t base = 0; base < n; base += kGroup) {
     const size_t end = std::min(n, base + kGroup);
     size_t m = 0;
-    const RenderScene& rs = *frame_;
-    const double far = 16.0 * double(rs.bounds_radius());
     // The direction's length first, for the whole group: the square roots overlap instead of
     // each one stalling its ray's chain.
     double len[kGroup];
@@ -155,13 +157,11 @@ void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
       // query()'s common case, written straight into the arrays (through a Query, the copies
       // stalled on store forwarding): a ray that does not start far away.
       const WorldRay& w = rays[i];
-      const Vec3d dd = std::abs(len[i - base] - 1.0) <= kUnitTolerance ? w.d : unit_direction(w.d);
+      const Vec3d dd = unit_direction(w.d, len[i - base]);
       const double s = double(w.tmin);
       const Vec3d start = (w.o - rs.origin()) + dd * s;
       if (far > 0.0 && max3(std::abs(start.x), std::abs(start.y), std::abs(start.z)) > far) {
-        // Far: query() decides, trace() answers.
-        if (trace(w, &hits[i])) hits[i].hit = true;
-        else hits[i] = WorldHit{};
+        alone(i);  // far: query() decides, trace() answers
         continue;
       }
       const double tmax = std::min(double(w.tmax), double(std::numeric_limits<float>::max()));
@@ -169,7 +169,7 @@ void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
       shift[m] = s;
       index[m++] = i;
     }
-    frame_->intersect_each(rs_rays, m, rs_hits, found);
+    rs.intersect_each(rs_rays, m, rs_hits, found);
     for (size_t j = 0; j < m; ++j) {
       // to_world() writes every field of a hit, and nothing of a miss.
       WorldHit& out = hits[index[j]];
