@@ -1,6 +1,7 @@
 #include "render/render_scene.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -575,11 +576,16 @@ void RenderScene::intersect_each(const Ray* rays, size_t n, Hit* hits, bool* fou
     for (size_t k = 0; k < planes_.size(); ++k) {
       const Plane& pl = planes_[k];
       for (size_t i = 0; i < m; ++i) {
-        const double t = intersect_plane(Vec3d(r[i].o), Vec3d(r[i].d), pl.point, pl.normal);
-        if (t > 0.0 && t < tp[i]) {
-          tp[i] = t;
-          plane[i] = int(k);
-        }
+        // intersect_plane() and the test above it, as selects: which rays meet a plane first is
+        // a coin toss for random rays, and the branches were mispredicted (perf annotate). The
+        // same t is computed; `take` is exactly "intersect_plane() > 0 and < tp".
+        const Vec3d o(r[i].o), d(r[i].d);
+        const double denom = dot(d, pl.normal);
+        const double t = dot(pl.point - o, pl.normal) / denom;
+        const bool take = (denom != 0.0) & (t > 0.0) & (t < tp[i]);
+        const uint64_t keep = uint64_t(take) - 1;  // all ones where not taken
+        tp[i] = std::bit_cast<double>((std::bit_cast<uint64_t>(t) & ~keep) | (std::bit_cast<uint64_t>(tp[i]) & keep));
+        plane[i] = int((uint32_t(k) & ~uint32_t(keep)) | (uint32_t(plane[i]) & uint32_t(keep)));
       }
     }
     for (size_t i = 0; i < m; ++i) {
