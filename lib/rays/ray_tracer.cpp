@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <limits>
 
+#include "rays/world_batch.h"
+#include "render/ray_batch.h"
 #include "render/shading_normal.h"
 
 namespace tessera::rays {
@@ -17,19 +19,10 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // The unit direction, in double. One that is unit length to within 2^-20 already is kept as
 // given, so a float direction passes to the renderer bit for bit (its own camera rays are
 // normalized floats: replaying one must give the renderer's exact hit).
-// `len` is length(d) (nearest() computes a group's lengths ahead).
 [[gnu::always_inline]] inline Vec3d unit_direction(const Vec3d& d, double len) {
   if (std::abs(len - 1.0) <= 0x1p-20) return d;
   const Vec3d s = d / max_component(abs(d));  // scaled first: |d| of 1e-300 or 1e300 is fine
   return s / length(s);
-}
-
-// max(a, b, c) without branches (std::max's reference result compiles to a compare and jump,
-// mispredicted half the time on random directions); the same value for the non-negative,
-// non-NaN arguments it gets here.
-inline double max3(double a, double b, double c) {
-  const double m = b > a ? b : a;
-  return c > m ? c : m;
 }
 
 // [t_in, t_out] of the ray o + t d inside the cube |x| <= L (max norm), in double; false if it
@@ -140,65 +133,58 @@ bool RayTracer::blocked(const WorldRay& w) const {
 }
 
 void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
-  // Rays go to RenderScene::intersect_each in groups (it overlaps their latencies; each answer is
-  // still intersect()'s for that ray alone); a far ray, which needs two queries, goes alone.
-  // trace() writes every field of a hit, and nothing of a miss.
+  // Rays go to RenderScene::intersect_batch kRayBatch at a time, as arrays of components, so
+  // that the arithmetic around each Embree query runs in SIMD across rays (world_batch.h,
+  // render/ray_batch.h); each answer is still intersect()'s for that ray alone, bit for bit. A
+  // far ray, which needs two queries, goes alone: trace() writes every field of a hit, and
+  // nothing of a miss.
   auto alone = [&](size_t i) {
     if (trace(rays[i], &hits[i])) hits[i].hit = true;
     else hits[i] = WorldHit{};
   };
-  if (n < 4) {  // a few rays: the groups' set-up would cost more than the overlap saves
+  if (n < 4) {  // a few rays: the batch's set-up would cost more than the vectors save
     for (size_t i = 0; i < n; ++i) alone(i);
     return;
   }
   const RenderScene& rs = *frame_;
+  const Vec3d origin = rs.origin();
   const double far = 16.0 * double(rs.bounds_radius());
-  constexpr size_t kGroup = 64;
-  Ray rs_rays[kGroup];
-  Hit rs_hits[kGroup];
-  bool found[kGroup];
-  size_t index[kGroup];
-  double shift[kGroup];
-  for (size_t base = 0; base < n; base += kGroup) {
-    const size_t end = std::min(n, base + kGroup);
-    size_t m = 0;
-    // The direction's length first, for the whole group: the square roots overlap instead of
-    // each one stalling its ray's chain.
-    double len[kGroup];
-    for (size_t i = base; i < end; ++i) len[i - base] = length(rays[i].d);
-    for (size_t i = base; i < end; ++i) {
-      // query()'s common case, written straight into the arrays, component by component: a
-      // ray that does not start far away. (Through a Query, or a Vec3d returned by
-      // unit_direction(), the copies went through the stack and their loads stalled on store
-      // forwarding: ~10 % of the whole query, perf annotate.)
-      const WorldRay& w = rays[i];
-      double dx = w.d.x, dy = w.d.y, dz = w.d.z;
-      if (!(std::abs(len[i - base] - 1.0) <= 0x1p-20)) [[unlikely]] {
-        const Vec3d u = unit_direction(w.d, len[i - base]);
-        dx = u.x, dy = u.y, dz = u.z;
-      }
-      const double s = double(w.tmin);
-      const Vec3d org = rs.origin();
-      // (w.o - origin) + dd * s, as query() forms it.
-      const double sx = (w.o.x - org.x) + dx * s, sy = (w.o.y - org.y) + dy * s, sz = (w.o.z - org.z) + dz * s;
-      if (far > 0.0 && max3(std::abs(sx), std::abs(sy), std::abs(sz)) > far) {
-        alone(i);  // far: query() decides, trace() answers
-        continue;
-      }
-      const double tmax = std::min(double(w.tmax), double(std::numeric_limits<float>::max()));
-      Ray& r = rs_rays[m];
-      r.o.x = float(sx), r.o.y = float(sy), r.o.z = float(sz);
-      r.d.x = float(dx), r.d.y = float(dy), r.d.z = float(dz);
-      r.tmax = float(tmax - s);
-      shift[m] = s;
-      index[m++] = i;
-    }
-    rs.intersect_each(rs_rays, m, rs_hits, found);
+  RayBatch batch;
+  HitBatch found;
+  WorldAnswers answers;
+  alignas(64) double shift[kRayBatch];
+  for (size_t base = 0; base < n; base += kRayBatch) {
+    const size_t m = std::min(kRayBatch, n - base);
+    // The next batch's rays, asked for now: they arrive while this batch is traced (without it,
+    // the first touch of each ray was a tenth of the whole query, perf).
+    const char* next = reinterpret_cast<const char*>(rays + std::min(n, base + kRayBatch));
+    const char* next_end = reinterpret_cast<const char*>(rays + std::min(n, base + 2 * kRayBatch));
+    for (const char* p = next; p < next_end; p += 64) __builtin_prefetch(p);
+    world_to_render(rays + base, m, origin, far, &batch, shift);
+    rs.intersect_batch(batch, m, &found);
+    tessera::rays::to_world(found, batch, shift, m, origin, &answers);
     for (size_t j = 0; j < m; ++j) {
-      // to_world() writes every field of a hit, and nothing of a miss.
-      WorldHit& out = hits[index[j]];
-      if (found[j] && to_world(rs_hits[j], shift[j], rs_rays[j].d, &out)) out.hit = true;
-      else out = WorldHit{};
+      WorldHit& out = hits[base + j];
+      if (batch.skip[j]) {
+        alone(base + j);  // far: query() decides, trace() answers
+      } else if (found.status[j] == HitBatch::kAnswered && answers.finite[j]) {
+        // to_world()'s answer (a hit without a shading normal: ns is the facing normal).
+        out.hit = true;
+        out.t = answers.t[j];
+        out.p = {answers.px[j], answers.py[j], answers.pz[j]};
+        out.n = {found.nx[j], found.ny[j], found.nz[j]};
+        out.ns = {answers.nsx[j], answers.nsy[j], answers.nsz[j]};
+        out.u = found.u[j];
+        out.v = found.v[j];
+        out.object = found.object[j];
+        out.primitive = found.primitive[j];
+        out.material = found.material[j];
+      } else if (found.status[j] == HitBatch::kHit &&
+                 to_world(found.hit[j], shift[j], Vec3f(batch.dx[j], batch.dy[j], batch.dz[j]), &out)) {
+        out.hit = true;
+      } else {
+        out = WorldHit{};
+      }
     }
   }
 }

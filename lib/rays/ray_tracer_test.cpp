@@ -5,12 +5,14 @@
 #include "rays/ray_tracer.h"
 
 #include <gtest/gtest.h>
+#include <hwy/targets.h>
 #include <unistd.h>
 
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 
 #include "render/ray_log.h"
@@ -387,6 +389,74 @@ TEST_F(RayTracerTest, ARaysAnswerDoesNotDependOnItsBatch) {
     hits += all[i].hit;
   }
   EXPECT_GT(hits, 50);  // the batch exercises hits, not only misses
+}
+
+// nearest() traces batches with SIMD code compiled for each target the machine has
+// (world_batch.h, render/ray_batch.h); a single ray takes the scalar path (trace()). On every
+// target, each ray of a batch must get the single ray's answer bit for bit: over opaque and glass
+// triangles, a mesh with vertex normals, a sphere, two planes, directions of any length, t
+// intervals, far origins and rays that miss.
+TEST_F(RayTracerTest, BatchesAnswerAsSingleRaysOnEverySimdTarget) {
+  const std::string objects = std::string(kOcta) + ", " + kSphere + ", " + kFloor + R"(,
+    {"type": "mesh", "name": "glass_octa", "file": "octa.obj", "material": "g",
+     "transform": {"translate": [3, 0, 4]}},
+    {"type": "mesh", "name": "smooth_octa", "file": "octa.obj", "material": "d",
+     "transform": {"translate": [-3, 0.5, 2], "scale": 1.5}},
+    {"type": "plane", "name": "wall", "point": [0, 0, -6], "normal": [0, 0.2, 1], "material": "d"})";
+  const std::string json = R"({"camera": {"position": [0, 3, 20], "look_at": [0, 0, 0]},
+    "materials": {"d": {"type": "diffuse"}, "g": {"type": "glass"}}, "objects": [)" + objects + "]}";
+  std::ofstream(dir_ / "s.json") << json;
+  auto scene = std::make_shared<Scene>(load_scene((dir_ / "s.json").string()));
+  // The smooth octahedron gets vertex normals (as glTF NORMAL would give it): shading normals.
+  for (const SceneObject& obj : scene->objects) {
+    if (obj.name != "smooth_octa") continue;
+    Mesh& m = scene->meshes[size_t(obj.mesh)];
+    m.normals.clear();
+    for (const Vec3f& p : m.positions) m.normals.push_back(normalize(p + Vec3f(0.1f, 0.2f, 0.3f)));
+  }
+  const RayTracer t(scene, std::make_shared<const RenderScene>(*scene, 0));
+
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::vector<WorldRay> rays;
+  for (int i = 0; i < 3000; ++i) {
+    WorldRay r;
+    r.o = {6 * u(rng), 3 + 4 * u(rng), 8 + 10 * u(rng)};
+    Vec3d target(4 * u(rng), 2 * u(rng), 2 + 6 * u(rng));
+    if (i % 7 == 0) target = r.o + Vec3d(u(rng), u(rng), u(rng));  // anywhere: many miss
+    const double scale[] = {1.0, 1.0, 1.0, 0.25, 7.0, 1e-3, 1e4};
+    r.d = normalize(target - r.o) * scale[i % 7];
+    if (i % 5 == 1) r.tmin = float(2 * (1 + u(rng)));
+    if (i % 5 == 2) r.tmax = float(8 * (1 + u(rng)));
+    if (i % 97 == 3) {  // from far away, towards the scene: moved in double by query()
+      r.o = Vec3d(3e6, -2e6, 5e6);
+      r.d = target - r.o;
+    }
+    rays.push_back(r);
+  }
+  std::vector<WorldHit> single(rays.size());
+  for (size_t i = 0; i < rays.size(); ++i) t.nearest(&rays[i], 1, &single[i]);
+  std::map<uint32_t, int> hits_by_object;
+  for (const WorldHit& h : single) hits_by_object[h.hit ? h.object : kNoIndex]++;
+  for (uint32_t k = 0; k < uint32_t(scene->objects.size()); ++k) {
+    EXPECT_GE(hits_by_object[k], 20) << "object " << scene->objects[k].name << " is hardly hit: the test is weak";
+  }
+  EXPECT_GE(hits_by_object[kNoIndex], 100);
+
+  const std::vector<int64_t> targets = hwy::SupportedAndGeneratedTargets();
+  ASSERT_FALSE(targets.empty());
+  for (int64_t target : targets) {
+    hwy::SetSupportedTargetsForTest(target);
+    SCOPED_TRACE(hwy::TargetName(target));
+    for (size_t batch : {size_t(4), size_t(61), size_t(64), size_t(3000)}) {
+      std::vector<WorldHit> got(rays.size());
+      for (size_t b = 0; b < rays.size(); b += batch) t.nearest(&rays[b], std::min(batch, rays.size() - b), &got[b]);
+      for (size_t i = 0; i < rays.size(); ++i) {
+        ASSERT_TRUE(same_bits(got[i], single[i])) << "ray " << i << " in batches of " << batch;
+      }
+    }
+  }
+  hwy::SetSupportedTargetsForTest(0);
 }
 
 // The renderer's primary hits for every camera ray of one frame (spp 4: packets of four, as the

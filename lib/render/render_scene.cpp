@@ -1,7 +1,6 @@
 #include "render/render_scene.h"
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -438,6 +437,7 @@ void RenderScene::build(const Scene& scene, int frame) {
     for (float& c : L.cdf) c /= L.area;
     L.cdf.back() = 1.0f;
   }
+  for (const Plane& p : planes_) plane_table_.insert(plane_table_.end(), {p.point.x, p.point.y, p.point.z, p.normal.x, p.normal.y, p.normal.z});
   has_glass_ = !triangles_[1].material_ids.empty() || !sphere_buckets_[1].ids.empty();
   for (const Plane& p : planes_) has_glass_ = has_glass_ || is_glass(p.material);
 
@@ -547,83 +547,6 @@ bool RenderScene::intersect(const Ray& ray, const PrimRef& from, Hit* hit) const
   }
   const float t = t0 > 0.0 ? float(t0 + double(rh.ray.tfar)) : rh.ray.tfar;
   return finish_hit(o, d, plane, tp, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, t, hit);
-}
-
-void RenderScene::intersect_each(const Ray* rays, size_t n, Hit* hits, bool* found) const {
-  // intersect()'s steps, each over a group of rays before the next: the planes, the Embree
-  // query, the hit. Ray by ray, the long-latency chains around each Embree call (the planes'
-  // double division, the hit's square root, the vertex loads) ran one after another, and
-  // passing each step's result through small structs stalled on store forwarding; in phases over
-  // plain arrays the CPU overlaps them across rays. Every value is computed by the same
-  // operations in the same order as intersect(), so each answer is bit for bit intersect()'s
-  // (RenderSceneTest.IntersectEachIsIntersect).
-  constexpr size_t kGroup = 32;
-  alignas(64) RTCRayHit rh[kGroup];
-  double tp[kGroup], t0[kGroup];
-  int plane[kGroup];
-  RayLog* log = thread_ray_log();
-  TraceContext ctx;  // read-only during a query: one serves the group
-  rtcInitIntersectContext(&ctx.rtc);
-  ctx.scene = this;
-  for (size_t base = 0; base < n; base += kGroup) {
-    const Ray* r = rays + base;
-    const size_t m = std::min(kGroup, n - base);
-    // nearest_plane(), plane by plane over the rays: the same comparisons in the same order.
-    for (size_t i = 0; i < m; ++i) {
-      tp[i] = double(r[i].tmax);
-      plane[i] = -1;
-    }
-    for (size_t k = 0; k < planes_.size(); ++k) {
-      const Plane& pl = planes_[k];
-      for (size_t i = 0; i < m; ++i) {
-        // intersect_plane() and the test above it, as selects: which rays meet a plane first is
-        // a coin toss for random rays, and the branches were mispredicted (perf annotate). The
-        // same t is computed; `take` is exactly "intersect_plane() > 0 and < tp".
-        const Vec3d o(r[i].o), d(r[i].d);
-        const double denom = dot(d, pl.normal);
-        const double t = dot(pl.point - o, pl.normal) / denom;
-        const bool take = (denom != 0.0) & (t > 0.0) & (t < tp[i]);
-        const uint64_t keep = uint64_t(take) - 1;  // all ones where not taken
-        tp[i] = std::bit_cast<double>((std::bit_cast<uint64_t>(t) & ~keep) | (std::bit_cast<uint64_t>(tp[i]) & keep));
-        plane[i] = int((uint32_t(k) & ~uint32_t(keep)) | (uint32_t(plane[i]) & uint32_t(keep)));
-      }
-    }
-    for (size_t i = 0; i < m; ++i) {
-      // embree_ray(), written straight into the Embree ray (through a Ray, the copies stalled).
-      const float tmax = plane[i] >= 0 ? float(tp[i]) : r[i].tmax;
-      if (max_component(abs(r[i].o)) <= 16.0f * bounds_radius_) {
-        t0[i] = 0.0;
-        rh[i] = make_rayhit(r[i], 0.0f, tmax, 0xFFFFFFFFu);
-      } else {
-        const Ray in{r[i].o, r[i].d, tmax};
-        Ray er = in;  // embree_ray_from_far() moves o and shortens tmax
-        t0[i] = embree_ray_from_far(in, &er);
-        rh[i] = make_rayhit(er, 0.0f, er.tmax, 0xFFFFFFFFu);
-      }
-      if (log) log->rays.push_back({rh[i].ray, PrimRef{}, LoggedRay::Kind::kCamera});
-    }
-    for (size_t i = 0; i < m; ++i) {
-      if (t0[i] >= 0.0) rtcIntersect1(rtc_scene_.get(), &ctx.rtc, &rh[i]);
-    }
-    // The hit triangles' records are cache misses on a large mesh: ask for all of them now, so
-    // they arrive together while the first hits are finished.
-    for (size_t i = 0; i < m; ++i) {
-      for (const TriangleBucket& b : triangles_) {
-        if (rh[i].hit.geomID != b.geom_id) continue;
-        const uint32_t pid = rh[i].hit.primID;
-        __builtin_prefetch(&b.positions[3 * size_t(pid)]);  // 36 bytes: one or two lines
-        __builtin_prefetch(&b.positions[3 * size_t(pid) + 2]);
-        __builtin_prefetch(&b.material_ids[pid]);
-        __builtin_prefetch(&b.sources[pid]);
-        if (!b.normals.empty()) __builtin_prefetch(&b.normals[9 * size_t(pid)]);
-      }
-    }
-    for (size_t i = 0; i < m; ++i) {
-      const float t = t0[i] > 0.0 ? float(t0[i] + double(rh[i].ray.tfar)) : rh[i].ray.tfar;
-      found[base + i] = finish_hit(Vec3d(r[i].o), Vec3d(r[i].d), plane[i], tp[i], rh[i].hit.geomID, rh[i].hit.primID,
-                                   rh[i].hit.u, rh[i].hit.v, t, &hits[base + i]);
-    }
-  }
 }
 
 bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double tp, uint32_t g, uint32_t prim_id,

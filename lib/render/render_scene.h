@@ -18,6 +18,9 @@ namespace tessera {
 
 // Identifies the primitive a ray leaves from, so flat and convex primitives can exclude
 // themselves exactly instead of relying on an epsilon.
+struct RayBatch;
+struct HitBatch;
+
 struct PrimRef {
   enum class Kind : uint8_t { kNone, kTriangle, kSphere, kPlane };
   Kind kind = Kind::kNone;
@@ -75,11 +78,12 @@ class RenderScene {
 
   // Nearest hit along the ray in (0, ray.tmax]; `from` is the primitive the ray leaves.
   bool intersect(const Ray& ray, const PrimRef& from, Hit* hit) const;
-  // intersect(rays[i], PrimRef{}, &hits[i]) for every i, bit for bit: one Embree query per ray
-  // (so an answer never depends on the batch), in phases over groups of rays (faster: the .cpp
-  // says why). For queries from no surface: the ray service's.
-  void intersect_each(const Ray* rays, size_t n, Hit* hits, bool* found) const;
-  // The same for n <= kPacket rays at once, traced as one Embree packet (render_scene_packet.cpp).
+  // intersect(ray i, PrimRef{}) for n <= kRayBatch rays given as arrays of components
+  // (render/ray_batch.h), one Embree query per ray (so an answer never depends on the batch),
+  // with the common hits' arithmetic in SIMD across rays (render_scene_batch.cpp): bit for bit
+  // intersect()'s answers. For queries from no surface: the ray service's.
+  void intersect_batch(const RayBatch& rays, size_t n, HitBatch* hits) const;
+  // intersect() for n <= kPacket rays at once, traced as one Embree packet (render_scene_packet.cpp).
   // A lane's result depends only on its own ray, except that exact ties between two primitives
   // at the same t may resolve by the packet's traversal order: callers must form packets as a
   // pure function of the pixel (the tile renderer packs one pixel's consecutive samples).
@@ -237,6 +241,7 @@ class RenderScene {
   std::vector<AreaLight> area_lights_;
   std::vector<Sphere> spheres_;
   std::vector<Plane> planes_;
+  std::vector<double> plane_table_;  // planes_ as 6 doubles each (point, normal): for SIMD (ray_batch_simd.h)
   TriangleBucket triangles_[2];  // [0] opaque, [1] glass
   SphereBucket sphere_buckets_[2];
   bool has_glass_ = false;

@@ -1,6 +1,7 @@
 // The packet queries against the single-ray ones (an independent code path inside Embree), and
 // a lane's result against the packet it is in: it must not depend on its lane or companions.
 #include <gtest/gtest.h>
+#include <hwy/targets.h>
 
 #include <bit>
 #include <cmath>
@@ -9,6 +10,7 @@
 #include <string>
 #include <tuple>
 
+#include "render/ray_batch.h"
 #include "render/render_scene.h"
 #include "render/sampler.h"
 #include "scene/scene_parser.h"
@@ -138,11 +140,12 @@ void expect_identical_hit(bool found_a, const Hit& a, bool found_b, const Hit& b
   if (a.smooth) EXPECT_EQ(bits(a.ns), bits(b.ns)) << what;
 }
 
-// intersect_each() reorders intersect()'s work over a batch: every answer must still be
-// intersect()'s, bit for bit, whatever the batch size or the ray's place in it. Camera rays,
-// rays from inside and around the scene in every direction (planes hit from both sides and
-// missed), short t_max, and rays starting far outside (embree_ray_from_far).
-TEST_P(PacketTest, IntersectEachIsIntersectBitForBit) {
+// intersect_batch() does intersect()'s work over a batch, the common hits' arithmetic in SIMD
+// (each target the machine has): every answer must still be intersect()'s, bit for bit, whatever
+// the batch size or the ray's place in it. Camera rays, rays from inside and around the scene in
+// every direction (planes hit from both sides and missed), short t_max, and rays starting far
+// outside (embree_ray_from_far).
+TEST_P(PacketTest, IntersectBatchIsIntersectBitForBit) {
   const RenderScene rs(scene(), 0, options());
   std::vector<Ray> rays = camera_rays(rs, 300);
   const float R = rs.bounds_radius();
@@ -155,21 +158,57 @@ TEST_P(PacketTest, IntersectEachIsIntersectBitForBit) {
     const float tmax = i % 4 == 0 ? 0.7f * length(target - o) : std::numeric_limits<float>::infinity();
     rays.push_back({o, normalize(target - o), tmax});
   }
-  for (const size_t batch : {size_t(1), size_t(7), size_t(32), size_t(45), rays.size()}) {
-    std::vector<Hit> each(rays.size());
-    std::unique_ptr<bool[]> found(new bool[rays.size()]);
-    for (size_t b = 0; b < rays.size(); b += batch) {
-      rs.intersect_each(&rays[b], std::min(batch, rays.size() - b), &each[b], &found[b]);
-    }
-    int hits = 0;
-    for (size_t i = 0; i < rays.size(); ++i) {
-      Hit single;
-      const bool f = rs.intersect(rays[i], PrimRef{}, &single);
-      hits += f;
-      expect_identical_hit(f, single, found[i], each[i], "ray " + std::to_string(i) + ", batch " + std::to_string(batch));
-    }
-    EXPECT_GT(hits, 200);
+  std::vector<Hit> single(rays.size());
+  std::vector<uint8_t> found(rays.size());
+  int hits = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    found[i] = rs.intersect(rays[i], PrimRef{}, &single[i]);
+    hits += found[i];
   }
+  EXPECT_GT(hits, 200);
+  auto bits = [](float x) { return std::bit_cast<uint32_t>(x); };
+  for (int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    hwy::SetSupportedTargetsForTest(target);
+    SCOPED_TRACE(hwy::TargetName(target));
+    for (const size_t batch : {size_t(1), size_t(7), size_t(32), size_t(45), kRayBatch}) {
+      for (size_t b = 0; b < rays.size(); b += batch) {
+        const size_t n = std::min(batch, rays.size() - b);
+        RayBatch in;
+        for (size_t i = 0; i < n; ++i) {
+          const Ray& r = rays[b + i];
+          in.ox[i] = r.o.x, in.oy[i] = r.o.y, in.oz[i] = r.o.z;
+          in.dx[i] = r.d.x, in.dy[i] = r.d.y, in.dz[i] = r.d.z;
+          in.tmax[i] = r.tmax;
+          in.skip[i] = 0;
+        }
+        auto out = std::make_unique<HitBatch>();
+        rs.intersect_batch(in, n, out.get());
+        for (size_t i = 0; i < n; ++i) {
+          const std::string what = "ray " + std::to_string(b + i) + ", batch " + std::to_string(batch);
+          const Hit& want = single[b + i];
+          switch (out->status[i]) {
+            case HitBatch::kMiss: EXPECT_FALSE(found[b + i]) << what; break;
+            case HitBatch::kHit: expect_identical_hit(found[b + i], want, true, out->hit[i], what); break;
+            case HitBatch::kAnswered:
+              ASSERT_TRUE(found[b + i]) << what;
+              EXPECT_FALSE(want.smooth) << what;
+              EXPECT_EQ(bits(out->t[i]), bits(want.t)) << what;
+              EXPECT_EQ(std::tuple(bits(out->px[i]), bits(out->py[i]), bits(out->pz[i])),
+                        std::tuple(bits(want.p.x), bits(want.p.y), bits(want.p.z))) << what;
+              EXPECT_EQ(std::tuple(bits(out->nx[i]), bits(out->ny[i]), bits(out->nz[i])),
+                        std::tuple(bits(want.n.x), bits(want.n.y), bits(want.n.z))) << what;
+              EXPECT_EQ(std::tuple(bits(out->u[i]), bits(out->v[i])), std::tuple(bits(want.u), bits(want.v))) << what;
+              EXPECT_EQ(out->material[i], want.material) << what;
+              EXPECT_EQ(out->object[i], rs.source_of(want.prim).object) << what;
+              EXPECT_EQ(out->primitive[i], rs.source_of(want.prim).primitive) << what;
+              break;
+            default: FAIL() << what << ": status " << int(out->status[i]);
+          }
+        }
+      }
+    }
+  }
+  hwy::SetSupportedTargetsForTest(0);
 }
 
 INSTANTIATE_TEST_SUITE_P(Showcase, PacketTest,

@@ -1,0 +1,34 @@
+// World-space rays into a RayBatch and the batch's hits back into world space, a vector of rays
+// at a time (Google Highway, picked at run time: world_batch_simd.cpp): lane for lane the
+// scalar steps of RayTracer::query() and RayTracer::to_world() (ray_tracer.cpp), in the same
+// operations and order, so every answer is bit for bit the scalar one.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "math/vec3.h"
+#include "rays/world_ray.h"
+#include "render/ray_batch.h"
+
+namespace tessera::rays {
+
+// query()'s common case for rays[0, n) (n <= kRayBatch): the unit direction, the start at
+// t_min relative to `origin` (render space's), t_max clipped to float range, rounded to float;
+// shift[i] = t_min. A ray that starts beyond `far` (max norm; far > 0) gets skip = 1 and is
+// left to the scalar code, which moves its start (query()).
+void world_to_render(const WorldRay* rays, size_t n, const Vec3d& origin, double far, RayBatch* out, double* shift);
+
+// to_world()'s arithmetic for the lanes of a batch (those with status kAnswered are the ones to
+// read): t (shift added in double where nonzero), the point in world space, the normal turned
+// to face the ray, and `finite` (1: to_world() accepts the hit, 0: a point beyond float range).
+struct WorldAnswers {
+  alignas(64) float t[kRayBatch];
+  alignas(64) double px[kRayBatch], py[kRayBatch], pz[kRayBatch];
+  alignas(64) float nsx[kRayBatch], nsy[kRayBatch], nsz[kRayBatch];
+  alignas(64) uint8_t finite[kRayBatch];
+};
+void to_world(const HitBatch& hits, const RayBatch& rays, const double* shift, size_t n, const Vec3d& origin,
+              WorldAnswers* out);
+
+}  // namespace tessera::rays

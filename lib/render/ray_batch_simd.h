@@ -1,0 +1,41 @@
+// The arithmetic of RenderScene::intersect_batch (render_scene_batch.cpp) on whole vectors of
+// rays: each function is, lane for lane, the scalar code it names, in the same operations and
+// the same order (the build contracts nothing into FMAs), so every answer is bit for bit the
+// scalar one. Compiled for each SIMD target by Google Highway and picked at run time
+// (ray_batch_simd.cpp). Arrays are kRayBatch long: lanes past n are computed and ignored.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "render/ray_batch.h"
+
+namespace tessera {
+
+// Planes as 6 doubles each: point x, y, z, normal x, y, z.
+struct PlaneTable {
+  const double* data = nullptr;
+  size_t count = 0;
+};
+
+// nearest_plane() for rays from no surface: tp[i] the nearest plane's t in (0, tmax[i]), else
+// tmax[i]; plane[i] its index, else -1.
+void batch_nearest_planes(const RayBatch& rays, size_t n, const PlaneTable& planes, double* tp, int32_t* plane);
+
+// Where select[i] == which: finish_hit()'s point, normal, material and source for triangle
+// prim[i] of a bucket (3 unshared vertices per triangle in `positions`, 9 floats; `sources` as
+// object, primitive pairs) at Embree's barycentrics u[i], v[i]. Other lanes are left as they are.
+struct TriangleTable {
+  const float* positions = nullptr;
+  const uint32_t* material_ids = nullptr;
+  const uint32_t* sources = nullptr;
+};
+void batch_triangle_hits(const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,
+                         const TriangleTable& triangles, HitBatch* hits);
+
+// Where select[i] == which: finish_hit()'s point on plane plane[i] at tp[i] (o + d tp in double,
+// projected onto the plane). Other lanes are left as they are.
+void batch_plane_points(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
+                        const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* hits);
+
+}  // namespace tessera

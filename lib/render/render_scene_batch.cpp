@@ -1,0 +1,129 @@
+// RenderScene::intersect_batch: intersect() for a batch of rays from no surface, with the
+// arithmetic around the Embree queries done across rays in SIMD (render/ray_batch_simd.h).
+//
+// Why: for the ray service, tracing a ray is about half Embree's traversal and half the work
+// around it (the planes in double, the hit point and normal, the names). Ray by ray that work is
+// scalar code in long dependency chains; over arrays of components it is a few vector
+// instructions per ray. Only the common hits go this way (opaque or glass triangles without
+// vertex normals, planes); spheres, meshes with vertex normals and rays that start far from
+// the geometry are rare in the queries a client sends in bulk, and keep the scalar code.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+#include "render/ray_batch.h"
+#include "render/ray_batch_simd.h"
+#include "render/render_scene.h"
+
+namespace tessera {
+
+void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) const {
+  alignas(64) double tp[kRayBatch];
+  alignas(64) int32_t plane[kRayBatch];
+  alignas(64) RTCRayHit rh[kRayBatch];
+  // What finishes each lane's hit: 0 nothing (a miss, or done here), 1 + k triangle bucket k,
+  // 3 a plane (the values batch_*() select lanes by).
+  constexpr uint32_t kTriangle0 = 1, kPlane = 3;
+  alignas(64) uint32_t finish[kRayBatch] = {};
+  alignas(64) uint32_t prim[kRayBatch] = {};
+  bool traced[kRayBatch];
+  const PlaneTable planes{plane_table_.data(), planes_.size()};
+  batch_nearest_planes(r, n, planes, tp, plane);
+
+  const float near_limit = 16.0f * bounds_radius_;
+  for (size_t i = 0; i < n; ++i) {
+    traced[i] = false;
+    h->status[i] = HitBatch::kMiss;
+    if (r.skip[i]) continue;
+    const Ray ray{{r.ox[i], r.oy[i], r.oz[i]}, {r.dx[i], r.dy[i], r.dz[i]}, r.tmax[i]};
+    if (!(max_component(abs(ray.o)) <= near_limit)) {
+      // embree_ray() would move this ray's start (embree_ray_from_far()): intersect() itself.
+      if (intersect(ray, PrimRef{}, &h->hit[i])) h->status[i] = HitBatch::kHit;
+      continue;
+    }
+    // embree_ray() and make_rayhit() (render_scene.cpp) for a ray that starts near: Embree looks
+    // only closer than the nearest plane.
+    RTCRayHit& q = rh[i];
+    q.ray.org_x = ray.o.x;
+    q.ray.org_y = ray.o.y;
+    q.ray.org_z = ray.o.z;
+    q.ray.tnear = 0.0f;
+    q.ray.dir_x = ray.d.x;
+    q.ray.dir_y = ray.d.y;
+    q.ray.dir_z = ray.d.z;
+    q.ray.time = 0.0f;
+    q.ray.tfar = plane[i] >= 0 ? float(tp[i]) : ray.tmax;
+    q.ray.mask = 0xFFFFFFFFu;
+    q.ray.id = 0;
+    q.ray.flags = 0;
+    q.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    q.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    q.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    traced[i] = true;
+  }
+  TraceContext ctx;  // read-only during a query: one serves the batch
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.scene = this;
+  for (size_t i = 0; i < n; ++i) {
+    if (traced[i]) rtcIntersect1(rtc_scene_.get(), &ctx.rtc, &rh[i]);
+  }
+
+  // The SIMD finish takes a bucket's triangles by 9 * index in 32-bit lanes, and no shading
+  // normals (the service reports them through the scalar path).
+  bool simd_bucket[2];
+  for (int k = 0; k < 2; ++k) {
+    const TriangleBucket& b = triangles_[k];
+    simd_bucket[k] = b.normals.empty() && b.material_ids.size() < (size_t(1) << 27);
+  }
+  for (size_t i = 0; i < n; ++i) {
+    if (!traced[i]) continue;
+    const uint32_t g = rh[i].hit.geomID;
+    if (g == RTC_INVALID_GEOMETRY_ID) {
+      if (plane[i] < 0) continue;  // a miss
+      // finish_hit()'s plane answer; the point comes from batch_plane_points().
+      const Plane& pl = planes_[size_t(plane[i])];
+      h->status[i] = HitBatch::kAnswered;
+      h->t[i] = float(tp[i]);
+      h->nx[i] = float(pl.normal.x), h->ny[i] = float(pl.normal.y), h->nz[i] = float(pl.normal.z);
+      h->u[i] = h->v[i] = 0.0f;
+      h->material[i] = pl.material;
+      h->object[i] = pl.object;
+      h->primitive[i] = 0;
+      finish[i] = kPlane;
+      continue;
+    }
+    const int k = g == triangles_[0].geom_id ? 0 : g == triangles_[1].geom_id ? 1 : -1;
+    if (k >= 0 && simd_bucket[k]) {
+      const uint32_t pid = rh[i].hit.primID;
+      const TriangleBucket& b = triangles_[k];
+      // The hit triangles' records are cache misses on a large mesh: asked for now, they arrive
+      // together while the loop goes on.
+      __builtin_prefetch(&b.positions[3 * size_t(pid)]);
+      __builtin_prefetch(&b.positions[3 * size_t(pid) + 2]);
+      __builtin_prefetch(&b.material_ids[pid]);
+      __builtin_prefetch(&b.sources[pid]);
+      h->status[i] = HitBatch::kAnswered;
+      h->t[i] = rh[i].ray.tfar;
+      h->u[i] = rh[i].hit.u;
+      h->v[i] = rh[i].hit.v;
+      prim[i] = pid;
+      finish[i] = kTriangle0 + uint32_t(k);
+      continue;
+    }
+    // A sphere, or a triangle with vertex normals: finish_hit() itself.
+    const Vec3d o(Vec3f(r.ox[i], r.oy[i], r.oz[i])), d(Vec3f(r.dx[i], r.dy[i], r.dz[i]));
+    if (finish_hit(o, d, plane[i], tp[i], g, rh[i].hit.primID, rh[i].hit.u, rh[i].hit.v, rh[i].ray.tfar, &h->hit[i])) {
+      h->status[i] = HitBatch::kHit;
+    }
+  }
+  for (int k = 0; k < 2; ++k) {
+    const TriangleBucket& b = triangles_[k];
+    if (b.material_ids.empty() || !simd_bucket[k]) continue;
+    static_assert(sizeof(Source) == 2 * sizeof(uint32_t));
+    const TriangleTable table{&b.positions[0].x, b.material_ids.data(), &b.sources[0].object};
+    batch_triangle_hits(finish, kTriangle0 + uint32_t(k), prim, n, table, h);
+  }
+  if (!planes_.empty()) batch_plane_points(r, finish, kPlane, tp, plane, n, planes, h);
+}
+
+}  // namespace tessera
