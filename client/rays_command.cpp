@@ -18,6 +18,7 @@
 #include "farm/channel.h"
 #include "farm_client.h"
 #include "ray_codec.h"
+#include "rays/hit_fields.h"
 #include "rays/parallel_trace.h"
 #include "rays/ray_csv.h"
 #include "rays/ray_npy.h"
@@ -27,6 +28,7 @@
 namespace tessera::cli {
 
 namespace v1 = tessera::v1;
+using rays::HitFields;
 using rays::HitTable;
 using rays::RayTable;
 
@@ -45,6 +47,7 @@ struct RaysArgs {
   SecurityFlags security;
   int frame = 0;
   bool occlusion = false;
+  std::optional<std::string> fields;  // --fields as given; none: every field
   int batch = 65536;
   int timeout = 3600;  // seconds for the whole stream of batches
 };
@@ -80,6 +83,22 @@ void check_rays(const RayTable& t, const std::string& source) {
     if (auto p = rays::check_ray(t.rays[i], i)) {
       throw RaysError{kExitBadInput, source + ": " + p->message + " (rays count from 0 in file order)"};
     }
+  }
+}
+
+// --fields: the service sends only these, and the output has only their columns. Checked before
+// anything is read. With --occlusion it is refused rather than ignored: an occlusion query
+// answers `hit` alone, so a mask there is a mistake about what the run produces.
+HitFields fields_of(const RaysArgs& a) {
+  if (!a.fields) return HitFields::all();
+  if (a.occlusion) {
+    throw RaysError{kExitBadInput, "--fields chooses the columns of nearest hits; --occlusion answers hit alone: "
+                                   "pass one or the other"};
+  }
+  try {
+    return rays::parse_hit_fields(*a.fields);
+  } catch (const std::invalid_argument& e) {
+    throw RaysError{kExitBadInput, std::string("--fields: ") + e.what()};
   }
 }
 
@@ -187,7 +206,7 @@ std::optional<v1::SceneDescription> describe_on(v1::RayService::Stub& stub, grpc
 
 // Traces on --server, or on the first ray server the coordinator lists that answers; `*used`
 // is its address.
-HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, std::string* used) {
+HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, HitFields fields, std::string* used) {
   const auto deadline = std::chrono::system_clock::now() + std::chrono::seconds(a.timeout);
   Scene scene;
   try {
@@ -252,6 +271,7 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, std::string* us
       v1::TraceRequest req;
       if (begin == 0) *req.mutable_scene() = ref;
       req.set_occlusion(a.occlusion);
+      rays::encode_fields(fields, &req);
       rays::encode_rays({rays.rays.begin() + long(begin), rays.rays.begin() + long(end)}, {}, &req);
       if (!stream->Write(req)) break;  // the stream failed: Finish() says why
     }
@@ -262,7 +282,7 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, std::string* us
   for (size_t begin = 0; begin < n && stream->Read(&resp); begin += batch) {
     const size_t count = std::min(n, begin + batch) - begin;
     try {
-      std::vector<rays::WorldHit> hits = rays::decode_hits(resp, count, a.occlusion);
+      std::vector<rays::WorldHit> hits = rays::decode_hits(resp, count, a.occlusion, fields);
       h.hits.insert(h.hits.end(), hits.begin(), hits.end());
     } catch (const std::runtime_error& e) {
       problem = e.what();
@@ -286,14 +306,16 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, std::string* us
 }
 
 int run_rays(const RaysArgs& a) {
+  const HitFields fields = fields_of(a);
   const RayTable rays = read_rays(a.in);
   check_rays(rays, a.in);
   const auto start = std::chrono::steady_clock::now();
   // In-process unless a server is named or the coordinator is given to find one: an environment
   // variable ($TESSERA_COORDINATOR) alone does not move the tracing off this machine.
   std::string used;
-  const HitTable hits =
-      a.server.empty() && a.coordinator.empty() ? trace_locally(a, rays) : trace_remotely(a, rays, &used);
+  HitTable hits =
+      a.server.empty() && a.coordinator.empty() ? trace_locally(a, rays) : trace_remotely(a, rays, fields, &used);
+  hits.fields = fields;  // in-process every field is traced; the mask selects the columns
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   write_hits(a.out, rays, hits);
   size_t n_hit = 0;
@@ -314,6 +336,10 @@ void register_rays_command(CLI::App& app) {
   cmd->add_option("--out", a->out, "Hits: CSV, or .npy (a structured array)")->required();
   cmd->add_option("--frame", a->frame, "Frame of an animated scene")->capture_default_str();
   cmd->add_flag("--occlusion", a->occlusion, "Only whether something lies in (tmin, tmax): line of sight");
+  cmd->add_option("--fields", a->fields,
+                  "Nearest hits: only these columns besides hit (and id), a comma list of t, point, normal, "
+                  "shading_normal, barycentrics, object, primitive, material; a ray server sends only these "
+                  "(default: all)");
   cmd->add_option("--server", a->server, "tessera-rays HOST:PORT: trace there instead of in-process");
   cmd->add_option("--coordinator", a->coordinator,
                   "The coordinator the bundle is uploaded to (with --server; default: $TESSERA_COORDINATOR, else "

@@ -109,42 +109,80 @@ void encode_rays(std::span<const WorldRay> rays, std::span<const uint64_t> ids, 
   req->mutable_ids()->Assign(ids.begin(), ids.end());
 }
 
-HitArrays::HitArrays(v1::TraceResponse* resp, size_t n, bool occlusion) : occlusion_(occlusion) {
+std::optional<std::string> read_fields(const v1::TraceRequest& req, HitFields* fields) {
+  if (req.fields_size() == 0) {
+    *fields = HitFields::all();
+    return std::nullopt;
+  }
+  HitFields asked;
+  for (int k = 0; k < req.fields_size(); ++k) {
+    // proto3 keeps numbers it does not know: a newer client's field reaches here as a number.
+    const int value = req.fields(k);
+    if (value >= 1 && value <= kHitFieldCount) {
+      asked = asked.with(HitField(value - 1));
+      continue;
+    }
+    std::string allowed;
+    for (int v = 1; v <= kHitFieldCount; ++v) {
+      allowed += (v > 1 ? ", " : "") + v1::HitField_Name(v1::HitField(v));
+    }
+    const std::string what = value == v1::HIT_FIELD_UNSPECIFIED ? "HIT_FIELD_UNSPECIFIED (0) names no field"
+                                                               : std::to_string(value) + " is not a HitField";
+    return "fields[" + std::to_string(k) + "]: " + what + " (allowed: " + allowed + ")";
+  }
+  *fields = asked;
+  return std::nullopt;
+}
+
+void encode_fields(HitFields fields, v1::TraceRequest* req) {
+  req->clear_fields();
+  if (fields == HitFields()) {
+    throw std::invalid_argument("a field mask names one field at least (for `hit` alone, ask for occlusion)");
+  }
+  if (fields.is_all()) return;
+  for (HitField f : fields.list()) req->add_fields(v1::HitField(int(f) + 1));
+}
+
+HitArrays::HitArrays(v1::TraceResponse* resp, size_t n, bool occlusion, HitFields fields) : occlusion_(occlusion) {
   std::string* flags = resp->mutable_hit();
   flags->resize(n);
   hit_ = flags->data();
   if (occlusion) return;
-  t_ = exactly(resp->mutable_t(), n);
-  p_ = exactly(resp->mutable_points(), 3 * n);
-  n_ = exactly(resp->mutable_normals(), 3 * n);
-  ns_ = exactly(resp->mutable_shading_normals(), 3 * n);
-  uv_ = exactly(resp->mutable_barycentrics(), 2 * n);
-  object_ = exactly(resp->mutable_objects(), n);
-  primitive_ = exactly(resp->mutable_primitives(), n);
-  material_ = exactly(resp->mutable_materials(), n);
+  if (fields.has(HitField::kT)) t_ = exactly(resp->mutable_t(), n);
+  if (fields.has(HitField::kPoint)) p_ = exactly(resp->mutable_points(), 3 * n);
+  if (fields.has(HitField::kNormal)) n_ = exactly(resp->mutable_normals(), 3 * n);
+  if (fields.has(HitField::kShadingNormal)) ns_ = exactly(resp->mutable_shading_normals(), 3 * n);
+  if (fields.has(HitField::kBarycentrics)) uv_ = exactly(resp->mutable_barycentrics(), 2 * n);
+  if (fields.has(HitField::kObject)) object_ = exactly(resp->mutable_objects(), n);
+  if (fields.has(HitField::kPrimitive)) primitive_ = exactly(resp->mutable_primitives(), n);
+  if (fields.has(HitField::kMaterial)) material_ = exactly(resp->mutable_materials(), n);
 }
 
 void HitArrays::write(size_t begin, std::span<const WorldHit> hits) const {
   for (size_t k = 0; k < hits.size(); ++k) hit_[begin + k] = hits[k].hit ? 1 : 0;
   if (occlusion_) return;
+  // One pass over the chunk's hits; the tests on fields not asked for take the same branch for
+  // every ray, so they cost next to nothing, and with every field this is the unmasked loop.
   for (size_t k = 0; k < hits.size(); ++k) {
     const WorldHit& h = hits[k];
     const size_t i = begin + k;
-    t_[i] = h.t;
+    if (t_) t_[i] = h.t;
     for (int c = 0; c < 3; ++c) {
-      p_[3 * i + c] = h.p[c];
-      n_[3 * i + c] = h.n[c];
-      ns_[3 * i + c] = h.ns[c];
+      if (p_) p_[3 * i + c] = h.p[c];
+      if (n_) n_[3 * i + c] = h.n[c];
+      if (ns_) ns_[3 * i + c] = h.ns[c];
     }
-    uv_[2 * i] = h.u;
-    uv_[2 * i + 1] = h.v;
-    object_[i] = h.object;
-    primitive_[i] = h.primitive;
-    material_[i] = h.material;
+    if (uv_) {
+      uv_[2 * i] = h.u;
+      uv_[2 * i + 1] = h.v;
+    }
+    if (object_) object_[i] = h.object;
+    if (primitive_) primitive_[i] = h.primitive;
+    if (material_) material_[i] = h.material;
   }
 }
 
-std::vector<WorldHit> decode_hits(const v1::TraceResponse& r, size_t n, bool occlusion) {
+std::vector<WorldHit> decode_hits(const v1::TraceResponse& r, size_t n, bool occlusion, HitFields fields) {
   auto need = [&](const char* field, size_t got, size_t per_ray) {
     if (got != per_ray * n) {
       throw std::runtime_error(std::string("response field ") + field + " has " + std::to_string(got) +
@@ -159,31 +197,35 @@ std::vector<WorldHit> decode_hits(const v1::TraceResponse& r, size_t n, bool occ
     for (size_t i = 0; i < n; ++i) out[i].hit = f[i] != 0;
     return hits;
   }
-  need("t", size_t(r.t_size()), 1);
-  need("points", size_t(r.points_size()), 3);
-  need("normals", size_t(r.normals_size()), 3);
-  need("shading_normals", size_t(r.shading_normals_size()), 3);
-  need("barycentrics", size_t(r.barycentrics_size()), 2);
-  need("objects", size_t(r.objects_size()), 1);
-  need("primitives", size_t(r.primitives_size()), 1);
-  need("materials", size_t(r.materials_size()), 1);
-  const float *t = r.t().data(), *nn = r.normals().data(), *ns = r.shading_normals().data(),
-              *uv = r.barycentrics().data();
-  const double* p = r.points().data();
-  const uint32_t *obj = r.objects().data(), *prim = r.primitives().data(), *mat = r.materials().data();
+  // An asked array's data, its length checked; null for a field not asked for.
+  auto asked = [&](HitField field, const char* name, const auto& array, size_t per_ray) {
+    if (!fields.has(field)) return decltype(array.data())(nullptr);
+    need(name, size_t(array.size()), per_ray);
+    return array.data();
+  };
+  const float* t = asked(HitField::kT, "t", r.t(), 1);
+  const double* p = asked(HitField::kPoint, "points", r.points(), 3);
+  const float* nn = asked(HitField::kNormal, "normals", r.normals(), 3);
+  const float* ns = asked(HitField::kShadingNormal, "shading_normals", r.shading_normals(), 3);
+  const float* uv = asked(HitField::kBarycentrics, "barycentrics", r.barycentrics(), 2);
+  const uint32_t* obj = asked(HitField::kObject, "objects", r.objects(), 1);
+  const uint32_t* prim = asked(HitField::kPrimitive, "primitives", r.primitives(), 1);
+  const uint32_t* mat = asked(HitField::kMaterial, "materials", r.materials(), 1);
   // Through raw pointers: RepeatedField's operator[] is not free in a loop this hot.
   for (size_t i = 0; i < n; ++i) {
     WorldHit& h = out[i];
     h.hit = f[i] != 0;
-    h.t = t[i];
-    h.p = Vec3d(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
-    h.n = Vec3f(nn[3 * i], nn[3 * i + 1], nn[3 * i + 2]);
-    h.ns = Vec3f(ns[3 * i], ns[3 * i + 1], ns[3 * i + 2]);
-    h.u = uv[2 * i];
-    h.v = uv[2 * i + 1];
-    h.object = obj[i];
-    h.primitive = prim[i];
-    h.material = mat[i];
+    if (t) h.t = t[i];
+    if (p) h.p = Vec3d(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
+    if (nn) h.n = Vec3f(nn[3 * i], nn[3 * i + 1], nn[3 * i + 2]);
+    if (ns) h.ns = Vec3f(ns[3 * i], ns[3 * i + 1], ns[3 * i + 2]);
+    if (uv) {
+      h.u = uv[2 * i];
+      h.v = uv[2 * i + 1];
+    }
+    if (obj) h.object = obj[i];
+    if (prim) h.primitive = prim[i];
+    if (mat) h.material = mat[i];
   }
   return hits;
 }

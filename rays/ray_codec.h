@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "rays/hit_fields.h"
 #include "rays/ray_check.h"
 #include "rays/world_ray.h"
 #include "tessera/v1/ray_service.pb.h"
@@ -26,24 +27,40 @@ void read_rays(const tessera::v1::TraceRequest& req, size_t begin, size_t end, W
 // `ids` empty or one per ray. t_min/t_max are sent only when some ray needs them.
 void encode_rays(std::span<const WorldRay> rays, std::span<const uint64_t> ids, tessera::v1::TraceRequest* req);
 
+// The request's field mask (`fields`; empty: every field) into `*fields`, or the problem with
+// it: "fields[k]: ..." for HIT_FIELD_UNSPECIFIED or a number this server does not know, with
+// the allowed names.
+std::optional<std::string> read_fields(const tessera::v1::TraceRequest& req, HitFields* fields);
+// Sets the request's mask: nothing for every field (today's requests, and fewer bytes). `fields`
+// names one at least (an empty mask means every field; a client that wants only `hit` asks for
+// occlusion): throws std::invalid_argument otherwise.
+void encode_fields(HitFields fields, tessera::v1::TraceRequest* req);
+
 // Where a response's hits go: its arrays, sized for a batch by the constructor (uninitialized,
 // capacity kept: a response reused between batches does not allocate again), filled by write()
-// in any order of disjoint ranges (from several threads at once). Occlusion: the flags only.
+// in any order of disjoint ranges (from several threads at once). Occlusion: the flags only;
+// otherwise the flags and the arrays of `fields` (the others are neither sized nor written:
+// the caller passes a cleared response, and they go out empty).
 class HitArrays {
  public:
-  HitArrays(tessera::v1::TraceResponse* resp, size_t n, bool occlusion);
+  HitArrays(tessera::v1::TraceResponse* resp, size_t n, bool occlusion, HitFields fields = HitFields::all());
   // hits[i] is ray begin + i's.
   void write(size_t begin, std::span<const WorldHit> hits) const;
 
  private:
   bool occlusion_;
+  // Null for a field not asked for.
   char* hit_;
   float *t_ = nullptr, *n_ = nullptr, *ns_ = nullptr, *uv_ = nullptr;
   double* p_ = nullptr;
   uint32_t *object_ = nullptr, *primitive_ = nullptr, *material_ = nullptr;
 };
 
-// Throws std::runtime_error when the arrays do not hold `n` rays' worth.
-std::vector<WorldHit> decode_hits(const tessera::v1::TraceResponse& resp, size_t n, bool occlusion);
+// The hits of an answer to a request with the mask `fields`: those fields and `hit` are filled,
+// the others keep WorldHit's defaults (arrays the mask left out are not read, so a server that
+// sends them anyway, one older than the mask, is fine). Throws std::runtime_error when an asked
+// array does not hold `n` rays' worth.
+std::vector<WorldHit> decode_hits(const tessera::v1::TraceResponse& resp, size_t n, bool occlusion,
+                                  HitFields fields = HitFields::all());
 
 }  // namespace tessera::rays

@@ -22,13 +22,19 @@ Status RayServiceImpl::answer(const RayTracer& tracer, const v1::TraceRequest& r
                                                     std::to_string(options_.max_batch_rays) +
                                                     " (tessera-rays --max-batch-rays): send smaller batches");
   }
+  // The mask is checked on occlusion queries too (which answer `hit` alone): a bad request is
+  // refused whatever it asks.
+  HitFields fields;
+  if (auto problem = read_fields(req, &fields)) return Status(StatusCode::INVALID_ARGUMENT, *problem);
   if (auto p = check_rays(req)) {
     return Status(StatusCode::INVALID_ARGUMENT, p->message + " (field " + p->field + ")");
   }
   // Chunk by chunk, straight from the request's arrays to the response's: a chunk's rays and
   // hits stay in cache (batch-sized struct arrays, 128 bytes a ray, did not at 65,536 rays).
+  // Only the asked fields' arrays are sized and filled; the rest of `resp` is empty (a new
+  // response, or a stream's cleared one).
   const bool occlusion = req.occlusion();
-  const HitArrays out(resp, size_t(n), occlusion);
+  const HitArrays out(resp, size_t(n), occlusion, fields);
   auto run = [&](size_t begin, size_t end) {
     // Per thread, at most kChunk rays (~128 KiB): nothing allocated after a thread's first chunk.
     // RayTracer writes every field of every hit (nearest) or the flag (occluded, all we send).

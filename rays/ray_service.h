@@ -43,7 +43,8 @@ class RayServiceImpl final : public tessera::v1::RayService::Service {
   RayServiceCounters counters() const;
 
  private:
-  // One batch on a tracer: INVALID_ARGUMENT naming the ray and field for bad input.
+  // One batch on a tracer, answered with the fields its mask asks for: INVALID_ARGUMENT naming
+  // the ray and field (or fields[k]) for bad input.
   grpc::Status answer(const RayTracer& tracer, const tessera::v1::TraceRequest& req,
                            tessera::v1::TraceResponse* resp);
 

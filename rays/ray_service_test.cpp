@@ -194,6 +194,235 @@ TEST_F(RayServiceTest, OcclusionSendsOnlyTheFlags) {
   EXPECT_EQ(resp.t_size(), 0);
 }
 
+// Hits and misses: the fan meets the sphere and the floor; every third ray turned up and away.
+std::vector<WorldRay> hits_and_misses(int n) {
+  std::vector<WorldRay> rays = fan(n);
+  for (size_t i = 0; i < rays.size(); i += 3) rays[i].d = -rays[i].d;
+  return rays;
+}
+
+v1::TraceRequest with_fields(v1::TraceRequest req, std::initializer_list<int> fields) {
+  for (int f : fields) req.add_fields(v1::HitField(f));
+  return req;
+}
+
+// Which of the response's hit arrays are non-empty, by their proto names.
+std::string filled(const v1::TraceResponse& r) {
+  std::string s = r.hit().empty() ? "" : "hit";
+  auto add = [&](const char* name, int size) {
+    if (size) s += std::string(s.empty() ? "" : ",") + name;
+  };
+  add("t", r.t_size());
+  add("points", r.points_size());
+  add("normals", r.normals_size());
+  add("shading_normals", r.shading_normals_size());
+  add("barycentrics", r.barycentrics_size());
+  add("objects", r.objects_size());
+  add("primitives", r.primitives_size());
+  add("materials", r.materials_size());
+  add("ids", r.ids_size());
+  return s;
+}
+
+template <class A>
+bool same_bits(const A& got, const A& want) {
+  return got.size() == want.size() &&
+         std::memcmp(got.data(), want.data(), size_t(want.size()) * sizeof(*want.data())) == 0;
+}
+
+// A mask fills exactly the asked arrays, each equal bit for bit to the full answer's; repeats
+// and any order are fine; ids come back whatever the mask.
+TEST_F(RayServiceTest, AFieldMaskSendsOnlyTheAskedArraysWithTheFullAnswersBits) {
+  start();
+  const std::vector<WorldRay> rays = hits_and_misses(600);
+  v1::TraceResponse full, resp;
+  ASSERT_TRUE(trace(request(rays), &full).ok());
+  ASSERT_EQ(filled(full), "hit,t,points,normals,shading_normals,barycentrics,objects,primitives,materials");
+  size_t n_hit = 0;
+  for (char c : full.hit()) n_hit += c != 0;
+  ASSERT_GT(n_hit, 100u);
+  ASSERT_LT(n_hit, 500u);
+
+  ASSERT_TRUE(trace(with_fields(request(rays), {v1::HIT_FIELD_T}), &resp).ok());
+  EXPECT_EQ(filled(resp), "hit,t");
+  EXPECT_EQ(resp.hit(), full.hit());
+  EXPECT_TRUE(same_bits(resp.t(), full.t()));
+
+  ASSERT_TRUE(trace(with_fields(request(rays), {v1::HIT_FIELD_OBJECT, v1::HIT_FIELD_NORMAL, v1::HIT_FIELD_OBJECT}),
+                    &resp)
+                  .ok());
+  EXPECT_EQ(filled(resp), "hit,normals,objects");
+  EXPECT_EQ(resp.hit(), full.hit());
+  EXPECT_TRUE(same_bits(resp.normals(), full.normals()));
+  EXPECT_TRUE(same_bits(resp.objects(), full.objects()));
+
+  // Every field named, in reverse order: the full answer, as with no mask.
+  v1::TraceRequest all = request(rays);
+  for (int f = v1::HIT_FIELD_MATERIAL; f >= v1::HIT_FIELD_T; --f) all.add_fields(v1::HitField(f));
+  for (size_t i = 0; i < rays.size(); ++i) all.add_ids(7 * i);
+  ASSERT_TRUE(trace(all, &resp).ok());
+  EXPECT_EQ(filled(resp), filled(full) + ",ids");
+  EXPECT_TRUE(same_bits(resp.points(), full.points()));
+  EXPECT_TRUE(same_bits(resp.barycentrics(), full.barycentrics()));
+  EXPECT_TRUE(same_bits(resp.materials(), full.materials()));
+
+  // ids with a mask: still echoed.
+  v1::TraceRequest t_ids = with_fields(request(rays), {v1::HIT_FIELD_PRIMITIVE});
+  *t_ids.mutable_ids() = all.ids();
+  ASSERT_TRUE(trace(t_ids, &resp).ok());
+  EXPECT_EQ(filled(resp), "hit,primitives,ids");
+  EXPECT_TRUE(same_bits(resp.primitives(), full.primitives()));
+  EXPECT_TRUE(same_bits(resp.ids(), all.ids()));
+}
+
+TEST_F(RayServiceTest, AFieldMaskValueThatNamesNoFieldIsRefused) {
+  start();
+  const std::string allowed =
+      "(allowed: HIT_FIELD_T, HIT_FIELD_POINT, HIT_FIELD_NORMAL, HIT_FIELD_SHADING_NORMAL, HIT_FIELD_BARYCENTRICS, "
+      "HIT_FIELD_OBJECT, HIT_FIELD_PRIMITIVE, HIT_FIELD_MATERIAL)";
+  auto refused = [&](const v1::TraceRequest& req) {
+    v1::TraceResponse resp;
+    const grpc::Status s = trace(req, &resp);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << s.error_message();
+    EXPECT_EQ(resp.hit().size(), 0u);  // nothing traced
+    return s.error_message();
+  };
+  EXPECT_EQ(refused(with_fields(request(fan(4)), {v1::HIT_FIELD_T, 99})), "fields[1]: 99 is not a HitField " + allowed);
+  EXPECT_EQ(refused(with_fields(request(fan(4)), {v1::HIT_FIELD_UNSPECIFIED})),
+            "fields[0]: HIT_FIELD_UNSPECIFIED (0) names no field " + allowed);
+  EXPECT_EQ(refused(with_fields(request(fan(4)), {v1::HIT_FIELD_T, v1::HIT_FIELD_POINT, -1})),
+            "fields[2]: -1 is not a HitField " + allowed);
+  // On occlusion queries too: the mask does not matter to the answer, but a bad one is bad.
+  v1::TraceRequest occ = with_fields(request(fan(4)), {9});
+  occ.set_occlusion(true);
+  EXPECT_EQ(refused(occ), "fields[0]: 9 is not a HitField " + allowed);
+}
+
+// An occlusion query answers `hit` alone, whatever its mask asks for.
+TEST_F(RayServiceTest, OcclusionWithAFieldMaskAnswersHitOnly) {
+  start();
+  WorldRay blocked{{0, 0, 0}, {0, 0, 1}, 0.0f, 20.0f}, short_of_it{{0, 0, 0}, {0, 0, 1}, 0.0f, 7.5f};
+  v1::TraceRequest req = with_fields(request({blocked, short_of_it}), {v1::HIT_FIELD_T, v1::HIT_FIELD_OBJECT});
+  req.set_occlusion(true);
+  v1::TraceResponse resp;
+  ASSERT_TRUE(trace(req, &resp).ok());
+  EXPECT_EQ(resp.hit(), std::string("\1\0", 2));
+  EXPECT_EQ(filled(resp), "hit");
+}
+
+// On a stream each request's mask is its own: the server's reused response carries nothing of
+// the batch before (a full answer after a masked one, a masked one after a full one).
+TEST_F(RayServiceTest, EachStreamRequestGetsItsOwnFieldMask) {
+  start();
+  const std::vector<WorldRay> rays = hits_and_misses(3000);  // over kParallelBatch: several chunks
+  v1::TraceResponse full;
+  ASSERT_TRUE(trace(request(rays), &full).ok());
+  grpc::ClientContext ctx;
+  auto s = stub()->TraceStream(&ctx);
+  ASSERT_TRUE(s->Write(with_fields(request(rays), {v1::HIT_FIELD_T})));
+  ASSERT_TRUE(s->Write(with_fields(request(rays, false), {v1::HIT_FIELD_OBJECT, v1::HIT_FIELD_NORMAL})));
+  ASSERT_TRUE(s->Write(request(rays, false)));
+  ASSERT_TRUE(s->Write(with_fields(request(rays, false), {v1::HIT_FIELD_BARYCENTRICS})));
+  s->WritesDone();
+  v1::TraceResponse resp;
+  ASSERT_TRUE(s->Read(&resp));
+  EXPECT_EQ(filled(resp), "hit,t");
+  EXPECT_TRUE(same_bits(resp.t(), full.t()));
+  ASSERT_TRUE(s->Read(&resp));
+  EXPECT_EQ(filled(resp), "hit,normals,objects");
+  EXPECT_TRUE(same_bits(resp.normals(), full.normals()));
+  EXPECT_TRUE(same_bits(resp.objects(), full.objects()));
+  ASSERT_TRUE(s->Read(&resp));
+  EXPECT_EQ(filled(resp), filled(full));
+  expect_same(decode_hits(resp, rays.size(), false), decode_hits(full, rays.size(), false));
+  ASSERT_TRUE(s->Read(&resp));
+  EXPECT_EQ(filled(resp), "hit,barycentrics");
+  EXPECT_TRUE(same_bits(resp.barycentrics(), full.barycentrics()));
+  EXPECT_EQ(resp.hit(), full.hit());
+  EXPECT_TRUE(s->Finish().ok());
+}
+
+// The codec alone: HitArrays fills the asked arrays only, decode_hits reads them back into the
+// asked fields and leaves the rest at WorldHit's defaults.
+TEST(RayCodec, AMaskedAnswerRoundTrips) {
+  std::vector<WorldHit> hits(5);
+  for (size_t i = 0; i < hits.size(); ++i) {
+    WorldHit& h = hits[i];
+    h.hit = i % 2 == 0;
+    h.t = 1.5f + float(i);
+    h.p = Vec3d(1.0 / 3.0, double(i), -2.0);
+    h.n = Vec3f(0, 1, 0);
+    h.ns = Vec3f(0, 0, -1);
+    h.u = 0.25f;
+    h.v = 0.5f;
+    h.object = uint32_t(i);
+    h.primitive = uint32_t(100 + i);
+    h.material = uint32_t(7 - i);
+  }
+  const HitFields mask = HitFields().with(HitField::kPoint).with(HitField::kMaterial);
+  v1::TraceResponse resp;
+  const HitArrays out(&resp, hits.size(), false, mask);
+  out.write(3, std::span(hits).subspan(3));  // in any order of ranges
+  out.write(0, std::span(hits).first(3));
+  EXPECT_EQ(filled(resp), "hit,points,materials");
+  const std::vector<WorldHit> back = decode_hits(resp, hits.size(), false, mask);
+  const WorldHit defaults;
+  for (size_t i = 0; i < hits.size(); ++i) {
+    EXPECT_EQ(back[i].hit, hits[i].hit) << i;
+    EXPECT_EQ(back[i].p, hits[i].p) << i;
+    EXPECT_EQ(back[i].material, hits[i].material) << i;
+    EXPECT_TRUE(std::isinf(back[i].t)) << i;
+    EXPECT_EQ(back[i].n, defaults.n) << i;
+    EXPECT_EQ(back[i].ns, defaults.ns) << i;
+    EXPECT_EQ(back[i].u, 0.0f) << i;
+    EXPECT_EQ(back[i].object, kNoIndex) << i;
+    EXPECT_EQ(back[i].primitive, kNoIndex) << i;
+  }
+  // The mask on the request: nothing for every field (a request as before the mask), else each
+  // asked field once, in order.
+  v1::TraceRequest req;
+  encode_fields(HitFields::all(), &req);
+  EXPECT_EQ(req.fields_size(), 0);
+  encode_fields(HitFields().with(HitField::kObject).with(HitField::kT), &req);
+  ASSERT_EQ(req.fields_size(), 2);
+  EXPECT_EQ(req.fields(0), v1::HIT_FIELD_T);
+  EXPECT_EQ(req.fields(1), v1::HIT_FIELD_OBJECT);
+  HitFields read;
+  ASSERT_FALSE(read_fields(req, &read));
+  EXPECT_EQ(read, HitFields().with(HitField::kObject).with(HitField::kT));
+  EXPECT_THROW(encode_fields(HitFields(), &req), std::invalid_argument);  // would read as every field
+}
+
+TEST(RayCodec, DecodeHitsThrowsOnAShortAskedArrayOnly) {
+  std::vector<WorldHit> hits(4);
+  v1::TraceResponse full;
+  HitArrays(&full, hits.size(), false).write(0, hits);
+  auto error = [](const v1::TraceResponse& r, HitFields mask) {
+    try {
+      decode_hits(r, 4, false, mask);
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const HitFields t = HitFields().with(HitField::kT), objects = HitFields().with(HitField::kObject);
+  v1::TraceResponse r = full;
+  r.mutable_t()->RemoveLast();
+  EXPECT_EQ(error(r, t), "response field t has 3 values for 4 rays");
+  EXPECT_EQ(error(r, HitFields::all()), "response field t has 3 values for 4 rays");
+  EXPECT_EQ(error(r, objects), "no error");  // t not asked for: not read
+  r = full;
+  r.clear_objects();
+  EXPECT_EQ(error(r, objects), "response field objects has 0 values for 4 rays");
+  EXPECT_EQ(error(r, t), "no error");
+  r = full;
+  r.mutable_points()->RemoveLast();
+  EXPECT_EQ(error(r, HitFields().with(HitField::kPoint)), "response field points has 11 values for 4 rays");
+  r = full;
+  r.mutable_hit()->pop_back();
+  EXPECT_EQ(error(r, t), "response field hit has 3 values for 4 rays");
+}
+
 TEST_F(RayServiceTest, StreamAnswersEveryBatchInOrderWithItsIds) {
   start();
   grpc::ClientContext ctx;

@@ -8,6 +8,8 @@
 //   gRPC unary   RayService.Trace over loopback TCP, one batch per call, request encoding and
 //                answer decoding included
 //   gRPC stream  RayService.TraceStream, every batch in flight at once
+//   gRPC stream, t only: the same with the field mask {T}: the answers carry hit and t alone
+//                (5 bytes a ray instead of 73), what a lidar-like client asks for
 // plus the latency (p50, p99) of single-ray Trace calls. One tracing thread everywhere (the
 // service runs with --threads 1), best of --reps. Two clocks: wall time, and the process's CPU
 // time (every thread: client, gRPC, server; user + system): on a shared machine the CPU time is
@@ -168,9 +170,14 @@ Rate in_process(const RayTracer& tracer, const std::vector<WorldRay>& rays, size
   return watch.rate(double(rays.size()));
 }
 
-v1::TraceRequest make_request(const std::vector<WorldRay>& rays, size_t begin, size_t end) {
+// The field mask of the t-only measurements: hit and t come back, nothing else.
+constexpr HitFields kTOnly = HitFields().with(HitField::kT);
+
+v1::TraceRequest make_request(const std::vector<WorldRay>& rays, size_t begin, size_t end,
+                              HitFields fields = HitFields::all()) {
   v1::TraceRequest req;
   req.mutable_scene()->set_bundle_sha256(std::string(64, '0'));
+  encode_fields(fields, &req);
   encode_rays({rays.begin() + long(begin), rays.begin() + long(end)}, {}, &req);
   return req;
 }
@@ -188,19 +195,20 @@ Rate grpc_unary(v1::RayService::Stub& stub, const std::vector<WorldRay>& rays, s
   return watch.rate(double(total));
 }
 
-Rate grpc_stream(v1::RayService::Stub& stub, const std::vector<WorldRay>& rays, size_t batch) {
+Rate grpc_stream(v1::RayService::Stub& stub, const std::vector<WorldRay>& rays, size_t batch,
+                 HitFields fields = HitFields::all()) {
   const Stopwatch watch;
   grpc::ClientContext ctx;
   auto stream = stub.TraceStream(&ctx);
   std::thread writer([&] {
     for (size_t b = 0; b < rays.size(); b += batch) {
-      if (!stream->Write(make_request(rays, b, std::min(rays.size(), b + batch)))) break;
+      if (!stream->Write(make_request(rays, b, std::min(rays.size(), b + batch), fields))) break;
     }
     stream->WritesDone();
   });
   v1::TraceResponse resp;
   for (size_t b = 0; b < rays.size() && stream->Read(&resp); b += batch) {
-    decode_hits(resp, std::min(rays.size(), b + batch) - b, false);
+    decode_hits(resp, std::min(rays.size(), b + batch) - b, false, fields);
   }
   writer.join();
   if (!stream->Finish().ok()) throw std::runtime_error("TraceStream failed");
@@ -250,7 +258,7 @@ int main(int argc, char** argv) {
   std::string profile;
   double profile_seconds = 5;
   app.add_option("--profile", profile,
-                 "Only run this for --profile-seconds: in-process, bare, occlusion, grpc (for a profiler: incoherent rays of the first scene), or ratio (in-process against bare Embree, alternated, fastest of each, for every scene)");
+                 "Only run this for --profile-seconds: in-process, bare, occlusion, grpc, grpc-t-only (for a profiler: incoherent rays of the first scene), or ratio (in-process against bare Embree, alternated, fastest of each, for every scene)");
   app.add_option("--profile-seconds", profile_seconds)->check(CLI::Range(0.1, 600.0));
   CLI11_PARSE(app, argc, argv);
   if (smoke) {
@@ -269,8 +277,8 @@ int main(int argc, char** argv) {
   out["tracing_threads"] = 1;
   std::string md = "\n| scene | rays | bare Embree | in-process b=1 | 64 | 4096 | 65536 | gRPC unary b=1 | 64 | 4096 | "
                    "65536 | stream 4096 | 65536 | in-proc/Embree cpu (wall) | gRPC/in-proc, worst b≥4096, cpu (wall) | "
-                   "p50 µs | p99 µs |\n"
-                   "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+                   "p50 µs | p99 µs | stream t-only 4096 | 65536 | t-only/in-proc, worst b≥4096, cpu (wall) |\n"
+                   "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const std::string& name : scenes) {
     if (!files.count(name)) {
       std::cerr << "rays_bench: unknown scene " << name << "\n";
@@ -329,7 +337,8 @@ int main(int argc, char** argv) {
       }
       continue;
     }
-    if (!profile.empty() && profile != "grpc") {
+    const bool grpc_profile = profile == "grpc" || profile == "grpc-t-only";
+    if (!profile.empty() && !grpc_profile) {
       const std::vector<WorldRay> rays = incoherent_rays(*scene, size_t(side) * size_t(side));
       const auto t0 = Clock::now();
       size_t loops = 0;
@@ -341,15 +350,16 @@ int main(int argc, char** argv) {
       std::printf("%s: %.1f Mrays/s\n", profile.c_str(), double(loops * rays.size()) / seconds_since(t0) / 1e6);
       return 0;
     }
-    if (profile == "grpc") {
+    if (grpc_profile) {
       const std::vector<WorldRay> rays = incoherent_rays(*scene, size_t(side) * size_t(side));
+      const HitFields fields = profile == "grpc" ? HitFields::all() : kTOnly;
       const auto t0 = Clock::now();
       size_t loops = 0;
       while (seconds_since(t0) < profile_seconds) {
-        grpc_stream(*stub, rays, 4096);
+        grpc_stream(*stub, rays, 4096, fields);
         ++loops;
       }
-      std::printf("grpc: %.1f Mrays/s\n", double(loops * rays.size()) / seconds_since(t0) / 1e6);
+      std::printf("%s: %.1f Mrays/s\n", profile.c_str(), double(loops * rays.size()) / seconds_since(t0) / 1e6);
       return 0;
     }
     nlohmann::json js;
@@ -372,8 +382,9 @@ int main(int argc, char** argv) {
       // Line-of-sight queries (any-hit traversal) on the same rays, all in one batch.
       const Rate occ = best_of(reps, [&] { return in_process(*tracer, rays, rays.size(), true); });
       r["in_process_occlusion_rays_per_s"] = to_json(occ);
-      std::map<size_t, Rate> ip, gu, gs;
+      std::map<size_t, Rate> ip, gu, gs, gt;
       double worst_cpu = 1e30, worst_wall = 1e30;  // the goal's ratio: the smallest over batches >= 4096
+      double worst_t_cpu = 1e30, worst_t_wall = 1e30;  // the same for t-only streams
       for (size_t b : batches) {
         const std::string k = std::to_string(b);
         ip[b] = best_of(reps, [&] { return in_process(*tracer, rays, b); });
@@ -391,6 +402,13 @@ int main(int argc, char** argv) {
           r["ratio_grpc_to_in_process"][k] = to_json(ratio);
           worst_cpu = std::min(worst_cpu, ratio.cpu);
           worst_wall = std::min(worst_wall, ratio.wall);
+          // A stream of the same batches asking for t alone (field mask {T}).
+          gt[b] = best_of(reps, [&] { return grpc_stream(*stub, rays, b, kTOnly); });
+          r["grpc_stream_t_only_rays_per_s"][k] = to_json(gt[b]);
+          const Rate t_ratio{gt[b].wall / ip[b].wall, gt[b].cpu / ip[b].cpu};
+          r["ratio_grpc_t_only_to_in_process"][k] = to_json(t_ratio);
+          worst_t_cpu = std::min(worst_t_cpu, t_ratio.cpu);
+          worst_t_wall = std::min(worst_t_wall, t_ratio.wall);
         }
       }
       const auto [p50, p99] = latency_us(*stub, rays, smoke ? 300 : 3000);
@@ -402,6 +420,7 @@ int main(int argc, char** argv) {
       r["ratio_in_process_to_bare_embree_application"] = to_json({all.wall / app.wall, all.cpu / app.cpu});
       r["ratio_occlusion_to_nearest_in_process"] = to_json({occ.wall / all.wall, occ.cpu / all.cpu});
       r["ratio_grpc_to_in_process_batch_ge_4096"] = to_json({worst_wall, worst_cpu});
+      r["ratio_grpc_t_only_to_in_process_batch_ge_4096"] = to_json({worst_t_wall, worst_t_cpu});
       js[coherent ? "coherent" : "incoherent"] = r;
       auto m = [](double x) {
         char b[32];
@@ -411,9 +430,10 @@ int main(int argc, char** argv) {
       auto at = [&](const std::map<size_t, Rate>& rates, size_t b) {
         return rates.count(b) ? m(rates.at(b).cpu) : std::string("–");
       };
-      char tail[128];
-      std::snprintf(tail, sizeof tail, "%.2f (%.2f) | %.2f (%.2f) | %.0f | %.0f", to_bare.cpu, to_bare.wall, worst_cpu,
-                    worst_wall, p50, p99);
+      char tail[160];
+      std::snprintf(tail, sizeof tail, "%.2f (%.2f) | %.2f (%.2f) | %.0f | %.0f | %s | %s | %.2f (%.2f)", to_bare.cpu,
+                    to_bare.wall, worst_cpu, worst_wall, p50, p99, at(gt, 4096).c_str(), at(gt, 65536).c_str(),
+                    worst_t_cpu, worst_t_wall);
       md += "| " + name + " (" + std::to_string(rs->triangle_count()) + " tris) | " +
             (coherent ? "coherent" : "incoherent") + " | " + m(bare.cpu) + " | " + at(ip, 1) + " | " + at(ip, 64) +
             " | " + at(ip, 4096) + " | " + at(ip, 65536) + " | " + at(gu, 1) + " | " + at(gu, 64) + " | " +

@@ -5,8 +5,8 @@ Usage: rays_client.py RAYS_HOST:PORT PROTO_DIR BUNDLE_SHA256 [TOKEN]
 
 Needs grpcio, grpcio-tools and numpy (Debian: python3-grpcio python3-grpc-tools python3-numpy).
 The bundle must be on the coordinator already (`tessera rays SCENE ... --server` uploads it, and
-so does `tessera submit`). Prints the scene's objects, a few nearest hits, an occlusion query,
-a streamed batch and one refused batch. docs/rays.md walks through it; the tests run it.
+so does `tessera submit`). Prints the scene's objects, a few nearest hits, the same rays asking
+for t alone, an occlusion query, a streamed batch and one refused batch. docs/rays.md walks through it; the tests run it.
 """
 import os
 import subprocess
@@ -27,9 +27,10 @@ def stubs(proto_dir):
     return ray_service_pb2, ray_service_pb2_grpc
 
 
-def request(pb, scene, origins, directions, t_max=None, occlusion=False):
-    """Packed arrays: numpy (n, 3) float64 origins and directions, flattened."""
-    req = pb.TraceRequest(occlusion=occlusion,
+def request(pb, scene, origins, directions, t_max=None, occlusion=False, fields=()):
+    """Packed arrays: numpy (n, 3) float64 origins and directions, flattened. `fields`: the
+    response's field mask (pb.HIT_FIELD_T, ...); empty: every field."""
+    req = pb.TraceRequest(occlusion=occlusion, fields=fields,
                           origins=np.asarray(origins, np.float64).ravel().tolist(),
                           directions=np.asarray(directions, np.float64).ravel().tolist())
     if scene is not None:  # on a stream, only the first request needs it
@@ -65,6 +66,12 @@ def main():
             print(f"ray {i}: hit {info.objects[r.objects[i]]} t={t[i]:.6g} p={p[i].tolist()} n={n[i].tolist()}")
         else:
             print(f"ray {i}: miss")
+
+    # t alone (a lidar's question): `hit` and `t` come back, 5 bytes a ray instead of 73; the
+    # arrays of fields not asked for are empty.
+    r = stub.Trace(request(pb, scene, o, d, fields=[pb.HIT_FIELD_T]), timeout=30, metadata=md)
+    print("t only:", np.frombuffer(r.hit, np.uint8).tolist(), np.array(r.t, np.float32).tolist(),
+          "points sent:", len(r.points))
 
     # Line of sight: is anything within 7.5 units, within 20?
     r = stub.Trace(request(pb, scene, [[0, 0, 0]] * 2, [[0, 0, 1]] * 2, t_max=[7.5, 20], occlusion=True),

@@ -100,8 +100,11 @@ RayTable read_rays_csv(std::istream& in, const std::string& source) {
 
 void write_hits_csv(std::ostream& out, const RayTable& rays, const HitTable& h) {
   const bool ids = !rays.ids.empty();
+  const std::vector<HitField> fields = h.occlusion ? std::vector<HitField>{} : h.fields.list();
   out << (ids ? "id," : "") << "hit";
-  if (!h.occlusion) out << ",t,px,py,pz,nx,ny,nz,snx,sny,snz,u,v,object,primitive,material";
+  for (HitField field : fields) {
+    for (std::string_view column : hit_field_columns(field)) out << ',' << column;
+  }
   out << "\n";
   char buf[64];
   // %.9g and %.17g read back as the same float and double.
@@ -117,16 +120,35 @@ void write_hits_csv(std::ostream& out, const RayTable& rays, const HitTable& h) 
     const WorldHit& w = h.hits[i];
     if (ids) out << rays.ids[i] << ',';
     out << (w.hit ? 1 : 0);
-    if (!h.occlusion) {
-      f(w.t);
-      for (int k = 0; k < 3; ++k) d(w.p[k]);
-      for (int k = 0; k < 3; ++k) f(w.n[k]);
-      for (int k = 0; k < 3; ++k) f(w.ns[k]);
-      f(w.u);
-      f(w.v);
-      out << ',' << csv_cell(name_of(h.objects, w.object)) << ',';
-      if (w.hit) out << w.primitive;
-      out << ',' << csv_cell(name_of(h.materials, w.material));
+    for (HitField field : fields) {
+      switch (field) {
+        case HitField::kT:
+          f(w.t);
+          break;
+        case HitField::kPoint:
+          for (int k = 0; k < 3; ++k) d(w.p[k]);
+          break;
+        case HitField::kNormal:
+          for (int k = 0; k < 3; ++k) f(w.n[k]);
+          break;
+        case HitField::kShadingNormal:
+          for (int k = 0; k < 3; ++k) f(w.ns[k]);
+          break;
+        case HitField::kBarycentrics:
+          f(w.u);
+          f(w.v);
+          break;
+        case HitField::kObject:
+          out << ',' << csv_cell(name_of(h.objects, w.object));
+          break;
+        case HitField::kPrimitive:
+          out << ',';
+          if (w.hit) out << w.primitive;  // empty for a miss
+          break;
+        case HitField::kMaterial:
+          out << ',' << csv_cell(name_of(h.materials, w.material));
+          break;
+      }
     }
     out << '\n';
   }

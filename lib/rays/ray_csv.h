@@ -1,7 +1,8 @@
 // Rays in, hits out, as CSV with a header row. Input columns (any order, names as in the
 // header): ox,oy,oz,dx,dy,dz required, tmin,tmax,id optional; other columns are refused, so a
 // typo is not silently ignored. Output: id (if the input had ids),hit,t,px,py,pz,nx,ny,nz,
-// snx,sny,snz,u,v,object,primitive,material (occlusion queries: id,hit). Numbers are written
+// snx,sny,snz,u,v,object,primitive,material (occlusion queries: id,hit), or with a field mask
+// (HitTable::fields) id,hit and the asked fields' columns, in that order. Numbers are written
 // with enough digits to read back the same float/double bits.
 #pragma once
 

@@ -63,10 +63,16 @@ HitTable sample_hits() {
   return h;
 }
 
-TEST(RayCsv, WritesHitsThatReadBackBitForBit) {
+// The rays sample_hits() answers (their values do not matter to the writers), with `ids`.
+RayTable two_rays(std::vector<uint64_t> ids) {
   RayTable rays;
   rays.rays.resize(2);
-  rays.ids = {5, 6};
+  rays.ids = std::move(ids);
+  return rays;
+}
+
+TEST(RayCsv, WritesHitsThatReadBackBitForBit) {
+  const RayTable rays = two_rays({5, 6});
   std::ostringstream out;
   write_hits_csv(out, rays, sample_hits());
   EXPECT_EQ(out.str(),
@@ -77,6 +83,32 @@ TEST(RayCsv, WritesHitsThatReadBackBitForBit) {
   EXPECT_EQ(std::stod("0.33333333333333331"), 1.0 / 3.0);
 }
 
+// A field mask writes hit, the ids and exactly the asked fields' columns, in column order,
+// with the values the full table has; occlusion writes hit alone whatever the mask.
+TEST(RayCsv, WritesOnlyTheAskedFields) {
+  RayTable rays = two_rays({5, 6});
+  HitTable h = sample_hits();
+  h.fields = parse_hit_fields("object,t,primitive");
+  std::ostringstream out;
+  write_hits_csv(out, rays, h);
+  EXPECT_EQ(out.str(),
+            "id,hit,t,object,primitive\n"
+            "5,1,0.100000001,#1,12\n"
+            "6,0,inf,,\n");
+  h.fields = parse_hit_fields("point,barycentrics");
+  rays.ids.clear();
+  out.str("");
+  write_hits_csv(out, rays, h);
+  EXPECT_EQ(out.str(),
+            "hit,px,py,pz,u,v\n"
+            "1,0.33333333333333331,2,3,0,0\n"
+            "0,0,0,0,0,0\n");
+  h.occlusion = true;
+  out.str("");
+  write_hits_csv(out, rays, h);
+  EXPECT_EQ(out.str(), "hit\n1\n0\n");
+}
+
 class RayNpy : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -84,6 +116,17 @@ class RayNpy : public ::testing::Test {
     fs::create_directories(dir_);
   }
   void TearDown() override { fs::remove_all(dir_); }
+  // The bytes write_hits_npy() writes for `hits`, and where its header's text is.
+  std::string written(const RayTable& rays, const HitTable& hits, std::string* header) {
+    const fs::path p = dir_ / "out.npy";
+    write_hits_npy(p.string(), rays, hits);
+    std::ifstream in(p, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    uint32_t header_len = 0;
+    if (bytes.size() >= 12) std::memcpy(&header_len, bytes.data() + 8, 4);
+    *header = bytes.substr(std::min<size_t>(12, bytes.size()), header_len);
+    return bytes;
+  }
   // A version 1.0 .npy as NumPy writes it.
   fs::path write_npy(const std::string& descr, const std::string& shape, const std::string& data) {
     std::string header = "{'descr': '" + descr + "', 'fortran_order': False, 'shape': " + shape + ", }";
@@ -131,17 +174,11 @@ TEST_F(RayNpy, RefusesWhatItCannotRead) {
 }
 
 TEST_F(RayNpy, WritesAStructuredArray) {
-  RayTable rays;
-  rays.rays.resize(2);
-  const fs::path p = dir_ / "out.npy";
-  write_hits_npy(p.string(), rays, sample_hits());
-  std::ifstream in(p, std::ios::binary);
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string header;
+  const std::string bytes = written(two_rays({}), sample_hits(), &header);
   ASSERT_EQ(bytes.compare(0, 8, std::string("\x93NUMPY\x02\x00", 8)), 0);
-  uint32_t header_len;
-  std::memcpy(&header_len, bytes.data() + 8, 4);
+  const size_t header_len = header.size();
   EXPECT_EQ((12 + header_len) % 64, 0u);  // data 64-byte aligned, as NumPy writes it
-  const std::string header = bytes.substr(12, header_len);
   EXPECT_NE(header.find("('object', 'S2')"), std::string::npos) << header;  // "#1" and "" 
   EXPECT_NE(header.find("'shape': (2,)"), std::string::npos);
   // One record: hit u1, t f4, p 3 f8, 8 f4, object S2, primitive i8, material S10.
@@ -157,6 +194,28 @@ TEST_F(RayNpy, WritesAStructuredArray) {
   EXPECT_EQ(prim, 12);
   std::memcpy(&prim, r0 + record + 63, 8);
   EXPECT_EQ(prim, -1);  // a miss
+}
+
+TEST_F(RayNpy, WritesOnlyTheAskedFields) {
+  HitTable h = sample_hits();
+  h.fields = parse_hit_fields("primitive,t");
+  std::string header;
+  const std::string bytes = written(two_rays({5, 6}), h, &header);
+  const size_t header_len = header.size();
+  EXPECT_NE(header.find("'descr': [('id', '<u8'), ('hit', 'u1'), ('t', '<f4'), ('primitive', '<i8')], "),
+            std::string::npos)
+      << header;
+  const size_t record = 8 + 1 + 4 + 8;
+  ASSERT_EQ(bytes.size(), 12 + header_len + 2 * record);
+  const char* r0 = bytes.data() + 12 + header_len;
+  float t;
+  std::memcpy(&t, r0 + 9, 4);
+  EXPECT_EQ(t, 0.1f);
+  int64_t prim;
+  std::memcpy(&prim, r0 + 13, 8);
+  EXPECT_EQ(prim, 12);
+  std::memcpy(&prim, r0 + record + 13, 8);
+  EXPECT_EQ(prim, -1);
 }
 
 }  // namespace

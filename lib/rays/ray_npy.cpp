@@ -107,19 +107,29 @@ RayTable read_rays_npy(const std::string& path) {
 
 void write_hits_npy(const std::string& path, const RayTable& rays, const HitTable& h) {
   const bool ids = !rays.ids.empty();
+  const std::vector<HitField> fields = h.occlusion ? std::vector<HitField>{} : h.fields.list();
   size_t obj_width = 1, mat_width = 1;
   for (const WorldHit& w : h.hits) {
     obj_width = std::max(obj_width, name_of(h.objects, w.object).size());
     mat_width = std::max(mat_width, name_of(h.materials, w.material).size());
   }
+  // Each field's NumPy type: points are double, the rest of the floats single.
+  auto dtype = [&](HitField field) -> std::string {
+    switch (field) {
+      case HitField::kPoint: return "<f8";
+      case HitField::kObject: return "S" + std::to_string(obj_width);
+      case HitField::kPrimitive: return "<i8";
+      case HitField::kMaterial: return "S" + std::to_string(mat_width);
+      default: return "<f4";
+    }
+  };
   std::string descr = "[";
   if (ids) descr += "('id', '<u8'), ";
   descr += "('hit', 'u1')";
-  if (!h.occlusion) {
-    descr += ", ('t', '<f4'), ('px', '<f8'), ('py', '<f8'), ('pz', '<f8')";
-    for (const char* f : {"nx", "ny", "nz", "snx", "sny", "snz", "u", "v"}) descr += std::string(", ('") + f + "', '<f4')";
-    descr += ", ('object', 'S" + std::to_string(obj_width) + "'), ('primitive', '<i8'), ('material', 'S" +
-             std::to_string(mat_width) + "')";
+  for (HitField field : fields) {
+    for (std::string_view column : hit_field_columns(field)) {
+      descr += ", ('" + std::string(column) + "', '" + dtype(field) + "')";
+    }
   }
   descr += "]";
   std::string header = "{'descr': " + descr + ", 'fortran_order': False, 'shape': (" +
@@ -139,16 +149,35 @@ void write_hits_npy(const std::string& path, const RayTable& rays, const HitTabl
     const WorldHit& w = h.hits[i];
     if (ids) put<uint64_t>(&out, rays.ids[i]);
     put<uint8_t>(&out, w.hit ? 1 : 0);
-    if (h.occlusion) continue;
-    put<float>(&out, w.t);
-    for (int k = 0; k < 3; ++k) put<double>(&out, w.p[k]);
-    for (int k = 0; k < 3; ++k) put<float>(&out, w.n[k]);
-    for (int k = 0; k < 3; ++k) put<float>(&out, w.ns[k]);
-    put<float>(&out, w.u);
-    put<float>(&out, w.v);
-    fixed(name_of(h.objects, w.object), obj_width);
-    put<int64_t>(&out, w.hit ? int64_t(w.primitive) : -1);
-    fixed(name_of(h.materials, w.material), mat_width);
+    for (HitField field : fields) {
+      switch (field) {
+        case HitField::kT:
+          put<float>(&out, w.t);
+          break;
+        case HitField::kPoint:
+          for (int k = 0; k < 3; ++k) put<double>(&out, w.p[k]);
+          break;
+        case HitField::kNormal:
+          for (int k = 0; k < 3; ++k) put<float>(&out, w.n[k]);
+          break;
+        case HitField::kShadingNormal:
+          for (int k = 0; k < 3; ++k) put<float>(&out, w.ns[k]);
+          break;
+        case HitField::kBarycentrics:
+          put<float>(&out, w.u);
+          put<float>(&out, w.v);
+          break;
+        case HitField::kObject:
+          fixed(name_of(h.objects, w.object), obj_width);
+          break;
+        case HitField::kPrimitive:
+          put<int64_t>(&out, w.hit ? int64_t(w.primitive) : -1);
+          break;
+        case HitField::kMaterial:
+          fixed(name_of(h.materials, w.material), mat_width);
+          break;
+      }
+    }
   }
   std::ofstream f(path, std::ios::binary);
   f.write(out.data(), std::streamsize(out.size()));

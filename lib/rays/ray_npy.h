@@ -2,7 +2,8 @@
 // Input: a 2-D float64 or float32 array of shape (n, 6), (n, 8) or (n, 9): columns
 // ox,oy,oz,dx,dy,dz[,tmin,tmax[,id]]. Output: a 1-D structured array with the CSV's fields
 // (id, hit, t, px..pz as <f8, nx..snz, u, v as <f4, object and material as fixed-width byte
-// strings, primitive as <i8 with -1 for a miss); np.load() reads it as is.
+// strings, primitive as <i8 with -1 for a miss; with a field mask, id, hit and the asked fields'
+// columns); np.load() reads it as is.
 #pragma once
 
 #include <string>

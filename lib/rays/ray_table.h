@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "rays/hit_fields.h"
 #include "rays/world_ray.h"
 
 namespace tessera::rays {
@@ -20,6 +21,8 @@ struct HitTable {
   std::vector<std::string> objects;  // names: WorldHit::object indexes these
   std::vector<std::string> materials;
   bool occlusion = false;            // only `hit` is meaningful
+  HitFields fields = HitFields::all();  // nearest hits: the fields written besides `hit` (others
+                                        // may be WorldHit's defaults: not asked of the service)
 };
 
 // The name written for object/material index i: the name, or "#i" when the scene gives none;

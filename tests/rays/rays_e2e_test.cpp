@@ -6,8 +6,10 @@
 #include <cmath>
 #include <csignal>
 #include <fstream>
+#include <map>
 #include <random>
 #include <regex>
+#include <sstream>
 #include <thread>
 
 #include "../farm/test_pki.h"
@@ -49,6 +51,87 @@ TEST(RaysCli, InProcessAndServiceAnswersAreIdentical) {
   EXPECT_EQ(lines, 3000u);
   EXPECT_GT(hits, 1000u);
   EXPECT_LT(hits, 3000u);
+}
+
+// The CSV's rows as cells, by column name (no quoted cells here: the bunny's names have no commas).
+std::map<std::string, std::vector<std::string>> csv_columns(const std::string& text) {
+  std::istringstream in(text);
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::string> names;
+  for (std::istringstream h(line); std::getline(h, line, ',');) names.push_back(line);
+  std::map<std::string, std::vector<std::string>> columns;
+  while (std::getline(in, line)) {
+    size_t k = 0;
+    std::string cell;
+    for (std::istringstream row(line + ","); std::getline(row, cell, ',');) columns[names.at(k++)].push_back(cell);
+  }
+  return columns;
+}
+
+// --fields t,object: the service sends hit, t and object alone, and the output has exactly
+// those columns (and id), with the full run's values; in-process it selects the same columns,
+// byte for byte. A bad name, and --fields with --occlusion, exit 2 naming the flag.
+TEST(RaysCli, FieldsWritesOnlyTheChosenColumnsWithTheFullRunsValues) {
+  Farm farm;
+  farm.start_server();
+  std::unique_ptr<Process> rays;
+  const std::string addr = start_rays(farm, &rays);
+  const fs::path in = farm.dir() / "rays.csv";
+  write_bunny_rays(in, 1000);
+  const std::string scene = source("scenes/bunny.json").string();
+  auto run = [&](const std::string& out, std::vector<std::string> extra) {
+    std::vector<std::string> args{"rays", scene, "--in", in.string(), "--out", (farm.dir() / out).string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return farm.cli(args);
+  };
+  const std::vector<std::string> remote{"--server", addr, "--coordinator", farm.address(), "--batch", "300"};
+  std::vector<std::string> remote_t_object = remote;
+  remote_t_object.insert(remote_t_object.end(), {"--fields", "t,object"});
+  CliResult r = run("full.csv", remote);
+  ASSERT_EQ(r.code, 0) << r.output << rays->log();
+  for (const char* ext : {".csv", ".npy"}) {
+    r = run(std::string("remote") + ext, remote_t_object);
+    ASSERT_EQ(r.code, 0) << r.output << rays->log();
+    r = run(std::string("local") + ext, {"--fields", "object,t,object"});
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_EQ(read_text(farm.dir() / (std::string("remote") + ext)), read_text(farm.dir() / (std::string("local") + ext)))
+        << ext;
+  }
+  const std::string masked = read_text(farm.dir() / "remote.csv");
+  ASSERT_EQ(masked.substr(0, masked.find('\n')), "id,hit,t,object");
+  auto got = csv_columns(masked), want = csv_columns(read_text(farm.dir() / "full.csv"));
+  ASSERT_EQ(got.size(), 4u);
+  for (const char* column : {"id", "hit", "t", "object"}) EXPECT_EQ(got[column], want[column]) << column;
+  EXPECT_EQ(got["t"].size(), 1000u);
+  EXPECT_GT(std::count(got["hit"].begin(), got["hit"].end(), "1"), 100);  // hits and misses both
+  EXPECT_GT(std::count(got["hit"].begin(), got["hit"].end(), "0"), 100);
+  const std::string npy = read_text(farm.dir() / "remote.npy");
+  EXPECT_NE(npy.find("'descr': [('id', '<u8'), ('hit', 'u1'), ('t', '<f4'), ('object', 'S"), std::string::npos)
+      << npy.substr(0, 200);
+
+  // Without ids: exactly hit, t, object.
+  const fs::path small = farm.dir() / "small.csv";
+  std::ofstream(small) << "ox,oy,oz,dx,dy,dz\n0,0,0,0,0,1\n0,0,0,0,1,0\n";
+  r = farm.cli({"rays", source("tests/rays/sphere_scene.json").string(), "--in", small.string(), "--out",
+                (farm.dir() / "small-out.csv").string(), "--fields", "object,t", "--server", addr, "--coordinator",
+                farm.address()});
+  ASSERT_EQ(r.code, 0) << r.output << rays->log();
+  EXPECT_EQ(read_text(farm.dir() / "small-out.csv"), "hit,t,object\n1,8,ball\n0,inf,\n");
+
+  r = run("bad.csv", {"--fields", "t,pointz", "--server", addr, "--coordinator", farm.address()});
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--fields: 'pointz' is not a hit field (allowed: "
+                          "t,point,normal,shading_normal,barycentrics,object,primitive,material)"),
+            std::string::npos)
+      << r.output;
+  r = run("occ.csv", {"--fields", "t", "--occlusion"});
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--fields chooses the columns of nearest hits; --occlusion answers hit alone"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(farm.dir() / "bad.csv"));
+  EXPECT_FALSE(fs::exists(farm.dir() / "occ.csv"));
 }
 
 // A ray server that stops answering (here: stopped with SIGSTOP, its socket still open) ends
@@ -208,7 +291,8 @@ TEST(RaysPython, ExampleClientFromTheProtoAlone) {
   ASSERT_EQ(py.wait(120s), 0) << py.log();
   const std::string log = py.log();
   for (const char* want : {"objects: ball (sphere), floor (plane)", "ray 0: hit ball t=8 p=[0.0, 0.0, 8.0] n=[0.0, 0.0, -1.0]",
-                           "ray 1: hit floor t=3 p=[0.0, -3.0, 0.0]", "ray 2: miss", "occluded: [0, 1]",
+                           "ray 1: hit floor t=3 p=[0.0, -3.0, 0.0]", "ray 2: miss",
+                           "t only: [1, 1, 0] [8.0, 3.0, inf] points sent: 0", "occluded: [0, 1]",
                            "bad batch refused: INVALID_ARGUMENT ray 1: direction is zero-length (field direction)"}) {
     EXPECT_NE(log.find(want), std::string::npos) << want << "\n" << log;
   }

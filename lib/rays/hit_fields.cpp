@@ -1,0 +1,67 @@
+#include "rays/hit_fields.h"
+
+#include <array>
+#include <stdexcept>
+
+namespace tessera::rays {
+
+namespace {
+
+struct FieldInfo {
+  std::string_view name;
+  std::vector<std::string_view> columns;
+};
+
+const std::array<FieldInfo, kHitFieldCount>& infos() {
+  static const std::array<FieldInfo, kHitFieldCount> table{{
+      {"t", {"t"}},
+      {"point", {"px", "py", "pz"}},
+      {"normal", {"nx", "ny", "nz"}},
+      {"shading_normal", {"snx", "sny", "snz"}},
+      {"barycentrics", {"u", "v"}},
+      {"object", {"object"}},
+      {"primitive", {"primitive"}},
+      {"material", {"material"}},
+  }};
+  return table;
+}
+
+std::string allowed_names() {
+  std::string s;
+  for (const FieldInfo& f : infos()) s += (s.empty() ? "" : ",") + std::string(f.name);
+  return s;
+}
+
+}  // namespace
+
+std::vector<HitField> HitFields::list() const {
+  std::vector<HitField> out;
+  for (int k = 0; k < kHitFieldCount; ++k) {
+    if (has(HitField(k))) out.push_back(HitField(k));
+  }
+  return out;
+}
+
+std::string_view hit_field_name(HitField f) { return infos()[size_t(f)].name; }
+
+const std::vector<std::string_view>& hit_field_columns(HitField f) { return infos()[size_t(f)].columns; }
+
+HitFields parse_hit_fields(std::string_view list) {
+  HitFields fields;
+  size_t begin = 0;
+  while (true) {
+    const size_t end = std::min(list.find(',', begin), list.size());
+    const std::string_view name = list.substr(begin, end - begin);
+    size_t k = 0;
+    while (k < infos().size() && infos()[k].name != name) ++k;
+    if (k == infos().size()) {
+      throw std::invalid_argument((name.empty() ? std::string("an empty name") : "'" + std::string(name) + "'") +
+                                  " is not a hit field (allowed: " + allowed_names() + ")");
+    }
+    fields = fields.with(HitField(k));
+    if (end == list.size()) return fields;
+    begin = end + 1;
+  }
+}
+
+}  // namespace tessera::rays
