@@ -15,7 +15,8 @@ namespace tessera {
 namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
-void BatchNearestPlanes(const RayBatch& r, size_t n, const PlaneTable& planes, double* tp_out, int32_t* plane_out) {
+void BatchNearestPlanes(const RayBatch& r, size_t n, const PlaneTable& planes, double* tp_out, int32_t* plane_out,
+                        float* tfar_out) {
   const hn::ScalableTag<double> dd;
   const hn::Rebind<float, decltype(dd)> df;
   const hn::Rebind<int32_t, decltype(dd)> di;
@@ -44,6 +45,9 @@ void BatchNearestPlanes(const RayBatch& r, size_t n, const PlaneTable& planes, d
     }
     hn::StoreU(tp, dd, tp_out + i);
     hn::StoreU(hn::DemoteTo(di, plane), di, plane_out + i);
+    hn::StoreU(hn::IfThenElse(hn::RebindMask(df, hn::Gt(hn::DemoteTo(di, plane), hn::Set(di, -1))), hn::DemoteTo(df, tp),
+                              hn::LoadU(df, r.tmax + i)),
+               df, tfar_out + i);
   }
 }
 
@@ -86,7 +90,7 @@ void BatchTriangleHits(const uint32_t* select, uint32_t which, const uint32_t* p
   }
 }
 
-void BatchPlanePoints(const RayBatch& r, const uint32_t* select, uint32_t which, const double* tp_in,
+void BatchPlaneHits(const RayBatch& r, const uint32_t* select, uint32_t which, const double* tp_in,
                       const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* h) {
   const hn::ScalableTag<double> dd;
   const hn::Rebind<float, decltype(dd)> df;
@@ -116,6 +120,17 @@ void BatchPlanePoints(const RayBatch& r, const uint32_t* select, uint32_t which,
     hn::BlendedStore(hn::DemoteTo(df, hn::Sub(x, hn::Mul(nx, s))), fsel, df, h->px + i);
     hn::BlendedStore(hn::DemoteTo(df, hn::Sub(y, hn::Mul(ny, s))), fsel, df, h->py + i);
     hn::BlendedStore(hn::DemoteTo(df, hn::Sub(z, hn::Mul(nz, s))), fsel, df, h->pz + i);
+    hn::BlendedStore(hn::DemoteTo(df, tp), fsel, df, h->t + i);
+    hn::BlendedStore(hn::DemoteTo(df, nx), fsel, df, h->nx + i);
+    hn::BlendedStore(hn::DemoteTo(df, ny), fsel, df, h->ny + i);
+    hn::BlendedStore(hn::DemoteTo(df, nz), fsel, df, h->nz + i);
+    hn::BlendedStore(hn::Zero(df), fsel, df, h->u + i);
+    hn::BlendedStore(hn::Zero(df), fsel, df, h->v + i);
+    const auto k32 = hn::IfThenElseZero(hn::RebindMask(di32, sel32), hn::LoadU(di32, plane + i));
+    const auto k2 = hn::Add(k32, k32);  // 2 indices a plane
+    hn::BlendedStore(hn::GatherIndex(du32, planes.ids, k2), sel32, du32, h->material + i);
+    hn::BlendedStore(hn::GatherIndex(du32, planes.ids, hn::Add(k2, hn::Set(di32, 1))), sel32, du32, h->object + i);
+    hn::BlendedStore(hn::Zero(du32), sel32, du32, h->primitive + i);
   }
 }
 
@@ -128,10 +143,11 @@ namespace tessera {
 
 HWY_EXPORT(BatchNearestPlanes);
 HWY_EXPORT(BatchTriangleHits);
-HWY_EXPORT(BatchPlanePoints);
+HWY_EXPORT(BatchPlaneHits);
 
-void batch_nearest_planes(const RayBatch& rays, size_t n, const PlaneTable& planes, double* tp, int32_t* plane) {
-  HWY_DYNAMIC_DISPATCH(BatchNearestPlanes)(rays, n, planes, tp, plane);
+void batch_nearest_planes(const RayBatch& rays, size_t n, const PlaneTable& planes, double* tp, int32_t* plane,
+                          float* tfar) {
+  HWY_DYNAMIC_DISPATCH(BatchNearestPlanes)(rays, n, planes, tp, plane, tfar);
 }
 
 void batch_triangle_hits(const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,
@@ -139,9 +155,9 @@ void batch_triangle_hits(const uint32_t* select, uint32_t which, const uint32_t*
   HWY_DYNAMIC_DISPATCH(BatchTriangleHits)(select, which, prim, n, triangles, hits);
 }
 
-void batch_plane_points(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
-                        const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* hits) {
-  HWY_DYNAMIC_DISPATCH(BatchPlanePoints)(rays, select, which, tp, plane, n, planes, hits);
+void batch_plane_hits(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
+                      const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* hits) {
+  HWY_DYNAMIC_DISPATCH(BatchPlaneHits)(rays, select, which, tp, plane, n, planes, hits);
 }
 
 }  // namespace tessera

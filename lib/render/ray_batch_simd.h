@@ -12,15 +12,18 @@
 
 namespace tessera {
 
-// Planes as 6 doubles each: point x, y, z, normal x, y, z.
+// Planes as 6 doubles each (point x, y, z, normal x, y, z) and 2 indices each (material, object).
 struct PlaneTable {
   const double* data = nullptr;
+  const uint32_t* ids = nullptr;
   size_t count = 0;
 };
 
 // nearest_plane() for rays from no surface: tp[i] the nearest plane's t in (0, tmax[i]), else
-// tmax[i]; plane[i] its index, else -1.
-void batch_nearest_planes(const RayBatch& rays, size_t n, const PlaneTable& planes, double* tp, int32_t* plane);
+// tmax[i]; plane[i] its index, else -1; tfar[i] the Embree ray's tfar (intersect(): float(tp)
+// where a plane is met, else tmax).
+void batch_nearest_planes(const RayBatch& rays, size_t n, const PlaneTable& planes, double* tp, int32_t* plane,
+                          float* tfar);
 
 // Where select[i] == which: finish_hit()'s point, normal, material and source for triangle
 // prim[i] of a bucket (3 unshared vertices per triangle in `positions`, 9 floats; `sources` as
@@ -33,9 +36,10 @@ struct TriangleTable {
 void batch_triangle_hits(const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,
                          const TriangleTable& triangles, HitBatch* hits);
 
-// Where select[i] == which: finish_hit()'s point on plane plane[i] at tp[i] (o + d tp in double,
-// projected onto the plane). Other lanes are left as they are.
-void batch_plane_points(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
-                        const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* hits);
+// Where select[i] == which: finish_hit()'s answer on plane plane[i] at tp[i]: t, the point
+// (o + d tp in double, projected onto the plane), the normal, u = v = 0, the material and the
+// object (primitive 0). Other lanes are left as they are.
+void batch_plane_hits(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
+                      const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* hits);
 
 }  // namespace tessera

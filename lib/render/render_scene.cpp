@@ -437,7 +437,10 @@ void RenderScene::build(const Scene& scene, int frame) {
     for (float& c : L.cdf) c /= L.area;
     L.cdf.back() = 1.0f;
   }
-  for (const Plane& p : planes_) plane_table_.insert(plane_table_.end(), {p.point.x, p.point.y, p.point.z, p.normal.x, p.normal.y, p.normal.z});
+  for (const Plane& p : planes_) {
+    plane_table_.insert(plane_table_.end(), {p.point.x, p.point.y, p.point.z, p.normal.x, p.normal.y, p.normal.z});
+    plane_ids_.insert(plane_ids_.end(), {p.material, p.object});
+  }
   has_glass_ = !triangles_[1].material_ids.empty() || !sphere_buckets_[1].ids.empty();
   for (const Plane& p : planes_) has_glass_ = has_glass_ || is_glass(p.material);
 

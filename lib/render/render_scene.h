@@ -241,7 +241,9 @@ class RenderScene {
   std::vector<AreaLight> area_lights_;
   std::vector<Sphere> spheres_;
   std::vector<Plane> planes_;
-  std::vector<double> plane_table_;  // planes_ as 6 doubles each (point, normal): for SIMD (ray_batch_simd.h)
+  // planes_ for SIMD (ray_batch_simd.h): 6 doubles each (point, normal), 2 indices (material, object).
+  std::vector<double> plane_table_;
+  std::vector<uint32_t> plane_ids_;
   TriangleBucket triangles_[2];  // [0] opaque, [1] glass
   SphereBucket sphere_buckets_[2];
   bool has_glass_ = false;

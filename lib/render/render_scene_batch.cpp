@@ -20,6 +20,7 @@ namespace tessera {
 void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) const {
   alignas(64) double tp[kRayBatch];
   alignas(64) int32_t plane[kRayBatch];
+  alignas(64) float tfar[kRayBatch];
   alignas(64) RTCRayHit rh[kRayBatch];
   // What finishes each lane's hit: 0 nothing (a miss, or done here), 1 + k triangle bucket k,
   // 3 a plane (the values batch_*() select lanes by).
@@ -27,32 +28,33 @@ void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) cons
   alignas(64) uint32_t finish[kRayBatch] = {};
   alignas(64) uint32_t prim[kRayBatch] = {};
   bool traced[kRayBatch];
-  const PlaneTable planes{plane_table_.data(), planes_.size()};
-  batch_nearest_planes(r, n, planes, tp, plane);
+  const PlaneTable planes{plane_table_.data(), plane_ids_.data(), planes_.size()};
+  batch_nearest_planes(r, n, planes, tp, plane, tfar);
 
   const float near_limit = 16.0f * bounds_radius_;
   for (size_t i = 0; i < n; ++i) {
     traced[i] = false;
     h->status[i] = HitBatch::kMiss;
     if (r.skip[i]) continue;
-    const Ray ray{{r.ox[i], r.oy[i], r.oz[i]}, {r.dx[i], r.dy[i], r.dz[i]}, r.tmax[i]};
-    if (!(max_component(abs(ray.o)) <= near_limit)) {
+    const float m = std::max(std::abs(r.ox[i]), std::max(std::abs(r.oy[i]), std::abs(r.oz[i])));
+    if (!(m <= near_limit)) {
       // embree_ray() would move this ray's start (embree_ray_from_far()): intersect() itself.
+      const Ray ray{{r.ox[i], r.oy[i], r.oz[i]}, {r.dx[i], r.dy[i], r.dz[i]}, r.tmax[i]};
       if (intersect(ray, PrimRef{}, &h->hit[i])) h->status[i] = HitBatch::kHit;
       continue;
     }
     // embree_ray() and make_rayhit() (render_scene.cpp) for a ray that starts near: Embree looks
-    // only closer than the nearest plane.
+    // only closer than the nearest plane (tfar).
     RTCRayHit& q = rh[i];
-    q.ray.org_x = ray.o.x;
-    q.ray.org_y = ray.o.y;
-    q.ray.org_z = ray.o.z;
+    q.ray.org_x = r.ox[i];
+    q.ray.org_y = r.oy[i];
+    q.ray.org_z = r.oz[i];
     q.ray.tnear = 0.0f;
-    q.ray.dir_x = ray.d.x;
-    q.ray.dir_y = ray.d.y;
-    q.ray.dir_z = ray.d.z;
+    q.ray.dir_x = r.dx[i];
+    q.ray.dir_y = r.dy[i];
+    q.ray.dir_z = r.dz[i];
     q.ray.time = 0.0f;
-    q.ray.tfar = plane[i] >= 0 ? float(tp[i]) : ray.tmax;
+    q.ray.tfar = tfar[i];
     q.ray.mask = 0xFFFFFFFFu;
     q.ray.id = 0;
     q.ray.flags = 0;
@@ -80,15 +82,7 @@ void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) cons
     const uint32_t g = rh[i].hit.geomID;
     if (g == RTC_INVALID_GEOMETRY_ID) {
       if (plane[i] < 0) continue;  // a miss
-      // finish_hit()'s plane answer; the point comes from batch_plane_points().
-      const Plane& pl = planes_[size_t(plane[i])];
-      h->status[i] = HitBatch::kAnswered;
-      h->t[i] = float(tp[i]);
-      h->nx[i] = float(pl.normal.x), h->ny[i] = float(pl.normal.y), h->nz[i] = float(pl.normal.z);
-      h->u[i] = h->v[i] = 0.0f;
-      h->material[i] = pl.material;
-      h->object[i] = pl.object;
-      h->primitive[i] = 0;
+      h->status[i] = HitBatch::kAnswered;  // batch_plane_hits() answers
       finish[i] = kPlane;
       continue;
     }
@@ -102,7 +96,7 @@ void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) cons
       __builtin_prefetch(&b.positions[3 * size_t(pid) + 2]);
       __builtin_prefetch(&b.material_ids[pid]);
       __builtin_prefetch(&b.sources[pid]);
-      h->status[i] = HitBatch::kAnswered;
+      h->status[i] = HitBatch::kAnswered;  // batch_triangle_hits() answers the rest
       h->t[i] = rh[i].ray.tfar;
       h->u[i] = rh[i].hit.u;
       h->v[i] = rh[i].hit.v;
@@ -123,7 +117,7 @@ void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) cons
     const TriangleTable table{&b.positions[0].x, b.material_ids.data(), &b.sources[0].object};
     batch_triangle_hits(finish, kTriangle0 + uint32_t(k), prim, n, table, h);
   }
-  if (!planes_.empty()) batch_plane_points(r, finish, kPlane, tp, plane, n, planes, h);
+  if (!planes_.empty()) batch_plane_hits(r, finish, kPlane, tp, plane, n, planes, h);
 }
 
 }  // namespace tessera

@@ -137,7 +137,9 @@ void expect_identical_hit(bool found_a, const Hit& a, bool found_b, const Hit& b
                        std::bit_cast<uint32_t>(b.tex_v)))
       << what;
   ASSERT_EQ(a.smooth, b.smooth) << what;
-  if (a.smooth) EXPECT_EQ(bits(a.ns), bits(b.ns)) << what;
+  if (a.smooth) {
+    EXPECT_EQ(bits(a.ns), bits(b.ns)) << what;
+  }
 }
 
 // intersect_batch() does intersect()'s work over a batch, the common hits' arithmetic in SIMD
