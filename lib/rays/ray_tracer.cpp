@@ -190,9 +190,26 @@ void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
 }
 
 void RayTracer::occluded(const WorldRay* rays, size_t n, WorldHit* hits) const {
-  for (size_t i = 0; i < n; ++i) {
-    hits[i] = WorldHit{};
-    hits[i].hit = blocked(rays[i]);
+  // As nearest(): batches of rays as arrays, a far ray alone (blocked() moves its start).
+  if (n < 4) {
+    for (size_t i = 0; i < n; ++i) {
+      hits[i] = WorldHit{};
+      hits[i].hit = blocked(rays[i]);
+    }
+    return;
+  }
+  const RenderScene& rs = *frame_;
+  RayBatch batch;
+  alignas(64) double shift[kRayBatch];
+  uint8_t flag[kRayBatch];
+  for (size_t base = 0; base < n; base += kRayBatch) {
+    const size_t m = std::min(kRayBatch, n - base);
+    world_to_render(rays + base, m, rs.origin(), 16.0 * double(rs.bounds_radius()), &batch, shift);
+    rs.any_hit_batch(batch, m, flag);
+    for (size_t j = 0; j < m; ++j) {
+      hits[base + j] = WorldHit{};
+      hits[base + j].hit = batch.skip[j] ? blocked(rays[base + j]) : flag[j] != 0;
+    }
   }
 }
 

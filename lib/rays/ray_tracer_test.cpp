@@ -391,9 +391,9 @@ TEST_F(RayTracerTest, ARaysAnswerDoesNotDependOnItsBatch) {
   EXPECT_GT(hits, 50);  // the batch exercises hits, not only misses
 }
 
-// nearest() traces batches with SIMD code compiled for each target the machine has
-// (world_batch.h, render/ray_batch.h); a single ray takes the scalar path (trace()). On every
-// target, each ray of a batch must get the single ray's answer bit for bit: over opaque and glass
+// nearest() and occluded() trace batches with SIMD code compiled for each target the machine has
+// (world_batch.h, render/ray_batch.h); a single ray takes the scalar path (trace(), blocked()). On
+// every target, each ray of a batch must get the single ray's answer bit for bit: over opaque and glass
 // triangles, a mesh with vertex normals, a sphere, two planes, directions of any length, t
 // intervals, far origins and rays that miss.
 TEST_F(RayTracerTest, BatchesAnswerAsSingleRaysOnEverySimdTarget) {
@@ -434,8 +434,12 @@ TEST_F(RayTracerTest, BatchesAnswerAsSingleRaysOnEverySimdTarget) {
     }
     rays.push_back(r);
   }
-  std::vector<WorldHit> single(rays.size());
-  for (size_t i = 0; i < rays.size(); ++i) t.nearest(&rays[i], 1, &single[i]);
+  std::vector<WorldHit> single(rays.size()), single_occ(rays.size());
+  for (size_t i = 0; i < rays.size(); ++i) {
+    t.nearest(&rays[i], 1, &single[i]);
+    t.occluded(&rays[i], 1, &single_occ[i]);
+    ASSERT_EQ(single_occ[i].hit, single[i].hit) << "ray " << i;
+  }
   std::map<uint32_t, int> hits_by_object;
   for (const WorldHit& h : single) hits_by_object[h.hit ? h.object : kNoIndex]++;
   for (uint32_t k = 0; k < uint32_t(scene->objects.size()); ++k) {
@@ -451,8 +455,11 @@ TEST_F(RayTracerTest, BatchesAnswerAsSingleRaysOnEverySimdTarget) {
     for (size_t batch : {size_t(4), size_t(61), size_t(64), size_t(3000)}) {
       std::vector<WorldHit> got(rays.size());
       for (size_t b = 0; b < rays.size(); b += batch) t.nearest(&rays[b], std::min(batch, rays.size() - b), &got[b]);
+      std::vector<WorldHit> occ(rays.size());
+      for (size_t b = 0; b < rays.size(); b += batch) t.occluded(&rays[b], std::min(batch, rays.size() - b), &occ[b]);
       for (size_t i = 0; i < rays.size(); ++i) {
         ASSERT_TRUE(same_bits(got[i], single[i])) << "ray " << i << " in batches of " << batch;
+        ASSERT_EQ(occ[i].hit, single_occ[i].hit) << "occlusion, ray " << i << " in batches of " << batch;
       }
     }
   }

@@ -93,6 +93,10 @@ class RenderScene {
   // (rtcOccluded1) that stops at the first surface met, glass included: line-of-sight queries of
   // the ray service (lib/rays).
   bool any_hit(const Ray& ray, const PrimRef& from) const;
+  // any_hit(ray i, PrimRef{}) for n <= kRayBatch rays as arrays of components, the planes in SIMD
+  // (render_scene_batch.cpp): blocked[i] = 1 or 0, bit for bit any_hit()'s; lanes with skip set
+  // are left as they are.
+  void any_hit_batch(const RayBatch& rays, size_t n, uint8_t* blocked) const;
   void transmittance_packet(const Ray* rays, const PrimRef* from, int n, Rgb* T) const;
   // Fraction of light arriving along the ray over (0, ray.tmax]: 0 if an opaque surface blocks
   // it, else the product of the transmittances of the glass surfaces crossed (unrefracted).

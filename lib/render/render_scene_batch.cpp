@@ -10,12 +10,34 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 
 #include "render/ray_batch.h"
 #include "render/ray_batch_simd.h"
 #include "render/render_scene.h"
 
 namespace tessera {
+
+namespace {
+
+// Lane i of a batch as Embree's ray: make_rayhit(...).ray (render_scene.cpp) for a ray that
+// starts near, Embree looking only as far as `tfar` (closer than the nearest plane).
+[[gnu::always_inline]] inline void set_embree_ray(const RayBatch& r, size_t i, float tfar, uint32_t mask, RTCRay* q) {
+  q->org_x = r.ox[i];
+  q->org_y = r.oy[i];
+  q->org_z = r.oz[i];
+  q->tnear = 0.0f;
+  q->dir_x = r.dx[i];
+  q->dir_y = r.dy[i];
+  q->dir_z = r.dz[i];
+  q->time = 0.0f;
+  q->tfar = tfar;
+  q->mask = mask;
+  q->id = 0;
+  q->flags = 0;
+}
+
+}  // namespace
 
 void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) const {
   alignas(64) double tp[kRayBatch];
@@ -43,21 +65,8 @@ void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) cons
       if (intersect(ray, PrimRef{}, &h->hit[i])) h->status[i] = HitBatch::kHit;
       continue;
     }
-    // embree_ray() and make_rayhit() (render_scene.cpp) for a ray that starts near: Embree looks
-    // only closer than the nearest plane (tfar).
     RTCRayHit& q = rh[i];
-    q.ray.org_x = r.ox[i];
-    q.ray.org_y = r.oy[i];
-    q.ray.org_z = r.oz[i];
-    q.ray.tnear = 0.0f;
-    q.ray.dir_x = r.dx[i];
-    q.ray.dir_y = r.dy[i];
-    q.ray.dir_z = r.dz[i];
-    q.ray.time = 0.0f;
-    q.ray.tfar = tfar[i];
-    q.ray.mask = 0xFFFFFFFFu;
-    q.ray.id = 0;
-    q.ray.flags = 0;
+    set_embree_ray(r, i, tfar[i], 0xFFFFFFFFu, &q.ray);
     q.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     q.hit.primID = RTC_INVALID_GEOMETRY_ID;
     q.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
@@ -118,6 +127,41 @@ void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) cons
     batch_triangle_hits(finish, kTriangle0 + uint32_t(k), prim, n, table, h);
   }
   if (!planes_.empty()) batch_plane_hits(r, finish, kPlane, tp, plane, n, planes, h);
+}
+
+void RenderScene::any_hit_batch(const RayBatch& r, size_t n, uint8_t* blocked) const {
+  alignas(64) double tp[kRayBatch];
+  alignas(64) int32_t plane[kRayBatch];
+  alignas(64) float tfar[kRayBatch];
+  alignas(64) uint32_t on_plane[kRayBatch] = {};
+  const PlaneTable planes{plane_table_.data(), plane_ids_.data(), planes_.size()};
+  batch_nearest_planes(r, n, planes, tp, plane, tfar);
+  // A plane met first blocks the ray where its point is within float range (any_hit()).
+  auto points = std::make_unique<HitBatch>();  // only px, py, pz are read
+  if (!planes_.empty()) {
+    for (size_t i = 0; i < n; ++i) on_plane[i] = plane[i] >= 0;
+    batch_plane_hits(r, on_plane, 1, tp, plane, n, planes, points.get());
+  }
+  TraceContext ctx;  // no glass list: glass blocks like any surface
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.scene = this;
+  const float near_limit = 16.0f * bounds_radius_;
+  for (size_t i = 0; i < n; ++i) {
+    if (r.skip[i]) continue;
+    if (on_plane[i] && std::isfinite(points->px[i]) && std::isfinite(points->py[i]) && std::isfinite(points->pz[i])) {
+      blocked[i] = 1;
+      continue;
+    }
+    const float m = std::max(std::abs(r.ox[i]), std::max(std::abs(r.oy[i]), std::abs(r.oz[i])));
+    if (!(m <= near_limit)) {  // embree_ray() would move its start: any_hit() itself
+      blocked[i] = any_hit({{r.ox[i], r.oy[i], r.oz[i]}, {r.dx[i], r.dy[i], r.dz[i]}, r.tmax[i]}, PrimRef{});
+      continue;
+    }
+    RTCRay q;
+    set_embree_ray(r, i, tfar[i], kOpaqueMask | kGlassMask, &q);
+    rtcOccluded1(rtc_scene_.get(), &ctx.rtc, &q);
+    blocked[i] = q.tfar < 0.0f;
+  }
 }
 
 }  // namespace tessera
