@@ -155,35 +155,33 @@ void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
   alignas(64) double shift[kRayBatch];
   for (size_t base = 0; base < n; base += kRayBatch) {
     const size_t m = std::min(kRayBatch, n - base);
-    // The next batch's rays, asked for now: they arrive while this batch is traced (without it,
-    // the first touch of each ray was a tenth of the whole query, perf).
-    const char* next = reinterpret_cast<const char*>(rays + std::min(n, base + kRayBatch));
-    const char* next_end = reinterpret_cast<const char*>(rays + std::min(n, base + 2 * kRayBatch));
-    for (const char* p = next; p < next_end; p += 64) __builtin_prefetch(p);
     world_to_render(rays + base, m, origin, far, &batch, shift);
     rs.intersect_batch(batch, m, &found);
     tessera::rays::to_world(found, batch, shift, m, origin, &answers);
+    const size_t ahead = std::min(n - base - m, kRayBatch);  // the next batch's rays
     for (size_t j = 0; j < m; ++j) {
+      // Asked for now, they arrive while this batch is answered (without it, the first touch of
+      // each ray was a tenth of the whole query; a loop of prefetches alone stalled, perf).
+      if (j < ahead) __builtin_prefetch(&rays[base + m + j]);
       WorldHit& out = hits[base + j];
       if (batch.skip[j]) {
         alone(base + j);  // far: query() decides, trace() answers
-      } else if (found.status[j] == HitBatch::kAnswered && answers.finite[j]) {
-        // to_world()'s answer (a hit without a shading normal: ns is the facing normal).
-        out.hit = true;
+      } else if (found.status[j] == HitBatch::kHit) {
+        // The scalar code's hit (a sphere, vertex normals, a ray from far away).
+        if (to_world(found.hit[j], shift[j], Vec3f(batch.dx[j], batch.dy[j], batch.dz[j]), &out)) out.hit = true;
+        else out = WorldHit{};
+      } else {
+        // to_world()'s answer from the arrays, a miss's defaults included: no branch on the hit.
+        out.hit = answers.hit[j] != 0;
         out.t = answers.t[j];
         out.p = {answers.px[j], answers.py[j], answers.pz[j]};
-        out.n = {found.nx[j], found.ny[j], found.nz[j]};
+        out.n = {answers.nx[j], answers.ny[j], answers.nz[j]};
         out.ns = {answers.nsx[j], answers.nsy[j], answers.nsz[j]};
-        out.u = found.u[j];
-        out.v = found.v[j];
-        out.object = found.object[j];
-        out.primitive = found.primitive[j];
-        out.material = found.material[j];
-      } else if (found.status[j] == HitBatch::kHit &&
-                 to_world(found.hit[j], shift[j], Vec3f(batch.dx[j], batch.dy[j], batch.dz[j]), &out)) {
-        out.hit = true;
-      } else {
-        out = WorldHit{};
+        out.u = answers.u[j];
+        out.v = answers.v[j];
+        out.object = answers.object[j];
+        out.primitive = answers.primitive[j];
+        out.material = answers.material[j];
       }
     }
   }

@@ -19,14 +19,18 @@ namespace tessera::rays {
 // left to the scalar code, which moves its start (query()).
 void world_to_render(const WorldRay* rays, size_t n, const Vec3d& origin, double far, RayBatch* out, double* shift);
 
-// to_world()'s arithmetic for the lanes of a batch (those with status kAnswered are the ones to
-// read): t (shift added in double where nonzero), the point in world space, the normal turned
-// to face the ray, and `finite` (1: to_world() accepts the hit, 0: a point beyond float range).
+// to_world() for every lane of a batch that is not skipped and not kHit (those are the scalar
+// code's): the WorldHit fields, as arrays, of lanes with status kAnswered whose point is within
+// float range (hit = 1: t with the shift added in double where nonzero, the point in world
+// space, the normal turned to face the ray), and a miss's defaults (WorldHit{}) for the others.
 struct WorldAnswers {
+  alignas(64) uint8_t hit[kRayBatch];
   alignas(64) float t[kRayBatch];
   alignas(64) double px[kRayBatch], py[kRayBatch], pz[kRayBatch];
+  alignas(64) float nx[kRayBatch], ny[kRayBatch], nz[kRayBatch];
   alignas(64) float nsx[kRayBatch], nsy[kRayBatch], nsz[kRayBatch];
-  alignas(64) uint8_t finite[kRayBatch];
+  alignas(64) float u[kRayBatch], v[kRayBatch];
+  alignas(64) uint32_t object[kRayBatch], primitive[kRayBatch], material[kRayBatch];
 };
 void to_world(const HitBatch& hits, const RayBatch& rays, const double* shift, size_t n, const Vec3d& origin,
               WorldAnswers* out);

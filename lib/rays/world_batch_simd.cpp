@@ -7,6 +7,7 @@
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/highway.h>
 
+#include <cmath>
 #include <limits>
 
 #include "rays/world_batch.h"
@@ -75,31 +76,48 @@ void ToWorld(const HitBatch& h, const RayBatch& r, const double* shift, size_t n
              WorldAnswers* out) {
   const hn::ScalableTag<double> dd;
   const hn::Rebind<float, decltype(dd)> df;
+  const hn::Rebind<uint8_t, decltype(dd)> du8;
+  const hn::Rebind<uint32_t, decltype(dd)> du32;
+  const hn::Rebind<uint64_t, decltype(dd)> du64;
   const size_t N = hn::Lanes(dd);
   const auto zero_f = hn::Zero(df);
+  const auto none = hn::Set(du32, kNoIndex);
   for (size_t i = 0; i < n; i += N) {
     const auto t = hn::LoadU(df, h.t + i);
     const auto px = hn::LoadU(df, h.px + i), py = hn::LoadU(df, h.py + i), pz = hn::LoadU(df, h.pz + i);
+    // to_world() accepts a hit whose t and point are finite.
     const auto finite = hn::And(hn::And(hn::IsFinite(t), hn::IsFinite(px)), hn::And(hn::IsFinite(py), hn::IsFinite(pz)));
+    const auto answered = hn::Eq(hn::PromoteTo(du32, hn::LoadU(du8, h.status + i)), hn::Set(du32, uint32_t(HitBatch::kAnswered)));
+    const auto ok = hn::And(answered, hn::RebindMask(du32, finite));
+    const auto ok_f = hn::RebindMask(df, ok);
+    const auto ok_d = hn::RebindMask(dd, hn::Eq(hn::PromoteTo(du64, hn::VecFromMask(du32, ok)), hn::Set(du64, 0xFFFFFFFFull)));
     uint8_t bits[8] = {};
-    hn::StoreMaskBits(df, finite, bits);
-    for (size_t k = 0; k < N; ++k) out->finite[i + k] = (bits[0] >> k) & 1;
+    hn::StoreMaskBits(du32, ok, bits);
+    for (size_t k = 0; k < N; ++k) out->hit[i + k] = (bits[0] >> k) & 1;
     // t exact where nothing moved (shift 0), else shift + t in double.
     const auto s = hn::LoadU(dd, shift + i);
     const auto moved = hn::DemoteTo(df, hn::Add(s, hn::PromoteTo(dd, t)));
     const auto unmoved = hn::Eq(hn::DemoteTo(df, s), zero_f);  // s == 0 exactly (s is a float's value)
-    hn::StoreU(hn::IfThenElse(unmoved, t, moved), df, out->t + i);
-    hn::StoreU(hn::Add(hn::Set(dd, origin.x), hn::PromoteTo(dd, px)), dd, out->px + i);
-    hn::StoreU(hn::Add(hn::Set(dd, origin.y), hn::PromoteTo(dd, py)), dd, out->py + i);
-    hn::StoreU(hn::Add(hn::Set(dd, origin.z), hn::PromoteTo(dd, pz)), dd, out->pz + i);
+    hn::StoreU(hn::IfThenElse(ok_f, hn::IfThenElse(unmoved, t, moved), hn::Set(df, HUGE_VALF)), df, out->t + i);
+    hn::StoreU(hn::IfThenElseZero(ok_d, hn::Add(hn::Set(dd, origin.x), hn::PromoteTo(dd, px))), dd, out->px + i);
+    hn::StoreU(hn::IfThenElseZero(ok_d, hn::Add(hn::Set(dd, origin.y), hn::PromoteTo(dd, py))), dd, out->py + i);
+    hn::StoreU(hn::IfThenElseZero(ok_d, hn::Add(hn::Set(dd, origin.z), hn::PromoteTo(dd, pz))), dd, out->pz + i);
     // The normal facing the ray: n where dot(d, n) < 0, else -n (its sign bits flipped).
     const auto nx = hn::LoadU(df, h.nx + i), ny = hn::LoadU(df, h.ny + i), nz = hn::LoadU(df, h.nz + i);
     const auto dot = hn::Add(hn::Add(hn::Mul(hn::LoadU(df, r.dx + i), nx), hn::Mul(hn::LoadU(df, r.dy + i), ny)),
                              hn::Mul(hn::LoadU(df, r.dz + i), nz));
     const auto front = hn::Lt(dot, zero_f);
-    hn::StoreU(hn::IfThenElse(front, nx, hn::Neg(nx)), df, out->nsx + i);
-    hn::StoreU(hn::IfThenElse(front, ny, hn::Neg(ny)), df, out->nsy + i);
-    hn::StoreU(hn::IfThenElse(front, nz, hn::Neg(nz)), df, out->nsz + i);
+    hn::StoreU(hn::IfThenElseZero(ok_f, nx), df, out->nx + i);
+    hn::StoreU(hn::IfThenElseZero(ok_f, ny), df, out->ny + i);
+    hn::StoreU(hn::IfThenElseZero(ok_f, nz), df, out->nz + i);
+    hn::StoreU(hn::IfThenElseZero(ok_f, hn::IfThenElse(front, nx, hn::Neg(nx))), df, out->nsx + i);
+    hn::StoreU(hn::IfThenElseZero(ok_f, hn::IfThenElse(front, ny, hn::Neg(ny))), df, out->nsy + i);
+    hn::StoreU(hn::IfThenElseZero(ok_f, hn::IfThenElse(front, nz, hn::Neg(nz))), df, out->nsz + i);
+    hn::StoreU(hn::IfThenElseZero(ok_f, hn::LoadU(df, h.u + i)), df, out->u + i);
+    hn::StoreU(hn::IfThenElseZero(ok_f, hn::LoadU(df, h.v + i)), df, out->v + i);
+    hn::StoreU(hn::IfThenElse(ok, hn::LoadU(du32, h.object + i), none), du32, out->object + i);
+    hn::StoreU(hn::IfThenElse(ok, hn::LoadU(du32, h.primitive + i), none), du32, out->primitive + i);
+    hn::StoreU(hn::IfThenElse(ok, hn::LoadU(du32, h.material + i), none), du32, out->material + i);
   }
 }
 
