@@ -10,7 +10,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <memory>
 
 #include "render/ray_batch.h"
 #include "render/ray_batch_simd.h"
@@ -137,10 +136,10 @@ void RenderScene::any_hit_batch(const RayBatch& r, size_t n, uint8_t* blocked) c
   const PlaneTable planes{plane_table_.data(), plane_ids_.data(), planes_.size()};
   batch_nearest_planes(r, n, planes, tp, plane, tfar);
   // A plane met first blocks the ray where its point is within float range (any_hit()).
-  auto points = std::make_unique<HitBatch>();  // only px, py, pz are read
+  HitBatch points;  // only px, py, pz are read
   if (!planes_.empty()) {
     for (size_t i = 0; i < n; ++i) on_plane[i] = plane[i] >= 0;
-    batch_plane_hits(r, on_plane, 1, tp, plane, n, planes, points.get());
+    batch_plane_hits(r, on_plane, 1, tp, plane, n, planes, &points);
   }
   TraceContext ctx;  // no glass list: glass blocks like any surface
   rtcInitIntersectContext(&ctx.rtc);
@@ -148,7 +147,7 @@ void RenderScene::any_hit_batch(const RayBatch& r, size_t n, uint8_t* blocked) c
   const float near_limit = 16.0f * bounds_radius_;
   for (size_t i = 0; i < n; ++i) {
     if (r.skip[i]) continue;
-    if (on_plane[i] && std::isfinite(points->px[i]) && std::isfinite(points->py[i]) && std::isfinite(points->pz[i])) {
+    if (on_plane[i] && std::isfinite(points.px[i]) && std::isfinite(points.py[i]) && std::isfinite(points.pz[i])) {
       blocked[i] = 1;
       continue;
     }
