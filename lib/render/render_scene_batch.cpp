@@ -1,5 +1,6 @@
-// RenderScene::intersect_batch: intersect() for a batch of rays from no surface, with the
-// arithmetic around the Embree queries done across rays in SIMD (render/ray_batch_simd.h).
+// RenderScene::intersect_batch and any_hit_batch: intersect() and any_hit() for a batch of rays
+// from no surface, with the arithmetic around the Embree queries done across rays in SIMD
+// (render/ray_batch_simd.h).
 //
 // Why: for the ray service, tracing a ray is about half Embree's traversal and half the work
 // around it (the planes in double, the hit point and normal, the names). Ray by ray that work is
