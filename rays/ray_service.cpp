@@ -1,5 +1,7 @@
 #include "ray_service.h"
 
+#include <spdlog/spdlog.h>
+
 #include "ray_codec.h"
 #include "rays/parallel_trace.h"
 #include "render/embree_device.h"
@@ -34,6 +36,11 @@ Status RayServiceImpl::answer(const RayTracer& tracer, const v1::TraceRequest& r
   // Only the asked fields' arrays are sized and filled; the rest of `resp` is empty (a new
   // response, or a stream's cleared one).
   const bool occlusion = req.occlusion();
+  if (spdlog::should_log(spdlog::level::debug)) {  // what clients ask for (--log-level debug)
+    std::string asked;
+    for (HitField f : fields.list()) asked += (asked.empty() ? "" : ",") + std::string(hit_field_name(f));
+    spdlog::debug("batch of {} rays: {}", n, occlusion ? "occlusion" : "nearest hits, fields " + asked);
+  }
   const HitArrays out(resp, size_t(n), occlusion, fields);
   auto run = [&](size_t begin, size_t end) {
     // Per thread, at most kChunk rays (~128 KiB): nothing allocated after a thread's first chunk.

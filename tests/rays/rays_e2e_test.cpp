@@ -76,7 +76,7 @@ TEST(RaysCli, FieldsWritesOnlyTheChosenColumnsWithTheFullRunsValues) {
   Farm farm;
   farm.start_server();
   std::unique_ptr<Process> rays;
-  const std::string addr = start_rays(farm, &rays);
+  const std::string addr = start_rays(farm, &rays, {"--log-level", "debug"});
   const fs::path in = farm.dir() / "rays.csv";
   write_bunny_rays(in, 1000);
   const std::string scene = source("scenes/bunny.json").string();
@@ -98,6 +98,14 @@ TEST(RaysCli, FieldsWritesOnlyTheChosenColumnsWithTheFullRunsValues) {
     EXPECT_EQ(read_text(farm.dir() / (std::string("remote") + ext)), read_text(farm.dir() / (std::string("local") + ext)))
         << ext;
   }
+  // The mask went over the wire (the files alone would look the same if the client asked for
+  // every field): the server's log names what each batch asked for.
+  const std::string log = rays->log();
+  EXPECT_NE(log.find("batch of 300 rays: nearest hits, fields t,point,normal,shading_normal,barycentrics,object,"
+                     "primitive,material"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("batch of 300 rays: nearest hits, fields t,object\n"), std::string::npos) << log;
   const std::string masked = read_text(farm.dir() / "remote.csv");
   ASSERT_EQ(masked.substr(0, masked.find('\n')), "id,hit,t,object");
   auto got = csv_columns(masked), want = csv_columns(read_text(farm.dir() / "full.csv"));
