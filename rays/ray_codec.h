@@ -46,6 +46,8 @@ class HitArrays {
   HitArrays(tessera::v1::TraceResponse* resp, size_t n, bool occlusion, HitFields fields = HitFields::all());
   // hits[i] is ray begin + i's.
   void write(size_t begin, std::span<const WorldHit> hits) const;
+  // The asked arrays (null where not asked), for RayTracer::nearest_into to fill directly.
+  HitColumns columns() const { return {hit_, t_, p_, n_, ns_, uv_, object_, primitive_, material_}; }
 
  private:
   bool occlusion_;

@@ -44,14 +44,18 @@ Status RayServiceImpl::answer(const RayTracer& tracer, const v1::TraceRequest& r
   const HitArrays out(resp, size_t(n), occlusion, fields);
   auto run = [&](size_t begin, size_t end) {
     // Per thread, at most kChunk rays (~128 KiB): nothing allocated after a thread's first chunk.
-    // RayTracer writes every field of every hit (nearest) or the flag (occluded, all we send).
+    // Nearest hits go straight into the response's arrays (every asked field of every ray);
+    // occlusion answers through WorldHit's flag (all it sends).
     thread_local std::vector<WorldRay> rays;
     thread_local std::vector<WorldHit> hits;
     rays.resize(end - begin);
-    hits.resize(end - begin);
     read_rays(req, begin, end, rays.data());
-    if (occlusion) tracer.occluded(rays.data(), rays.size(), hits.data());
-    else tracer.nearest(rays.data(), rays.size(), hits.data());
+    if (!occlusion) {
+      tracer.nearest_into(rays.data(), rays.size(), out.columns(), begin);
+      return;
+    }
+    hits.resize(end - begin);
+    tracer.occluded(rays.data(), rays.size(), hits.data());
     out.write(begin, hits);
   };
   // Counted while traced: the load a ray server announces to the coordinator (announcer.h).

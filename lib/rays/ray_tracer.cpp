@@ -132,15 +132,16 @@ bool RayTracer::blocked(const WorldRay& w) const {
   return (q.has_before && rs.any_hit(q.before, PrimRef{})) || rs.any_hit(q.after, PrimRef{});
 }
 
-void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
+template <class Emit>
+void RayTracer::nearest_each(const WorldRay* rays, size_t n, Emit& emit) const {
   // Rays go to RenderScene::intersect_batch kRayBatch at a time, as arrays of components, so
   // that the arithmetic around each Embree query runs in SIMD across rays (world_batch.h,
   // render/ray_batch.h); each answer is still intersect()'s for that ray alone, bit for bit. A
-  // far ray, which needs two queries, goes alone: trace() writes every field of a hit, and
-  // nothing of a miss.
+  // far ray, which needs two queries, goes alone (trace()).
   auto alone = [&](size_t i) {
-    if (trace(rays[i], &hits[i])) hits[i].hit = true;
-    else hits[i] = WorldHit{};
+    WorldHit h;
+    h.hit = trace(rays[i], &h);
+    emit.scalar(i, h.hit ? h : WorldHit{});  // trace() writes every field of a hit, none of a miss
   };
   if (n < 4) {  // a few rays: the batch's set-up would cost more than the vectors save
     for (size_t i = 0; i < n; ++i) alone(i);
@@ -163,28 +164,75 @@ void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
       // Asked for now, they arrive while this batch is answered (without it, the first touch of
       // each ray was a tenth of the whole query; a loop of prefetches alone stalled, perf).
       if (j < ahead) __builtin_prefetch(&rays[base + m + j]);
-      WorldHit& out = hits[base + j];
       if (batch.skip[j]) {
         alone(base + j);  // far: query() decides, trace() answers
       } else if (found.status[j] == HitBatch::kHit) {
         // The scalar code's hit (a sphere, vertex normals, a ray from far away).
-        if (to_world(found.hit[j], shift[j], Vec3f(batch.dx[j], batch.dy[j], batch.dz[j]), &out)) out.hit = true;
-        else out = WorldHit{};
+        WorldHit h;
+        h.hit = to_world(found.hit[j], shift[j], Vec3f(batch.dx[j], batch.dy[j], batch.dz[j]), &h);
+        emit.scalar(base + j, h.hit ? h : WorldHit{});
       } else {
-        // to_world()'s answer from the arrays, a miss's defaults included: no branch on the hit.
-        out.hit = answers.hit[j] != 0;
-        out.t = answers.t[j];
-        out.p = {answers.px[j], answers.py[j], answers.pz[j]};
-        out.n = {answers.nx[j], answers.ny[j], answers.nz[j]};
-        out.ns = {answers.nsx[j], answers.nsy[j], answers.nsz[j]};
-        out.u = answers.u[j];
-        out.v = answers.v[j];
-        out.object = answers.object[j];
-        out.primitive = answers.primitive[j];
-        out.material = answers.material[j];
+        emit.batch(base + j, answers, j);  // a miss's defaults included: no branch on the hit
       }
     }
   }
+}
+
+void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
+  struct {
+    WorldHit* hits;
+    void scalar(size_t i, const WorldHit& h) { hits[i] = h; }
+    void batch(size_t i, const WorldAnswers& a, size_t j) {
+      WorldHit& out = hits[i];
+      out.hit = a.hit[j] != 0;
+      out.t = a.t[j];
+      out.p = {a.px[j], a.py[j], a.pz[j]};
+      out.n = {a.nx[j], a.ny[j], a.nz[j]};
+      out.ns = {a.nsx[j], a.nsy[j], a.nsz[j]};
+      out.u = a.u[j];
+      out.v = a.v[j];
+      out.object = a.object[j];
+      out.primitive = a.primitive[j];
+      out.material = a.material[j];
+    }
+  } emit{hits};
+  nearest_each(rays, n, emit);
+}
+
+void RayTracer::nearest_into(const WorldRay* rays, size_t n, const HitColumns& out, size_t offset) const {
+  // Each asked array written straight from the batch's arrays (the tests on arrays not asked for
+  // take the same branch for every ray).
+  struct {
+    const HitColumns& c;
+    size_t offset;
+    void scalar(size_t i, const WorldHit& h) {
+      const size_t k = offset + i;
+      if (c.hit) c.hit[k] = h.hit ? 1 : 0;
+      if (c.t) c.t[k] = h.t;
+      for (int q = 0; q < 3; ++q) {
+        if (c.p) c.p[3 * k + q] = h.p[q];
+        if (c.n) c.n[3 * k + q] = h.n[q];
+        if (c.ns) c.ns[3 * k + q] = h.ns[q];
+      }
+      if (c.uv) c.uv[2 * k] = h.u, c.uv[2 * k + 1] = h.v;
+      if (c.object) c.object[k] = h.object;
+      if (c.primitive) c.primitive[k] = h.primitive;
+      if (c.material) c.material[k] = h.material;
+    }
+    void batch(size_t i, const WorldAnswers& a, size_t j) {
+      const size_t k = offset + i;
+      if (c.hit) c.hit[k] = char(a.hit[j]);
+      if (c.t) c.t[k] = a.t[j];
+      if (c.p) c.p[3 * k] = a.px[j], c.p[3 * k + 1] = a.py[j], c.p[3 * k + 2] = a.pz[j];
+      if (c.n) c.n[3 * k] = a.nx[j], c.n[3 * k + 1] = a.ny[j], c.n[3 * k + 2] = a.nz[j];
+      if (c.ns) c.ns[3 * k] = a.nsx[j], c.ns[3 * k + 1] = a.nsy[j], c.ns[3 * k + 2] = a.nsz[j];
+      if (c.uv) c.uv[2 * k] = a.u[j], c.uv[2 * k + 1] = a.v[j];
+      if (c.object) c.object[k] = a.object[j];
+      if (c.primitive) c.primitive[k] = a.primitive[j];
+      if (c.material) c.material[k] = a.material[j];
+    }
+  } emit{out, offset};
+  nearest_each(rays, n, emit);
 }
 
 void RayTracer::occluded(const WorldRay* rays, size_t n, WorldHit* hits) const {

@@ -22,6 +22,9 @@ class RayTracer {
   // Embree query, so a ray's answer depends on that ray alone, never on the batch around it. Const and thread-safe: any
   // number of threads may trace at once.
   void nearest(const WorldRay* rays, size_t n, WorldHit* hits) const;
+  // The same answers written into arrays (world_ray.h), ray i's at index `offset + i`: what the
+  // ray service sends, without the copy through WorldHit.
+  void nearest_into(const WorldRay* rays, size_t n, const HitColumns& out, size_t offset) const;
   // Sets only hits[i].hit: whether any surface lies in (tmin, tmax], by an any-hit traversal
   // (RenderScene::any_hit: it stops at the first surface met) of the same render-space rays with
   // the same primitive tests, so "occluded" and "has a nearest hit" never disagree.
@@ -45,6 +48,10 @@ class RayTracer {
   // The world-space answer for a render-space hit on a ray that started `shift` along the query.
   bool to_world(const Hit& h, double shift, const Vec3f& d, WorldHit* out) const;
   bool blocked(const WorldRay& ray) const;
+  // nearest()'s work, answers given to `emit`: emit.scalar(i, hit) for a ray the scalar code
+  // answered (hit.hit false for a miss), emit.batch(i, answers, j) for lane j of a SIMD batch.
+  template <class Emit>
+  void nearest_each(const WorldRay* rays, size_t n, Emit& emit) const;
 
   std::shared_ptr<const Scene> scene_;
   std::shared_ptr<const RenderScene> frame_;

@@ -31,4 +31,20 @@ struct WorldHit {
   uint32_t material = kNoIndex;   // index into Scene::materials
 };
 
+// Where RayTracer::nearest_into() writes answers: arrays laid out as the ray service's response
+// (tessera.v1.TraceResponse), so a batch goes there without a WorldHit in between. Ray i's
+// values go to index i (times the values a ray): hit 1 byte (1 or 0); t; p 3 doubles; n and ns
+// 3 floats; uv 2 floats (u, v); object, primitive, material. A null array is not written.
+struct HitColumns {
+  char* hit = nullptr;
+  float* t = nullptr;
+  double* p = nullptr;
+  float* n = nullptr;
+  float* ns = nullptr;
+  float* uv = nullptr;
+  uint32_t* object = nullptr;
+  uint32_t* primitive = nullptr;
+  uint32_t* material = nullptr;
+};
+
 }  // namespace tessera::rays
