@@ -143,7 +143,7 @@ void encode_fields(HitFields fields, v1::TraceRequest* req) {
   for (HitField f : fields.list()) req->add_fields(v1::HitField(int(f) + 1));
 }
 
-HitArrays::HitArrays(v1::TraceResponse* resp, size_t n, bool occlusion, HitFields fields) : occlusion_(occlusion) {
+HitArrays::HitArrays(v1::TraceResponse* resp, size_t n, bool occlusion, HitFields fields) {
   std::string* flags = resp->mutable_hit();
   flags->resize(n);
   hit_ = flags->data();
@@ -159,27 +159,10 @@ HitArrays::HitArrays(v1::TraceResponse* resp, size_t n, bool occlusion, HitField
 }
 
 void HitArrays::write(size_t begin, std::span<const WorldHit> hits) const {
-  for (size_t k = 0; k < hits.size(); ++k) hit_[begin + k] = hits[k].hit ? 1 : 0;
-  if (occlusion_) return;
-  // One pass over the chunk's hits; the tests on fields not asked for take the same branch for
-  // every ray, so they cost next to nothing, and with every field this is the unmasked loop.
-  for (size_t k = 0; k < hits.size(); ++k) {
-    const WorldHit& h = hits[k];
-    const size_t i = begin + k;
-    if (t_) t_[i] = h.t;
-    for (int c = 0; c < 3; ++c) {
-      if (p_) p_[3 * i + c] = h.p[c];
-      if (n_) n_[3 * i + c] = h.n[c];
-      if (ns_) ns_[3 * i + c] = h.ns[c];
-    }
-    if (uv_) {
-      uv_[2 * i] = h.u;
-      uv_[2 * i + 1] = h.v;
-    }
-    if (object_) object_[i] = h.object;
-    if (primitive_) primitive_[i] = h.primitive;
-    if (material_) material_[i] = h.material;
-  }
+  // One pass over the chunk's hits; the tests on arrays not asked for (all but the flags, for
+  // occlusion) take the same branch for every ray, so they cost next to nothing.
+  const HitColumns c = columns();
+  for (size_t k = 0; k < hits.size(); ++k) write_hit(c, begin + k, hits[k]);
 }
 
 std::vector<WorldHit> decode_hits(const v1::TraceResponse& r, size_t n, bool occlusion, HitFields fields) {

@@ -50,8 +50,7 @@ class HitArrays {
   HitColumns columns() const { return {hit_, t_, p_, n_, ns_, uv_, object_, primitive_, material_}; }
 
  private:
-  bool occlusion_;
-  // Null for a field not asked for.
+  // Null for a field not asked for (every one but the flags, for occlusion).
   char* hit_;
   float *t_ = nullptr, *n_ = nullptr, *ns_ = nullptr, *uv_ = nullptr;
   double* p_ = nullptr;

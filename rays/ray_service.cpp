@@ -37,9 +37,7 @@ Status RayServiceImpl::answer(const RayTracer& tracer, const v1::TraceRequest& r
   // response, or a stream's cleared one).
   const bool occlusion = req.occlusion();
   if (spdlog::should_log(spdlog::level::debug)) {  // what clients ask for (--log-level debug)
-    std::string asked;
-    for (HitField f : fields.list()) asked += (asked.empty() ? "" : ",") + std::string(hit_field_name(f));
-    spdlog::debug("batch of {} rays: {}", n, occlusion ? "occlusion" : "nearest hits, fields " + asked);
+    spdlog::debug("batch of {} rays: {}", n, occlusion ? "occlusion" : "nearest hits, fields " + hit_field_names(fields));
   }
   const HitArrays out(resp, size_t(n), occlusion, fields);
   auto run = [&](size_t begin, size_t end) {

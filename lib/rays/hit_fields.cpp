@@ -26,12 +26,6 @@ const std::array<FieldInfo, kHitFieldCount>& infos() {
   return table;
 }
 
-std::string allowed_names() {
-  std::string s;
-  for (const FieldInfo& f : infos()) s += (s.empty() ? "" : ",") + std::string(f.name);
-  return s;
-}
-
 }  // namespace
 
 std::vector<HitField> HitFields::list() const {
@@ -43,6 +37,12 @@ std::vector<HitField> HitFields::list() const {
 }
 
 std::string_view hit_field_name(HitField f) { return infos()[size_t(f)].name; }
+
+std::string hit_field_names(HitFields fields) {
+  std::string s;
+  for (HitField f : fields.list()) s += (s.empty() ? "" : ",") + std::string(hit_field_name(f));
+  return s;
+}
 
 const std::vector<std::string_view>& hit_field_columns(HitField f) { return infos()[size_t(f)].columns; }
 
@@ -56,7 +56,7 @@ HitFields parse_hit_fields(std::string_view list) {
     while (k < infos().size() && infos()[k].name != name) ++k;
     if (k == infos().size()) {
       throw std::invalid_argument((name.empty() ? std::string("an empty name") : "'" + std::string(name) + "'") +
-                                  " is not a hit field (allowed: " + allowed_names() + ")");
+                                  " is not a hit field (allowed: " + hit_field_names(HitFields::all()) + ")");
     }
     fields = fields.with(HitField(k));
     if (end == list.size()) return fields;

@@ -36,6 +36,8 @@ class HitFields {
 // The CLI's name of a field: "t", "point", "normal", "shading_normal", "barycentrics", "object",
 // "primitive", "material".
 std::string_view hit_field_name(HitField f);
+// The fields' names as a comma list, in column order ("t,object"): parse_hit_fields()'s input.
+std::string hit_field_names(HitFields fields);
 // The output columns a field fills, as `tessera rays` names them: point is px,py,pz, and so on.
 const std::vector<std::string_view>& hit_field_columns(HitField f);
 // A comma list of field names ("t,object"; repeats and any order are fine). Throws

@@ -19,8 +19,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // The unit direction, in double. One that is unit length to within 2^-20 already is kept as
 // given, so a float direction passes to the renderer bit for bit (its own camera rays are
 // normalized floats: replaying one must give the renderer's exact hit).
-[[gnu::always_inline]] inline Vec3d unit_direction(const Vec3d& d, double len) {
-  if (std::abs(len - 1.0) <= 0x1p-20) return d;
+[[gnu::always_inline]] inline Vec3d unit_direction(const Vec3d& d) {
+  if (std::abs(length(d) - 1.0) <= kUnitTolerance) return d;
   const Vec3d s = d / max_component(abs(d));  // scaled first: |d| of 1e-300 or 1e300 is fine
   return s / length(s);
 }
@@ -51,7 +51,7 @@ RayTracer::RayTracer(std::shared_ptr<const Scene> scene, std::shared_ptr<const R
 [[gnu::always_inline]] inline RayTracer::Query RayTracer::query(const WorldRay& w) const {
   const RenderScene& rs = *frame_;
   Query q;
-  q.dd = unit_direction(w.d, length(w.d));
+  q.dd = unit_direction(w.d);
   const Vec3f d(q.dd);
   // Render space is world minus the eye, formed in double. A ray from the eye (a camera ray)
   // starts at exactly 0, as the renderer's do.
@@ -70,7 +70,7 @@ RayTracer::RayTracer(std::shared_ptr<const Scene> scene, std::shared_ptr<const R
   const double R = double(rs.bounds_radius());
   const Vec3d start = o + q.dd * q.shift;
   double t_in = 0.0, t_out = 0.0;
-  if (R > 0.0 && max_component(abs(start)) > 16.0 * R && cube_span(start, q.dd, 2.0 * R, &t_in, &t_out) &&
+  if (R > 0.0 && max_component(abs(start)) > far_limit() && cube_span(start, q.dd, 2.0 * R, &t_in, &t_out) &&
       t_out > 0.0 && t_in > 0.0 && t_in < tmax - q.shift) {
     q.before = {Vec3f(start), d, float(t_in)};
     q.has_before = true;
@@ -149,7 +149,7 @@ void RayTracer::nearest_each(const WorldRay* rays, size_t n, Emit& emit) const {
   }
   const RenderScene& rs = *frame_;
   const Vec3d origin = rs.origin();
-  const double far = 16.0 * double(rs.bounds_radius());
+  const double far = far_limit();
   RayBatch batch;
   HitBatch found;
   WorldAnswers answers;
@@ -205,20 +205,7 @@ void RayTracer::nearest_into(const WorldRay* rays, size_t n, const HitColumns& o
   struct {
     const HitColumns& c;
     size_t offset;
-    void scalar(size_t i, const WorldHit& h) {
-      const size_t k = offset + i;
-      if (c.hit) c.hit[k] = h.hit ? 1 : 0;
-      if (c.t) c.t[k] = h.t;
-      for (int q = 0; q < 3; ++q) {
-        if (c.p) c.p[3 * k + q] = h.p[q];
-        if (c.n) c.n[3 * k + q] = h.n[q];
-        if (c.ns) c.ns[3 * k + q] = h.ns[q];
-      }
-      if (c.uv) c.uv[2 * k] = h.u, c.uv[2 * k + 1] = h.v;
-      if (c.object) c.object[k] = h.object;
-      if (c.primitive) c.primitive[k] = h.primitive;
-      if (c.material) c.material[k] = h.material;
-    }
+    void scalar(size_t i, const WorldHit& h) { write_hit(c, offset + i, h); }
     void batch(size_t i, const WorldAnswers& a, size_t j) {
       const size_t k = offset + i;
       if (c.hit) c.hit[k] = char(a.hit[j]);
@@ -250,7 +237,7 @@ void RayTracer::occluded(const WorldRay* rays, size_t n, WorldHit* hits) const {
   uint8_t flag[kRayBatch];
   for (size_t base = 0; base < n; base += kRayBatch) {
     const size_t m = std::min(kRayBatch, n - base);
-    world_to_render(rays + base, m, rs.origin(), 16.0 * double(rs.bounds_radius()), &batch, shift);
+    world_to_render(rays + base, m, rs.origin(), far_limit(), &batch, shift);
     rs.any_hit_batch(batch, m, flag);
     for (size_t j = 0; j < m; ++j) {
       hits[base + j] = WorldHit{};

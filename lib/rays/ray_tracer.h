@@ -44,6 +44,9 @@ class RayTracer {
     bool has_before = false;
   };
   Query query(const WorldRay& ray) const;
+  // Where a ray's start counts as far (max norm, render space): 16x the radius of all bounded
+  // geometry, the renderer's own threshold; query() moves such a start.
+  double far_limit() const { return 16.0 * double(frame_->bounds_radius()); }
   bool trace(const WorldRay& ray, WorldHit* hit) const;
   // The world-space answer for a render-space hit on a ray that started `shift` along the query.
   bool to_world(const Hit& h, double shift, const Vec3f& d, WorldHit* out) const;

@@ -13,6 +13,10 @@
 
 namespace tessera::rays {
 
+// A direction whose length is 1 to within this is taken as given, not normalized again
+// (RayTracer's unit_direction(), world_to_render()): a float camera ray replays bit for bit.
+inline constexpr double kUnitTolerance = 0x1p-20;
+
 // query()'s common case for rays[0, n) (n <= kRayBatch): the unit direction, the start at
 // t_min relative to `origin` (render space's), t_max clipped to float range, rounded to float;
 // shift[i] = t_min. A ray that starts beyond `far` (max norm; far > 0) gets skip = 1 and is

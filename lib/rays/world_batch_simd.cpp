@@ -42,7 +42,7 @@ void WorldToRender(const WorldRay* rays, size_t n, const Vec3d& origin, double f
     const auto tmax_f = hn::LoadU(df, t1 + i);
     // unit_direction(): d itself where |d| is 1 to within 2^-20, else (d / max|d_k|) normalized.
     const auto len = hn::Sqrt(hn::Add(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy)), hn::Mul(dz, dz)));
-    const auto keep = hn::Le(hn::Abs(hn::Sub(len, one)), hn::Set(dd, 0x1p-20));
+    const auto keep = hn::Le(hn::Abs(hn::Sub(len, one)), hn::Set(dd, kUnitTolerance));
     auto ux = dx, uy = dy, uz = dz;
     if (!hn::AllTrue(dd, keep)) {  // the divisions only where some ray needs them
       const auto m = hn::Max(hn::Abs(dx), hn::Max(hn::Abs(dy), hn::Abs(dz)));

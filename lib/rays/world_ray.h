@@ -2,6 +2,7 @@
 // renderer works in camera-relative float space; RayTracer converts).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 
@@ -46,5 +47,20 @@ struct HitColumns {
   uint32_t* primitive = nullptr;
   uint32_t* material = nullptr;
 };
+
+// Writes one answer into the given arrays at index k (a null array is skipped).
+inline void write_hit(const HitColumns& c, size_t k, const WorldHit& h) {
+  if (c.hit) c.hit[k] = h.hit ? 1 : 0;
+  if (c.t) c.t[k] = h.t;
+  for (int q = 0; q < 3; ++q) {
+    if (c.p) c.p[3 * k + q] = h.p[q];
+    if (c.n) c.n[3 * k + q] = h.n[q];
+    if (c.ns) c.ns[3 * k + q] = h.ns[q];
+  }
+  if (c.uv) c.uv[2 * k] = h.u, c.uv[2 * k + 1] = h.v;
+  if (c.object) c.object[k] = h.object;
+  if (c.primitive) c.primitive[k] = h.primitive;
+  if (c.material) c.material[k] = h.material;
+}
 
 }  // namespace tessera::rays

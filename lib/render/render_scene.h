@@ -16,11 +16,11 @@
 
 namespace tessera {
 
-// Identifies the primitive a ray leaves from, so flat and convex primitives can exclude
-// themselves exactly instead of relying on an epsilon.
 struct RayBatch;
 struct HitBatch;
 
+// Identifies the primitive a ray leaves from, so flat and convex primitives can exclude
+// themselves exactly instead of relying on an epsilon.
 struct PrimRef {
   enum class Kind : uint8_t { kNone, kTriangle, kSphere, kPlane };
   Kind kind = Kind::kNone;
@@ -220,8 +220,10 @@ class RenderScene {
   // the cube before tmax, so no bounded geometry can be met.
   double embree_ray(const Ray& ray, Ray* embree_ray) const {
     *embree_ray = ray;  // the common case, inline: every ray but those from far plane points
-    return max_component(abs(ray.o)) <= 16.0f * bounds_radius_ ? 0.0 : embree_ray_from_far(ray, embree_ray);
+    return starts_near(ray.o) ? 0.0 : embree_ray_from_far(ray, embree_ray);
   }
+  // Whether Embree can take a ray from o as it is (embree_ray()): within 16 R, max norm.
+  bool starts_near(const Vec3f& o) const { return max_component(abs(o)) <= 16.0f * bounds_radius_; }
   double embree_ray_from_far(const Ray& ray, Ray* embree_ray) const;
   Rgb glass_transmittance_walk(const Ray& ray, TraceContext* ctx, Rgb T) const;
   // The halves of intersect() and transmittance() around the Embree query, shared with the

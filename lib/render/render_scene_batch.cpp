@@ -8,7 +8,6 @@
 // instructions per ray. Only the common hits go this way (opaque or glass triangles without
 // vertex normals, planes); spheres, meshes with vertex normals and rays that start far from
 // the geometry are rare in the queries a client sends in bulk, and keep the scalar code.
-#include <algorithm>
 #include <cmath>
 #include <cstdint>
 
@@ -53,13 +52,11 @@ void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) cons
   const PlaneTable planes{plane_table_.data(), plane_ids_.data(), planes_.size()};
   batch_nearest_planes(r, n, planes, tp, plane, tfar);
 
-  const float near_limit = 16.0f * bounds_radius_;
   for (size_t i = 0; i < n; ++i) {
     traced[i] = false;
     h->status[i] = HitBatch::kMiss;
     if (r.skip[i]) continue;
-    const float m = std::max(std::abs(r.ox[i]), std::max(std::abs(r.oy[i]), std::abs(r.oz[i])));
-    if (!(m <= near_limit)) {
+    if (!starts_near({r.ox[i], r.oy[i], r.oz[i]})) {
       // embree_ray() would move this ray's start (embree_ray_from_far()): intersect() itself.
       const Ray ray{{r.ox[i], r.oy[i], r.oz[i]}, {r.dx[i], r.dy[i], r.dz[i]}, r.tmax[i]};
       if (intersect(ray, PrimRef{}, &h->hit[i])) h->status[i] = HitBatch::kHit;
@@ -145,15 +142,13 @@ void RenderScene::any_hit_batch(const RayBatch& r, size_t n, uint8_t* blocked) c
   TraceContext ctx;  // no glass list: glass blocks like any surface
   rtcInitIntersectContext(&ctx.rtc);
   ctx.scene = this;
-  const float near_limit = 16.0f * bounds_radius_;
   for (size_t i = 0; i < n; ++i) {
     if (r.skip[i]) continue;
     if (on_plane[i] && std::isfinite(points.px[i]) && std::isfinite(points.py[i]) && std::isfinite(points.pz[i])) {
       blocked[i] = 1;
       continue;
     }
-    const float m = std::max(std::abs(r.ox[i]), std::max(std::abs(r.oy[i]), std::abs(r.oz[i])));
-    if (!(m <= near_limit)) {  // embree_ray() would move its start: any_hit() itself
+    if (!starts_near({r.ox[i], r.oy[i], r.oz[i]})) {  // embree_ray() would move its start: any_hit() itself
       blocked[i] = any_hit({{r.ox[i], r.oy[i], r.oz[i]}, {r.dx[i], r.dy[i], r.dz[i]}, r.tmax[i]}, PrimRef{});
       continue;
     }
