@@ -23,7 +23,7 @@ import sys
 import time
 
 from selenium import webdriver
-from selenium.common.exceptions import WebDriverException
+from selenium.common.exceptions import StaleElementReferenceException, WebDriverException
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support import expected_conditions as ec
@@ -55,7 +55,22 @@ try:
 except WebDriverException as e:
     fail("cannot start Chromium: %s" % e.msg)
 
-wait = WebDriverWait(driver, 30, poll_frequency=0.1)
+# A wait polls again when the element it looked at was redrawn meanwhile (see rows()).
+wait = WebDriverWait(driver, 30, poll_frequency=0.1, ignored_exceptions=[StaleElementReferenceException])
+
+
+def rows(selector, classes):
+    """The text of each row's cells of the given classes, read in one script run: the tables are
+    redrawn every second, so elements found by one WebDriver call can be gone by the next one
+    (a StaleElementReferenceException, seen on a loaded machine)."""
+    return driver.execute_script(
+        """
+        const [selector, classes] = arguments;
+        return [...document.querySelectorAll(selector)].map(r => Object.fromEntries(
+            classes.map(c => { const e = r.querySelector('.' + c); return [c, e ? e.textContent.trim() : null]; })));
+        """, selector, classes)
+
+
 report = {}
 try:
     driver.get(url)
@@ -77,21 +92,15 @@ try:
     job_done, job_cancel = jobs["done"], jobs["cancel"]
 
     # 1. The farm page: the job and both workers.
-    row = wait.until(ec.presence_of_element_located((By.CSS_SELECTOR, 'tr[data-job="%s"]' % job_done)))
-    report["job"] = {k: row.find_element(By.CLASS_NAME, "job-" + k).text for k in ("id", "name", "state", "priority")}
-    wait.until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#workers tr[data-worker]")) >= 2)
-    report["workers"] = sorted(
-        {
-            "name": r.find_element(By.CLASS_NAME, "worker-name").text,
-            "threads": r.find_element(By.CLASS_NAME, "worker-threads").text,
-            "isa": r.find_element(By.CLASS_NAME, "worker-isa").text,
-        }["name"]
-        for r in driver.find_elements(By.CSS_SELECTOR, "#workers tr[data-worker]")
-    )
+    wait.until(ec.presence_of_element_located((By.CSS_SELECTOR, 'tr[data-job="%s"]' % job_done)))
+    report["job"] = rows('tr[data-job="%s"]' % job_done, ["job-" + k for k in ("id", "name", "state", "priority")])[0]
+    report["job"] = {k[len("job-"):]: v for k, v in report["job"].items()}
+    wait.until(lambda d: len(rows("#workers tr[data-worker]", ["worker-name"])) >= 2)
+    report["workers"] = sorted(r["worker-name"] for r in rows("#workers tr[data-worker]", ["worker-name"]))
     # ... and the ray server announced to the coordinator.
-    wait.until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#rayservers tr[data-rayserver]")) >= 1)
-    report["ray_servers"] = sorted(r.find_element(By.CLASS_NAME, "rayserver-address").text
-                                   for r in driver.find_elements(By.CSS_SELECTOR, "#rayservers tr[data-rayserver]"))
+    wait.until(lambda d: len(rows("#rayservers tr[data-rayserver]", ["rayserver-address"])) >= 1)
+    report["ray_servers"] = sorted(r["rayserver-address"]
+                                   for r in rows("#rayservers tr[data-rayserver]", ["rayserver-address"]))
 
     # 2. The job's page, reached by clicking its row; the job finishes while it is open.
     driver.save_screenshot(out_dir + "/monitor-farm.png")
@@ -100,7 +109,7 @@ try:
     wait.until(lambda d: d.find_element(By.CSS_SELECTOR, 'tr[data-job="%s"]' % job_done).click() or True)
     wait.until(ec.visibility_of_element_located((By.ID, "job")))
     report["step"] = "job done" 
-    long_wait = WebDriverWait(driver, 90, poll_frequency=0.2)
+    long_wait = WebDriverWait(driver, 90, poll_frequency=0.2, ignored_exceptions=[StaleElementReferenceException])
     long_wait.until(ec.text_to_be_present_in_element((By.CSS_SELECTOR, 'dd[data-fact="state"]'), "done"))
     job = driver.execute_script("return fetch('api/jobs/%s', {headers: {Authorization: 'Bearer ' + "
                                 "sessionStorage.getItem('tessera-token')}}).then(r => r.json())" % job_done)
