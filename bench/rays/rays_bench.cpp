@@ -154,6 +154,36 @@ Rate bare_embree_application(const RenderScene& rs, const std::vector<WorldRay>&
   return watch.rate(double(world.size()));
 }
 
+// Bare Embree with packets of K consecutive prepared rays (rtcIntersect4/8/16, the same callbacks,
+// which take the K lanes in one call): would tracing rays K at a time beat one at a time? On the
+// same rays it does not (docs/rays.md): the callbacks' per-ray work is the same, and incoherent
+// packets traverse nodes that only some of their lanes need.
+template <int K, class RH>
+Rate bare_embree_packets(const RenderScene& rs, const std::vector<RTCRayHit>& rays,
+                         void (*intersect)(const int*, RTCScene, RTCIntersectContext*, RH*)) {
+  RenderScene::TraceContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.scene = &rs;
+  alignas(64) RH rh;
+  alignas(64) int valid[K];
+  const Stopwatch watch;
+  for (size_t b = 0; b < rays.size(); b += K) {
+    for (int i = 0; i < K; ++i) {
+      valid[i] = b + size_t(i) < rays.size() ? -1 : 0;
+      if (!valid[i]) continue;
+      const RTCRay& r = rays[b + size_t(i)].ray;
+      rh.ray.org_x[i] = r.org_x, rh.ray.org_y[i] = r.org_y, rh.ray.org_z[i] = r.org_z;
+      rh.ray.dir_x[i] = r.dir_x, rh.ray.dir_y[i] = r.dir_y, rh.ray.dir_z[i] = r.dir_z;
+      rh.ray.tnear[i] = 0.0f, rh.ray.tfar[i] = r.tfar, rh.ray.time[i] = 0.0f;
+      rh.ray.mask[i] = 0xFFFFFFFFu, rh.ray.id[i] = 0, rh.ray.flags[i] = 0;
+      rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+      rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+    }
+    intersect(valid, rs.embree_scene(), &ctx.rtc, &rh);
+  }
+  return watch.rate(double(rays.size()));
+}
+
 Rate bare_embree(const Scene& scene, const RenderScene& rs, const std::vector<WorldRay>& world) {
   std::vector<RTCRayHit> rays = embree_rays(scene, rs, world);
   return bare_embree(rs, rays);
@@ -258,7 +288,7 @@ int main(int argc, char** argv) {
   std::string profile;
   double profile_seconds = 5;
   app.add_option("--profile", profile,
-                 "Only run this for --profile-seconds: in-process, bare, occlusion, grpc, grpc-t-only (for a profiler: incoherent rays of the first scene), or ratio (in-process against bare Embree, alternated, fastest of each, for every scene)");
+                 "Only run this for --profile-seconds: in-process, bare, occlusion, grpc, grpc-t-only (for a profiler: incoherent rays of the first scene), or ratio (in-process against bare Embree, the gRPC streams against in-process, and bare Embree in packets of 4, 8 and 16, alternated, fastest of each, for every scene)");
   app.add_option("--profile-seconds", profile_seconds)->check(CLI::Range(0.1, 600.0));
   CLI11_PARSE(app, argc, argv);
   if (smoke) {
@@ -322,13 +352,16 @@ int main(int argc, char** argv) {
         const std::vector<RTCRayHit> prepared = embree_rays(*scene, *rs, rays);
         std::vector<WorldHit> hits(rays.size());
         std::vector<RawHit> raw;
-        double bare = 0, app = 0, ip = 0, ip_cpu = 0;
+        double bare = 0, app = 0, ip = 0, ip_cpu = 0, p4 = 0, p8 = 0, p16 = 0;
         Rate stream, stream_t;  // the gRPC streams at 4,096 rays a batch: every field, t alone
         auto keep = [](Rate* best, const Rate& r) { *best = {std::max(best->wall, r.wall), std::max(best->cpu, r.cpu)}; };
         const auto t0 = Clock::now();
         while (seconds_since(t0) < profile_seconds) {
           std::vector<RTCRayHit> work = prepared;
           bare = std::max(bare, bare_embree(*rs, work).wall);
+          p4 = std::max(p4, bare_embree_packets<4>(*rs, prepared, rtcIntersect4).wall);
+          p8 = std::max(p8, bare_embree_packets<8>(*rs, prepared, rtcIntersect8).wall);
+          p16 = std::max(p16, bare_embree_packets<16>(*rs, prepared, rtcIntersect16).wall);
           app = std::max(app, bare_embree_application(*rs, rays, prepared, &raw).wall);
           const Stopwatch watch;
           tracer->nearest(rays.data(), rays.size(), hits.data());
@@ -339,9 +372,13 @@ int main(int argc, char** argv) {
           keep(&stream_t, grpc_stream(*stub, rays, 4096, kTOnly));
         }
         std::printf("%s %s: bare %.2f, bare application %.2f, in-process %.2f Mrays/s, ratio %.3f (to the application %.3f); "
-                    "gRPC stream 4096 / in-process: every field %.3f CPU (%.3f wall), t only %.3f CPU (%.3f wall)\n",
+                    "gRPC stream 4096 / in-process: every field %.3f CPU (%.3f wall), t only %.3f CPU (%.3f wall); "
+                    "streams %.2f and %.2f Mrays per CPU-second (in-process %.2f)\n",
                     name.c_str(), coherent ? "coherent" : "incoherent", bare / 1e6, app / 1e6, ip / 1e6, ip / bare,
-                    ip / app, stream.cpu / ip_cpu, stream.wall / ip, stream_t.cpu / ip_cpu, stream_t.wall / ip);
+                    ip / app, stream.cpu / ip_cpu, stream.wall / ip, stream_t.cpu / ip_cpu, stream_t.wall / ip,
+                    stream.cpu / 1e6, stream_t.cpu / 1e6, ip_cpu / 1e6);
+        std::printf("  bare Embree in packets of 4, 8, 16 rays: %.2f, %.2f, %.2f Mrays/s (one at a time %.2f)\n", p4 / 1e6,
+                    p8 / 1e6, p16 / 1e6, bare / 1e6);
       }
       continue;
     }

@@ -159,6 +159,7 @@ void RayTracer::nearest_each(const WorldRay* rays, size_t n, Emit& emit) const {
     world_to_render(rays + base, m, origin, far, &batch, shift);
     rs.intersect_batch(batch, m, &found);
     tessera::rays::to_world(found, batch, shift, m, origin, &answers);
+    emit.batch(base, answers, m);  // every lane (a miss's defaults included); the scalar code's below
     const size_t ahead = std::min(n - base - m, kRayBatch);  // the next batch's rays
     for (size_t j = 0; j < m; ++j) {
       // Asked for now, they arrive while this batch is answered (without it, the first touch of
@@ -167,12 +168,10 @@ void RayTracer::nearest_each(const WorldRay* rays, size_t n, Emit& emit) const {
       if (batch.skip[j]) {
         alone(base + j);  // far: query() decides, trace() answers
       } else if (found.status[j] == HitBatch::kHit) {
-        // The scalar code's hit (a sphere, vertex normals, a ray from far away).
+        // The scalar code's hit (a mesh with vertex normals, a ray from far away).
         WorldHit h;
         h.hit = to_world(found.hit[j], shift[j], Vec3f(batch.dx[j], batch.dy[j], batch.dz[j]), &h);
         emit.scalar(base + j, h.hit ? h : WorldHit{});
-      } else {
-        emit.batch(base + j, answers, j);  // a miss's defaults included: no branch on the hit
       }
     }
   }
@@ -182,42 +181,32 @@ void RayTracer::nearest(const WorldRay* rays, size_t n, WorldHit* hits) const {
   struct {
     WorldHit* hits;
     void scalar(size_t i, const WorldHit& h) { hits[i] = h; }
-    void batch(size_t i, const WorldAnswers& a, size_t j) {
-      WorldHit& out = hits[i];
-      out.hit = a.hit[j] != 0;
-      out.t = a.t[j];
-      out.p = {a.px[j], a.py[j], a.pz[j]};
-      out.n = {a.nx[j], a.ny[j], a.nz[j]};
-      out.ns = {a.nsx[j], a.nsy[j], a.nsz[j]};
-      out.u = a.u[j];
-      out.v = a.v[j];
-      out.object = a.object[j];
-      out.primitive = a.primitive[j];
-      out.material = a.material[j];
+    void batch(size_t base, const WorldAnswers& a, size_t m) {
+      for (size_t j = 0; j < m; ++j) {
+        WorldHit& out = hits[base + j];
+        out.hit = a.hit[j] != 0;
+        out.t = a.t[j];
+        out.p = {a.px[j], a.py[j], a.pz[j]};
+        out.n = {a.nx[j], a.ny[j], a.nz[j]};
+        out.ns = {a.nsx[j], a.nsy[j], a.nsz[j]};
+        out.u = a.u[j];
+        out.v = a.v[j];
+        out.object = a.object[j];
+        out.primitive = a.primitive[j];
+        out.material = a.material[j];
+      }
     }
   } emit{hits};
   nearest_each(rays, n, emit);
 }
 
 void RayTracer::nearest_into(const WorldRay* rays, size_t n, const HitColumns& out, size_t offset) const {
-  // Each asked array written straight from the batch's arrays (the tests on arrays not asked for
-  // take the same branch for every ray).
+  // Each asked array written straight from the batch's arrays, a vector at a time.
   struct {
     const HitColumns& c;
     size_t offset;
     void scalar(size_t i, const WorldHit& h) { write_hit(c, offset + i, h); }
-    void batch(size_t i, const WorldAnswers& a, size_t j) {
-      const size_t k = offset + i;
-      if (c.hit) c.hit[k] = char(a.hit[j]);
-      if (c.t) c.t[k] = a.t[j];
-      if (c.p) c.p[3 * k] = a.px[j], c.p[3 * k + 1] = a.py[j], c.p[3 * k + 2] = a.pz[j];
-      if (c.n) c.n[3 * k] = a.nx[j], c.n[3 * k + 1] = a.ny[j], c.n[3 * k + 2] = a.nz[j];
-      if (c.ns) c.ns[3 * k] = a.nsx[j], c.ns[3 * k + 1] = a.nsy[j], c.ns[3 * k + 2] = a.nsz[j];
-      if (c.uv) c.uv[2 * k] = a.u[j], c.uv[2 * k + 1] = a.v[j];
-      if (c.object) c.object[k] = a.object[j];
-      if (c.primitive) c.primitive[k] = a.primitive[j];
-      if (c.material) c.material[k] = a.material[j];
-    }
+    void batch(size_t base, const WorldAnswers& a, size_t m) { store_hit_columns(a, m, c, offset + base); }
   } emit{out, offset};
   nearest_each(rays, n, emit);
 }

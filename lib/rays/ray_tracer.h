@@ -51,8 +51,9 @@ class RayTracer {
   // The world-space answer for a render-space hit on a ray that started `shift` along the query.
   bool to_world(const Hit& h, double shift, const Vec3f& d, WorldHit* out) const;
   bool blocked(const WorldRay& ray) const;
-  // nearest()'s work, answers given to `emit`: emit.scalar(i, hit) for a ray the scalar code
-  // answered (hit.hit false for a miss), emit.batch(i, answers, j) for lane j of a SIMD batch.
+  // nearest()'s work, answers given to `emit`: emit.batch(base, answers, m) for rays [base,
+  // base + m) of a SIMD batch (every lane, a miss's defaults where the batch did not answer), then
+  // emit.scalar(i, hit) for each ray of it the scalar code answered (hit.hit false for a miss).
   template <class Emit>
   void nearest_each(const WorldRay* rays, size_t n, Emit& emit) const;
 

@@ -462,40 +462,44 @@ TEST_F(RayTracerTest, BatchesAnswerAsSingleRaysOnEverySimdTarget) {
         ASSERT_EQ(occ[i].hit, single_occ[i].hit) << "occlusion, ray " << i << " in batches of " << batch;
       }
     }
+    // nearest_into(): the same answers written into response-style arrays (vectors of them at a
+    // time, the rest one by one), at an offset, in pieces of 700 (10 batches and 60 rays), nothing
+    // outside a piece's range; arrays not given are not written.
+    const size_t N = rays.size(), off = 5;
+    std::vector<char> hit(N + off, 7);
+    std::vector<float> tt(N + off), nn(3 * (N + off)), ns(3 * (N + off)), uv(2 * (N + off));
+    std::vector<double> pp(3 * (N + off));
+    std::vector<uint32_t> obj(N + off), prim(N + off), mat(N + off);
+    const HitColumns all{hit.data(), tt.data(), pp.data(), nn.data(), ns.data(), uv.data(), obj.data(), prim.data(), mat.data()};
+    // Last piece first: a piece that wrote past its end would overwrite the next one's answers.
+    for (size_t b = (N - 1) / 700 * 700;; b -= 700) {
+      t.nearest_into(&rays[b], std::min<size_t>(700, N - b), all, off + b);
+      if (b == 0) break;
+    }
+    HitColumns some;
+    std::vector<float> t_only(N);
+    some.t = t_only.data();
+    t.nearest_into(rays.data(), N, some, 0);
+    for (size_t i = 0; i < N; ++i) {
+      const size_t k = off + i;
+      WorldHit got;
+      got.hit = hit[k] == 1;
+      ASSERT_TRUE(hit[k] == 0 || hit[k] == 1) << i;
+      got.t = tt[k];
+      got.p = {pp[3 * k], pp[3 * k + 1], pp[3 * k + 2]};
+      got.n = {nn[3 * k], nn[3 * k + 1], nn[3 * k + 2]};
+      got.ns = {ns[3 * k], ns[3 * k + 1], ns[3 * k + 2]};
+      got.u = uv[2 * k];
+      got.v = uv[2 * k + 1];
+      got.object = obj[k];
+      got.primitive = prim[k];
+      got.material = mat[k];
+      ASSERT_TRUE(same_bits(got, single[i])) << "nearest_into, ray " << i;
+      ASSERT_TRUE(bits_equal(t_only[i], single[i].t)) << "nearest_into with t alone, ray " << i;
+    }
+    for (size_t k = 0; k < off; ++k) EXPECT_EQ(hit[k], 7) << "written before the offset";
   }
   hwy::SetSupportedTargetsForTest(0);
-
-  // nearest_into(): the same answers written into response-style arrays, at an offset, in
-  // pieces; arrays not given are not written.
-  const size_t N = rays.size(), off = 5;
-  std::vector<char> hit(N + off, 7);
-  std::vector<float> tt(N + off), nn(3 * (N + off)), ns(3 * (N + off)), uv(2 * (N + off));
-  std::vector<double> pp(3 * (N + off));
-  std::vector<uint32_t> obj(N + off), prim(N + off), mat(N + off);
-  const HitColumns all{hit.data(), tt.data(), pp.data(), nn.data(), ns.data(), uv.data(), obj.data(), prim.data(), mat.data()};
-  for (size_t b = 0; b < N; b += 700) t.nearest_into(&rays[b], std::min<size_t>(700, N - b), all, off + b);
-  HitColumns some;
-  std::vector<float> t_only(N);
-  some.t = t_only.data();
-  t.nearest_into(rays.data(), N, some, 0);
-  for (size_t i = 0; i < N; ++i) {
-    const size_t k = off + i;
-    WorldHit got;
-    got.hit = hit[k] == 1;
-    ASSERT_TRUE(hit[k] == 0 || hit[k] == 1) << i;
-    got.t = tt[k];
-    got.p = {pp[3 * k], pp[3 * k + 1], pp[3 * k + 2]};
-    got.n = {nn[3 * k], nn[3 * k + 1], nn[3 * k + 2]};
-    got.ns = {ns[3 * k], ns[3 * k + 1], ns[3 * k + 2]};
-    got.u = uv[2 * k];
-    got.v = uv[2 * k + 1];
-    got.object = obj[k];
-    got.primitive = prim[k];
-    got.material = mat[k];
-    ASSERT_TRUE(same_bits(got, single[i])) << "nearest_into, ray " << i;
-    ASSERT_TRUE(bits_equal(t_only[i], single[i].t)) << "nearest_into with t alone, ray " << i;
-  }
-  for (size_t k = 0; k < off; ++k) EXPECT_EQ(hit[k], 7) << "written before the offset";
 }
 
 // The renderer's primary hits for every camera ray of one frame (spp 4: packets of four, as the

@@ -39,4 +39,9 @@ struct WorldAnswers {
 void to_world(const HitBatch& hits, const RayBatch& rays, const double* shift, size_t n, const Vec3d& origin,
               WorldAnswers* out);
 
+// Lanes [0, n) of `answers` into the ray service's response arrays (world_ray.h), lane i at index
+// offset + i: each asked array written a vector at a time (points, normals and barycentrics
+// interleaved in registers), nothing past index offset + n - 1.
+void store_hit_columns(const WorldAnswers& answers, size_t n, const HitColumns& out, size_t offset);
+
 }  // namespace tessera::rays

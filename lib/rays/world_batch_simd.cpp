@@ -121,6 +121,51 @@ void ToWorld(const HitBatch& h, const RayBatch& r, const double* shift, size_t n
   }
 }
 
+void StoreHitColumns(const WorldAnswers& a, size_t n, const HitColumns& c, size_t offset) {
+  const hn::ScalableTag<double> dd;
+  const hn::ScalableTag<float> df;  // twice dd's lanes
+  const hn::ScalableTag<uint32_t> du32;
+  const size_t Nd = hn::Lanes(dd), Nf = hn::Lanes(df);
+  // Whole vectors up to the last full one; the rest (fewer than a vector's rays) one by one,
+  // so nothing is written past index offset + n - 1.
+  const size_t nd = n / Nd * Nd, nf = n / Nf * Nf;
+  if (c.hit) {
+    for (size_t i = 0; i < n; ++i) c.hit[offset + i] = char(a.hit[i]);
+  }
+  if (c.t) {
+    for (size_t i = 0; i < nf; i += Nf) hn::StoreU(hn::LoadU(df, a.t + i), df, c.t + offset + i);
+    for (size_t i = nf; i < n; ++i) c.t[offset + i] = a.t[i];
+  }
+  if (c.p) {
+    double* p = c.p + 3 * offset;
+    for (size_t i = 0; i < nd; i += Nd) {
+      hn::StoreInterleaved3(hn::LoadU(dd, a.px + i), hn::LoadU(dd, a.py + i), hn::LoadU(dd, a.pz + i), dd, p + 3 * i);
+    }
+    for (size_t i = nd; i < n; ++i) p[3 * i] = a.px[i], p[3 * i + 1] = a.py[i], p[3 * i + 2] = a.pz[i];
+  }
+  auto three = [&](float* dst, const float* x, const float* y, const float* z) {
+    dst += 3 * offset;
+    for (size_t i = 0; i < nf; i += Nf) {
+      hn::StoreInterleaved3(hn::LoadU(df, x + i), hn::LoadU(df, y + i), hn::LoadU(df, z + i), df, dst + 3 * i);
+    }
+    for (size_t i = nf; i < n; ++i) dst[3 * i] = x[i], dst[3 * i + 1] = y[i], dst[3 * i + 2] = z[i];
+  };
+  if (c.n) three(c.n, a.nx, a.ny, a.nz);
+  if (c.ns) three(c.ns, a.nsx, a.nsy, a.nsz);
+  if (c.uv) {
+    float* uv = c.uv + 2 * offset;
+    for (size_t i = 0; i < nf; i += Nf) hn::StoreInterleaved2(hn::LoadU(df, a.u + i), hn::LoadU(df, a.v + i), df, uv + 2 * i);
+    for (size_t i = nf; i < n; ++i) uv[2 * i] = a.u[i], uv[2 * i + 1] = a.v[i];
+  }
+  auto copy = [&](uint32_t* dst, const uint32_t* src) {
+    for (size_t i = 0; i < nf; i += Nf) hn::StoreU(hn::LoadU(du32, src + i), du32, dst + offset + i);
+    for (size_t i = nf; i < n; ++i) dst[offset + i] = src[i];
+  };
+  if (c.object) copy(c.object, a.object);
+  if (c.primitive) copy(c.primitive, a.primitive);
+  if (c.material) copy(c.material, a.material);
+}
+
 }  // namespace HWY_NAMESPACE
 }  // namespace tessera::rays
 HWY_AFTER_NAMESPACE();
@@ -130,6 +175,7 @@ namespace tessera::rays {
 
 HWY_EXPORT(WorldToRender);
 HWY_EXPORT(ToWorld);
+HWY_EXPORT(StoreHitColumns);
 
 void world_to_render(const WorldRay* rays, size_t n, const Vec3d& origin, double far, RayBatch* out, double* shift) {
   HWY_DYNAMIC_DISPATCH(WorldToRender)(rays, n, origin, far, out, shift);
@@ -138,6 +184,10 @@ void world_to_render(const WorldRay* rays, size_t n, const Vec3d& origin, double
 void to_world(const HitBatch& hits, const RayBatch& rays, const double* shift, size_t n, const Vec3d& origin,
               WorldAnswers* out) {
   HWY_DYNAMIC_DISPATCH(ToWorld)(hits, rays, shift, n, origin, out);
+}
+
+void store_hit_columns(const WorldAnswers& answers, size_t n, const HitColumns& out, size_t offset) {
+  HWY_DYNAMIC_DISPATCH(StoreHitColumns)(answers, n, out, offset);
 }
 
 }  // namespace tessera::rays

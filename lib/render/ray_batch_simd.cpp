@@ -90,47 +90,118 @@ void BatchTriangleHits(const uint32_t* select, uint32_t which, const uint32_t* p
   }
 }
 
+// The tags of the analytic surfaces' finishes: doubles, and floats and 32-bit indices with as
+// many lanes.
+struct Tags {
+  hn::ScalableTag<double> dd;
+  hn::Rebind<float, decltype(dd)> df;
+  hn::Rebind<uint32_t, decltype(dd)> du32;
+  hn::Rebind<int32_t, decltype(dd)> di32;
+  hn::Rebind<uint64_t, decltype(dd)> du64;
+  hn::Rebind<int64_t, decltype(dd)> di64;
+};
+
+// The lanes from i where select == which, as 32-bit and 64-bit masks.
+struct Selected {
+  hn::Mask<decltype(Tags::du32)> m32;
+  hn::Mask<decltype(Tags::du64)> m64;
+};
+HWY_INLINE Selected select_lanes(const Tags& g, const uint32_t* select, uint32_t which, size_t i) {
+  const auto s = hn::LoadU(g.du32, select + i);
+  return {hn::Eq(s, hn::Set(g.du32, which)), hn::Eq(hn::PromoteTo(g.du64, s), hn::Set(g.du64, uint64_t(which)))};
+}
+
+// Index k of the selected lanes, 0 elsewhere (other lanes read entry 0: theirs may be anything).
+HWY_INLINE hn::Vec<decltype(Tags::di64)> index64(const Tags& g, const Selected& sel, const int32_t* k, size_t i) {
+  return hn::IfThenElseZero(hn::RebindMask(g.di64, sel.m64), hn::PromoteTo(g.di64, hn::LoadU(g.di32, k + i)));
+}
+HWY_INLINE hn::Vec<decltype(Tags::di32)> index32(const Tags& g, const Selected& sel, const int32_t* k, size_t i) {
+  return hn::IfThenElseZero(hn::RebindMask(g.di32, sel.m32), hn::LoadU(g.di32, k + i));
+}
+
+// finish_hit()'s answer on a sphere or a plane, in the selected lanes: the point and the normal
+// (double, rounded to float), u = v = 0, the material and the object, primitive 0.
+HWY_INLINE void store_analytic_hit(const Tags& g, const Selected& sel, hn::Vec<decltype(Tags::dd)> px,
+                                   hn::Vec<decltype(Tags::dd)> py, hn::Vec<decltype(Tags::dd)> pz,
+                                   hn::Vec<decltype(Tags::dd)> nx, hn::Vec<decltype(Tags::dd)> ny,
+                                   hn::Vec<decltype(Tags::dd)> nz, hn::Vec<decltype(Tags::du32)> material,
+                                   hn::Vec<decltype(Tags::du32)> object, size_t i, HitBatch* h) {
+  const auto fsel = hn::RebindMask(g.df, sel.m32);
+  hn::BlendedStore(hn::DemoteTo(g.df, px), fsel, g.df, h->px + i);
+  hn::BlendedStore(hn::DemoteTo(g.df, py), fsel, g.df, h->py + i);
+  hn::BlendedStore(hn::DemoteTo(g.df, pz), fsel, g.df, h->pz + i);
+  hn::BlendedStore(hn::DemoteTo(g.df, nx), fsel, g.df, h->nx + i);
+  hn::BlendedStore(hn::DemoteTo(g.df, ny), fsel, g.df, h->ny + i);
+  hn::BlendedStore(hn::DemoteTo(g.df, nz), fsel, g.df, h->nz + i);
+  hn::BlendedStore(hn::Zero(g.df), fsel, g.df, h->u + i);
+  hn::BlendedStore(hn::Zero(g.df), fsel, g.df, h->v + i);
+  hn::BlendedStore(material, sel.m32, g.du32, h->material + i);
+  hn::BlendedStore(object, sel.m32, g.du32, h->object + i);
+  hn::BlendedStore(hn::Zero(g.du32), sel.m32, g.du32, h->primitive + i);
+}
+
+// o + d t in double for the rays from i.
+struct Point64 {
+  hn::Vec<decltype(Tags::dd)> x, y, z;
+};
+HWY_INLINE Point64 along(const Tags& g, const RayBatch& r, hn::Vec<decltype(Tags::dd)> t, size_t i) {
+  auto at = [&](const float* o, const float* d) {
+    return hn::Add(hn::PromoteTo(g.dd, hn::LoadU(g.df, o + i)), hn::Mul(hn::PromoteTo(g.dd, hn::LoadU(g.df, d + i)), t));
+  };
+  return {at(r.ox, r.dx), at(r.oy, r.dy), at(r.oz, r.dz)};
+}
+
 void BatchPlaneHits(const RayBatch& r, const uint32_t* select, uint32_t which, const double* tp_in,
                       const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* h) {
-  const hn::ScalableTag<double> dd;
-  const hn::Rebind<float, decltype(dd)> df;
-  const hn::Rebind<uint32_t, decltype(dd)> du32;
-  const hn::Rebind<int32_t, decltype(dd)> di32;
-  const hn::Rebind<uint64_t, decltype(dd)> du64;
-  const hn::Rebind<int64_t, decltype(dd)> di64;
-  const size_t N = hn::Lanes(dd);
+  const Tags g;
+  const size_t N = hn::Lanes(g.dd);
   for (size_t i = 0; i < n; i += N) {
-    const auto sel32 = hn::Eq(hn::LoadU(du32, select + i), hn::Set(du32, which));
-    if (hn::AllFalse(du32, sel32)) continue;
-    const auto sel64 = hn::Eq(hn::PromoteTo(du64, hn::LoadU(du32, select + i)), hn::Set(du64, uint64_t(which)));
-    const auto k = hn::IfThenElseZero(hn::RebindMask(di64, sel64), hn::PromoteTo(di64, hn::LoadU(di32, plane + i)));
+    const Selected sel = select_lanes(g, select, which, i);
+    if (hn::AllFalse(g.du32, sel.m32)) continue;
+    const auto k = index64(g, sel, plane, i);
     const auto k6 = hn::Add(hn::ShiftLeft<2>(k), hn::ShiftLeft<1>(k));  // 6 doubles a plane
     // One plane (a floor: the usual case) is the same for every lane: no gathers.
     auto field = [&](int f) {
-      return planes.count == 1 ? hn::Set(dd, planes.data[f]) : hn::GatherIndex(dd, planes.data, hn::Add(k6, hn::Set(di64, f)));
+      return planes.count == 1 ? hn::Set(g.dd, planes.data[f])
+                               : hn::GatherIndex(g.dd, planes.data, hn::Add(k6, hn::Set(g.di64, f)));
     };
     const auto qx = field(0), qy = field(1), qz = field(2), nx = field(3), ny = field(4), nz = field(5);
-    const auto tp = hn::LoadU(dd, tp_in + i);
+    const auto tp = hn::LoadU(g.dd, tp_in + i);
     // finish_hit(): pd = o + d tp; pd = pd - n dot(pd - point, n).
-    const auto x = hn::Add(hn::PromoteTo(dd, hn::LoadU(df, r.ox + i)), hn::Mul(hn::PromoteTo(dd, hn::LoadU(df, r.dx + i)), tp));
-    const auto y = hn::Add(hn::PromoteTo(dd, hn::LoadU(df, r.oy + i)), hn::Mul(hn::PromoteTo(dd, hn::LoadU(df, r.dy + i)), tp));
-    const auto z = hn::Add(hn::PromoteTo(dd, hn::LoadU(df, r.oz + i)), hn::Mul(hn::PromoteTo(dd, hn::LoadU(df, r.dz + i)), tp));
-    const auto s = hn::Add(hn::Add(hn::Mul(hn::Sub(x, qx), nx), hn::Mul(hn::Sub(y, qy), ny)), hn::Mul(hn::Sub(z, qz), nz));
-    const auto fsel = hn::RebindMask(df, sel32);
-    hn::BlendedStore(hn::DemoteTo(df, hn::Sub(x, hn::Mul(nx, s))), fsel, df, h->px + i);
-    hn::BlendedStore(hn::DemoteTo(df, hn::Sub(y, hn::Mul(ny, s))), fsel, df, h->py + i);
-    hn::BlendedStore(hn::DemoteTo(df, hn::Sub(z, hn::Mul(nz, s))), fsel, df, h->pz + i);
-    hn::BlendedStore(hn::DemoteTo(df, tp), fsel, df, h->t + i);
-    hn::BlendedStore(hn::DemoteTo(df, nx), fsel, df, h->nx + i);
-    hn::BlendedStore(hn::DemoteTo(df, ny), fsel, df, h->ny + i);
-    hn::BlendedStore(hn::DemoteTo(df, nz), fsel, df, h->nz + i);
-    hn::BlendedStore(hn::Zero(df), fsel, df, h->u + i);
-    hn::BlendedStore(hn::Zero(df), fsel, df, h->v + i);
-    const auto k32 = hn::IfThenElseZero(hn::RebindMask(di32, sel32), hn::LoadU(di32, plane + i));
-    const auto k2 = hn::Add(k32, k32);  // 2 indices a plane
-    hn::BlendedStore(hn::GatherIndex(du32, planes.ids, k2), sel32, du32, h->material + i);
-    hn::BlendedStore(hn::GatherIndex(du32, planes.ids, hn::Add(k2, hn::Set(di32, 1))), sel32, du32, h->object + i);
-    hn::BlendedStore(hn::Zero(du32), sel32, du32, h->primitive + i);
+    const Point64 p = along(g, r, tp, i);
+    const auto s = hn::Add(hn::Add(hn::Mul(hn::Sub(p.x, qx), nx), hn::Mul(hn::Sub(p.y, qy), ny)), hn::Mul(hn::Sub(p.z, qz), nz));
+    hn::BlendedStore(hn::DemoteTo(g.df, tp), hn::RebindMask(g.df, sel.m32), g.df, h->t + i);
+    const auto k2 = hn::Add(index32(g, sel, plane, i), index32(g, sel, plane, i));  // 2 indices a plane
+    store_analytic_hit(g, sel, hn::Sub(p.x, hn::Mul(nx, s)), hn::Sub(p.y, hn::Mul(ny, s)), hn::Sub(p.z, hn::Mul(nz, s)),
+                       nx, ny, nz, hn::GatherIndex(g.du32, planes.ids, k2),
+                       hn::GatherIndex(g.du32, planes.ids, hn::Add(k2, hn::Set(g.di32, 1))), i, h);
+  }
+}
+
+void BatchSphereHits(const RayBatch& r, const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,
+                     const SphereTable& spheres, HitBatch* h) {
+  const Tags g;
+  const size_t N = hn::Lanes(g.dd);
+  const auto* index = reinterpret_cast<const int32_t*>(prim);  // sphere indices are < 2^31
+  const auto* words = reinterpret_cast<const uint32_t*>(spheres.data);
+  for (size_t i = 0; i < n; i += N) {
+    const Selected sel = select_lanes(g, select, which, i);
+    if (hn::AllFalse(g.du32, sel.m32)) continue;
+    const auto k = index64(g, sel, index, i);
+    const auto k5 = hn::Add(hn::ShiftLeft<2>(k), k);  // 5 doubles a sphere
+    auto field = [&](int f) { return hn::GatherIndex(g.dd, spheres.data, hn::Add(k5, hn::Set(g.di64, f))); };
+    const auto cx = field(0), cy = field(1), cz = field(2), radius = field(3);
+    // finish_hit(): pd = o + d t; nd = normalize(pd - center); pr = center + nd radius.
+    const Point64 p = along(g, r, hn::PromoteTo(g.dd, hn::LoadU(g.df, h->t + i)), i);
+    const auto x = hn::Sub(p.x, cx), y = hn::Sub(p.y, cy), z = hn::Sub(p.z, cz);
+    const auto len = hn::Sqrt(hn::Add(hn::Add(hn::Mul(x, x), hn::Mul(y, y)), hn::Mul(z, z)));
+    const auto nx = hn::Div(x, len), ny = hn::Div(y, len), nz = hn::Div(z, len);
+    const auto k32 = index32(g, sel, index, i);
+    const auto k10 = hn::Add(hn::ShiftLeft<3>(k32), hn::Add(k32, k32));  // 10 words a sphere
+    store_analytic_hit(g, sel, hn::Add(cx, hn::Mul(nx, radius)), hn::Add(cy, hn::Mul(ny, radius)),
+                       hn::Add(cz, hn::Mul(nz, radius)), nx, ny, nz,
+                       hn::GatherIndex(g.du32, words, hn::Add(k10, hn::Set(g.di32, 8))),
+                       hn::GatherIndex(g.du32, words, hn::Add(k10, hn::Set(g.di32, 9))), i, h);
   }
 }
 
@@ -144,6 +215,7 @@ namespace tessera {
 HWY_EXPORT(BatchNearestPlanes);
 HWY_EXPORT(BatchTriangleHits);
 HWY_EXPORT(BatchPlaneHits);
+HWY_EXPORT(BatchSphereHits);
 
 void batch_nearest_planes(const RayBatch& rays, size_t n, const PlaneTable& planes, double* tp, int32_t* plane,
                           float* tfar) {
@@ -158,6 +230,11 @@ void batch_triangle_hits(const uint32_t* select, uint32_t which, const uint32_t*
 void batch_plane_hits(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
                       const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* hits) {
   HWY_DYNAMIC_DISPATCH(BatchPlaneHits)(rays, select, which, tp, plane, n, planes, hits);
+}
+
+void batch_sphere_hits(const RayBatch& rays, const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,
+                       const SphereTable& spheres, HitBatch* hits) {
+  HWY_DYNAMIC_DISPATCH(BatchSphereHits)(rays, select, which, prim, n, spheres, hits);
 }
 
 }  // namespace tessera

@@ -36,6 +36,19 @@ struct TriangleTable {
 void batch_triangle_hits(const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,
                          const TriangleTable& triangles, HitBatch* hits);
 
+// Spheres as 5 doubles each (centre x, y, z, radius, then material and object as two 32-bit
+// words): RenderScene::Sphere's own layout, read in place.
+struct SphereTable {
+  const double* data = nullptr;
+};
+
+// Where select[i] == which: finish_hit()'s answer on sphere prim[i] (an index into the table)
+// at t = hits->t[i] (Embree's tfar): the point recomputed in double from o + d t and projected
+// onto the sphere, the outward normal, u = v = 0, the material and the object (primitive 0).
+// Other lanes are left as they are.
+void batch_sphere_hits(const RayBatch& rays, const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,
+                       const SphereTable& spheres, HitBatch* hits);
+
 // Where select[i] == which: finish_hit()'s answer on plane plane[i] at tp[i]: t, the point
 // (o + d tp in double, projected onto the plane), the normal, u = v = 0, the material and the
 // object (primitive 0). Other lanes are left as they are.

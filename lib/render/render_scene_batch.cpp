@@ -5,10 +5,11 @@
 // Why: for the ray service, tracing a ray is about half Embree's traversal and half the work
 // around it (the planes in double, the hit point and normal, the names). Ray by ray that work is
 // scalar code in long dependency chains; over arrays of components it is a few vector
-// instructions per ray. Only the common hits go this way (opaque or glass triangles without
-// vertex normals, planes); spheres, meshes with vertex normals and rays that start far from
-// the geometry are rare in the queries a client sends in bulk, and keep the scalar code.
+// instructions per ray. Triangles without vertex normals, spheres and planes go this way; meshes
+// with vertex normals and rays that start far from the geometry are rarer in the queries a
+// client sends in bulk, and keep the scalar code.
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 
 #include "render/ray_batch.h"
@@ -44,8 +45,8 @@ void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) cons
   alignas(64) float tfar[kRayBatch];
   alignas(64) RTCRayHit rh[kRayBatch];
   // What finishes each lane's hit: 0 nothing (a miss, or done here), 1 + k triangle bucket k,
-  // 3 a plane (the values batch_*() select lanes by).
-  constexpr uint32_t kTriangle0 = 1, kPlane = 3;
+  // 3 a plane, 4 a sphere (the values batch_*() select lanes by).
+  constexpr uint32_t kTriangle0 = 1, kPlane = 3, kSphere = 4;
   alignas(64) uint32_t finish[kRayBatch] = {};
   alignas(64) uint32_t prim[kRayBatch] = {};
   bool traced[kRayBatch];
@@ -110,7 +111,15 @@ void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) cons
       finish[i] = kTriangle0 + uint32_t(k);
       continue;
     }
-    // A sphere, or a triangle with vertex normals: finish_hit() itself.
+    const int s = g == sphere_buckets_[0].geom_id ? 0 : g == sphere_buckets_[1].geom_id ? 1 : -1;
+    if (s >= 0) {
+      h->status[i] = HitBatch::kAnswered;  // batch_sphere_hits() answers the rest
+      h->t[i] = rh[i].ray.tfar;
+      prim[i] = sphere_buckets_[s].ids[rh[i].hit.primID];
+      finish[i] = kSphere;
+      continue;
+    }
+    // A triangle with vertex normals: finish_hit() itself.
     const Vec3d o(Vec3f(r.ox[i], r.oy[i], r.oz[i])), d(Vec3f(r.dx[i], r.dy[i], r.dz[i]));
     if (finish_hit(o, d, plane[i], tp[i], g, rh[i].hit.primID, rh[i].hit.u, rh[i].hit.v, rh[i].ray.tfar, &h->hit[i])) {
       h->status[i] = HitBatch::kHit;
@@ -124,6 +133,11 @@ void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) cons
     batch_triangle_hits(finish, kTriangle0 + uint32_t(k), prim, n, table, h);
   }
   if (!planes_.empty()) batch_plane_hits(r, finish, kPlane, tp, plane, n, planes, h);
+  if (!spheres_.empty()) {
+    static_assert(sizeof(Sphere) == 5 * sizeof(double) && offsetof(Sphere, radius) == 3 * sizeof(double) &&
+                  offsetof(Sphere, material) == 4 * sizeof(double) && offsetof(Sphere, object) == 4 * sizeof(double) + 4);
+    batch_sphere_hits(r, finish, kSphere, prim, n, SphereTable{&spheres_[0].center.x}, h);
+  }
 }
 
 void RenderScene::any_hit_batch(const RayBatch& r, size_t n, uint8_t* blocked) const {
