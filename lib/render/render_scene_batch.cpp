@@ -84,6 +84,8 @@ void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) cons
     const TriangleBucket& b = triangles_[k];
     simd_bucket[k] = b.normals.empty() && b.material_ids.size() < (size_t(1) << 27);
   }
+  // ... and spheres by 10 * index (their 32-bit words).
+  const bool simd_spheres = spheres_.size() < (size_t(1) << 27);
   for (size_t i = 0; i < n; ++i) {
     if (!traced[i]) continue;
     const uint32_t g = rh[i].hit.geomID;
@@ -112,14 +114,14 @@ void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) cons
       continue;
     }
     const int s = g == sphere_buckets_[0].geom_id ? 0 : g == sphere_buckets_[1].geom_id ? 1 : -1;
-    if (s >= 0) {
+    if (s >= 0 && simd_spheres) {
       h->status[i] = HitBatch::kAnswered;  // batch_sphere_hits() answers the rest
       h->t[i] = rh[i].ray.tfar;
       prim[i] = sphere_buckets_[s].ids[rh[i].hit.primID];
       finish[i] = kSphere;
       continue;
     }
-    // A triangle with vertex normals: finish_hit() itself.
+    // A triangle with vertex normals (or a sphere of a scene of over 2^27): finish_hit() itself.
     const Vec3d o(Vec3f(r.ox[i], r.oy[i], r.oz[i])), d(Vec3f(r.dx[i], r.dy[i], r.dz[i]));
     if (finish_hit(o, d, plane[i], tp[i], g, rh[i].hit.primID, rh[i].hit.u, rh[i].hit.v, rh[i].ray.tfar, &h->hit[i])) {
       h->status[i] = HitBatch::kHit;
@@ -134,7 +136,7 @@ void RenderScene::intersect_batch(const RayBatch& r, size_t n, HitBatch* h) cons
   }
   if (!planes_.empty()) batch_plane_hits(r, finish, kPlane, tp, plane, n, planes, h);
   if (!spheres_.empty()) {
-    static_assert(sizeof(Sphere) == 5 * sizeof(double) && offsetof(Sphere, radius) == 3 * sizeof(double) &&
+    static_assert(sizeof(Sphere) == 5 * sizeof(double) && offsetof(Sphere, center) == 0 && offsetof(Sphere, radius) == 3 * sizeof(double) &&
                   offsetof(Sphere, material) == 4 * sizeof(double) && offsetof(Sphere, object) == 4 * sizeof(double) + 4);
     batch_sphere_hits(r, finish, kSphere, prim, n, SphereTable{&spheres_[0].center.x}, h);
   }
