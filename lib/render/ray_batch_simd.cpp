@@ -151,6 +151,27 @@ HWY_INLINE Point64 along(const Tags& g, const RayBatch& r, hn::Vec<decltype(Tags
   return {at(r.ox, r.dx), at(r.oy, r.dy), at(r.oz, r.dz)};
 }
 
+// finish_hit()'s point on the planes plane[i] of the selected lanes at tp: pd = o + d tp in
+// double, pd = pd - n dot(pd - point, n); and the planes' normals.
+struct PlanePoint {
+  Point64 p;
+  hn::Vec<decltype(Tags::dd)> nx, ny, nz;
+};
+HWY_INLINE PlanePoint plane_point(const Tags& g, const RayBatch& r, const Selected& sel, const int32_t* plane,
+                                  hn::Vec<decltype(Tags::dd)> tp, const PlaneTable& planes, size_t i) {
+  const auto k = index64(g, sel, plane, i);
+  const auto k6 = hn::Add(hn::ShiftLeft<2>(k), hn::ShiftLeft<1>(k));  // 6 doubles a plane
+  // One plane (a floor: the usual case) is the same for every lane: no gathers.
+  auto field = [&](int f) {
+    return planes.count == 1 ? hn::Set(g.dd, planes.data[f])
+                             : hn::GatherIndex(g.dd, planes.data, hn::Add(k6, hn::Set(g.di64, f)));
+  };
+  const auto qx = field(0), qy = field(1), qz = field(2), nx = field(3), ny = field(4), nz = field(5);
+  const Point64 p = along(g, r, tp, i);
+  const auto s = hn::Add(hn::Add(hn::Mul(hn::Sub(p.x, qx), nx), hn::Mul(hn::Sub(p.y, qy), ny)), hn::Mul(hn::Sub(p.z, qz), nz));
+  return {{hn::Sub(p.x, hn::Mul(nx, s)), hn::Sub(p.y, hn::Mul(ny, s)), hn::Sub(p.z, hn::Mul(nz, s))}, nx, ny, nz};
+}
+
 void BatchPlaneHits(const RayBatch& r, const uint32_t* select, uint32_t which, const double* tp_in,
                       const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* h) {
   const Tags g;
@@ -158,23 +179,28 @@ void BatchPlaneHits(const RayBatch& r, const uint32_t* select, uint32_t which, c
   for (size_t i = 0; i < n; i += N) {
     const Selected sel = select_lanes(g, select, which, i);
     if (hn::AllFalse(g.du32, sel.m32)) continue;
-    const auto k = index64(g, sel, plane, i);
-    const auto k6 = hn::Add(hn::ShiftLeft<2>(k), hn::ShiftLeft<1>(k));  // 6 doubles a plane
-    // One plane (a floor: the usual case) is the same for every lane: no gathers.
-    auto field = [&](int f) {
-      return planes.count == 1 ? hn::Set(g.dd, planes.data[f])
-                               : hn::GatherIndex(g.dd, planes.data, hn::Add(k6, hn::Set(g.di64, f)));
-    };
-    const auto qx = field(0), qy = field(1), qz = field(2), nx = field(3), ny = field(4), nz = field(5);
     const auto tp = hn::LoadU(g.dd, tp_in + i);
-    // finish_hit(): pd = o + d tp; pd = pd - n dot(pd - point, n).
-    const Point64 p = along(g, r, tp, i);
-    const auto s = hn::Add(hn::Add(hn::Mul(hn::Sub(p.x, qx), nx), hn::Mul(hn::Sub(p.y, qy), ny)), hn::Mul(hn::Sub(p.z, qz), nz));
+    const PlanePoint q = plane_point(g, r, sel, plane, tp, planes, i);
     hn::BlendedStore(hn::DemoteTo(g.df, tp), hn::RebindMask(g.df, sel.m32), g.df, h->t + i);
-    const auto k2 = hn::Add(index32(g, sel, plane, i), index32(g, sel, plane, i));  // 2 indices a plane
-    store_analytic_hit(g, sel, hn::Sub(p.x, hn::Mul(nx, s)), hn::Sub(p.y, hn::Mul(ny, s)), hn::Sub(p.z, hn::Mul(nz, s)),
-                       nx, ny, nz, hn::GatherIndex(g.du32, planes.ids, k2),
+    const auto k32 = index32(g, sel, plane, i);
+    const auto k2 = hn::Add(k32, k32);  // 2 indices a plane
+    store_analytic_hit(g, sel, q.p.x, q.p.y, q.p.z, q.nx, q.ny, q.nz, hn::GatherIndex(g.du32, planes.ids, k2),
                        hn::GatherIndex(g.du32, planes.ids, hn::Add(k2, hn::Set(g.di32, 1))), i, h);
+  }
+}
+
+void BatchPlanePoints(const RayBatch& r, const uint32_t* select, uint32_t which, const double* tp_in,
+                      const int32_t* plane, size_t n, const PlaneTable& planes, float* px, float* py, float* pz) {
+  const Tags g;
+  const size_t N = hn::Lanes(g.dd);
+  for (size_t i = 0; i < n; i += N) {
+    const Selected sel = select_lanes(g, select, which, i);
+    if (hn::AllFalse(g.du32, sel.m32)) continue;
+    const PlanePoint q = plane_point(g, r, sel, plane, hn::LoadU(g.dd, tp_in + i), planes, i);
+    const auto fsel = hn::RebindMask(g.df, sel.m32);
+    hn::BlendedStore(hn::DemoteTo(g.df, q.p.x), fsel, g.df, px + i);
+    hn::BlendedStore(hn::DemoteTo(g.df, q.p.y), fsel, g.df, py + i);
+    hn::BlendedStore(hn::DemoteTo(g.df, q.p.z), fsel, g.df, pz + i);
   }
 }
 
@@ -215,6 +241,7 @@ namespace tessera {
 HWY_EXPORT(BatchNearestPlanes);
 HWY_EXPORT(BatchTriangleHits);
 HWY_EXPORT(BatchPlaneHits);
+HWY_EXPORT(BatchPlanePoints);
 HWY_EXPORT(BatchSphereHits);
 
 void batch_nearest_planes(const RayBatch& rays, size_t n, const PlaneTable& planes, double* tp, int32_t* plane,
@@ -230,6 +257,11 @@ void batch_triangle_hits(const uint32_t* select, uint32_t which, const uint32_t*
 void batch_plane_hits(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
                       const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* hits) {
   HWY_DYNAMIC_DISPATCH(BatchPlaneHits)(rays, select, which, tp, plane, n, planes, hits);
+}
+
+void batch_plane_points(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
+                        const int32_t* plane, size_t n, const PlaneTable& planes, float* px, float* py, float* pz) {
+  HWY_DYNAMIC_DISPATCH(BatchPlanePoints)(rays, select, which, tp, plane, n, planes, px, py, pz);
 }
 
 void batch_sphere_hits(const RayBatch& rays, const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,

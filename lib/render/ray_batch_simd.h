@@ -54,5 +54,9 @@ void batch_sphere_hits(const RayBatch& rays, const uint32_t* select, uint32_t wh
 // object (primitive 0). Other lanes are left as they are.
 void batch_plane_hits(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
                       const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* hits);
+// The same lanes' points alone, rounded to float, into px, py, pz: what an occlusion query reads
+// (a plane blocks where its point is within float range).
+void batch_plane_points(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
+                        const int32_t* plane, size_t n, const PlaneTable& planes, float* px, float* py, float* pz);
 
 }  // namespace tessera

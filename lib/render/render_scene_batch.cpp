@@ -150,17 +150,17 @@ void RenderScene::any_hit_batch(const RayBatch& r, size_t n, uint8_t* blocked) c
   const PlaneTable planes{plane_table_.data(), plane_ids_.data(), planes_.size()};
   batch_nearest_planes(r, n, planes, tp, plane, tfar);
   // A plane met first blocks the ray where its point is within float range (any_hit()).
-  HitBatch points;  // only px, py, pz are read
+  alignas(64) float px[kRayBatch], py[kRayBatch], pz[kRayBatch];
   if (!planes_.empty()) {
     for (size_t i = 0; i < n; ++i) on_plane[i] = plane[i] >= 0;
-    batch_plane_hits(r, on_plane, 1, tp, plane, n, planes, &points);
+    batch_plane_points(r, on_plane, 1, tp, plane, n, planes, px, py, pz);
   }
   TraceContext ctx;  // no glass list: glass blocks like any surface
   rtcInitIntersectContext(&ctx.rtc);
   ctx.scene = this;
   for (size_t i = 0; i < n; ++i) {
     if (r.skip[i]) continue;
-    if (on_plane[i] && std::isfinite(points.px[i]) && std::isfinite(points.py[i]) && std::isfinite(points.pz[i])) {
+    if (on_plane[i] && std::isfinite(px[i]) && std::isfinite(py[i]) && std::isfinite(pz[i])) {
       blocked[i] = 1;
       continue;
     }
