@@ -12,7 +12,7 @@
 #include "color/png_io.h"
 #include "color/rgb9e5.h"
 #include "color/rgbe.h"
-#include "color/synthetic_images.h"
+#include "support/synthetic_images.h"
 #include "image/exr_io.h"
 
 namespace tessera::color {

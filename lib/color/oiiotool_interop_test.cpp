@@ -13,7 +13,7 @@
 #include "color/rgb9e5.h"
 #include "color/dds_rgb9e5.h"
 #include "color/rgbe.h"
-#include "color/synthetic_images.h"
+#include "support/synthetic_images.h"
 #include "image/exr_io.h"
 
 namespace tessera::color {

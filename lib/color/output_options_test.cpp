@@ -7,7 +7,7 @@
 
 #include "color/color_error.h"
 #include "color/png_io.h"
-#include "color/synthetic_images.h"
+#include "support/synthetic_images.h"
 
 namespace tessera::color {
 namespace {

@@ -10,7 +10,7 @@
 #include "color/palette_quantizer.h"
 #include "color/png_io.h"
 #include "color/srgb.h"
-#include "color/synthetic_images.h"
+#include "support/synthetic_images.h"
 #include "color/tonemap.h"
 
 namespace tessera::color {

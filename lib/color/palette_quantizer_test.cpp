@@ -6,7 +6,7 @@
 
 #include "color/image_metrics.h"
 #include "color/srgb.h"
-#include "color/synthetic_images.h"
+#include "support/synthetic_images.h"
 #include "color/tonemap.h"
 
 namespace tessera::color {

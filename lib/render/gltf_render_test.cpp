@@ -10,7 +10,7 @@
 #include <numbers>
 
 #include "render/tile_renderer.h"
-#include "scene/gltf_test_builder.h"
+#include "support/gltf_test_builder.h"
 #include "scene/scene_parser.h"
 
 namespace tessera {

@@ -15,7 +15,7 @@
 #include "render/fresnel.h"
 #include "render/render_scene.h"
 #include "render/tile_renderer.h"
-#include "scene/gltf_test_builder.h"
+#include "support/gltf_test_builder.h"
 #include "scene/scene_parser.h"
 
 namespace tessera {

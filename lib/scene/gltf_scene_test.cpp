@@ -11,7 +11,7 @@
 #include <numbers>
 
 #include "scene/animation.h"
-#include "scene/gltf_test_builder.h"
+#include "support/gltf_test_builder.h"
 #include "scene/scene_parser.h"
 
 namespace tessera {

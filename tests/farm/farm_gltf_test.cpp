@@ -5,7 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "farm_harness.h"
-#include "scene/gltf_test_builder.h"
+#include "support/gltf_test_builder.h"
 
 namespace tessera::farmtest {
 namespace {
