@@ -17,7 +17,7 @@
 
 #include "commands.h"
 #include "farm/bundle.h"
-#include "farm/codec.h"
+#include "farm/overrides_codec.h"
 #include "bundle_upload.h"
 #include "farm_client.h"
 #include "farm_frames.h"

@@ -1,14 +1,13 @@
-#include <iostream>
 #include "farm_frames.h"
 
 #include <chrono>
+#include <iostream>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
 
-#include "farm/codec.h"
+#include "farm/tile_codec.h"
 #include "image/output_path.h"
-#include "render/tile_renderer.h"
 #include "sample_report.h"
 
 namespace tessera::cli {
@@ -37,7 +36,8 @@ std::string preview_path(const std::string& frame_path) {
   return (p.parent_path() / (p.stem().string() + ".preview" + p.extension().string())).string();
 }
 
-FrameAssembler::FrameAssembler(const tessera::v1::JobStatus& job) : job_(job), settings_(job_image_settings(job)) {}
+FrameAssembler::FrameAssembler(const tessera::v1::JobStatus& job)
+    : job_(job), grid_(job.width(), job.height(), job.tile_size()), settings_(job_image_settings(job)) {}
 
 bool FrameAssembler::add(const tessera::v1::TileData& tile, std::string* error) {
   if (tile.frame() < job_.first_frame() || tile.frame() > job_.last_frame() || tile.tile_index() < 0 ||
@@ -55,22 +55,22 @@ bool FrameAssembler::add(const tessera::v1::TileData& tile, std::string* error) 
   }
   if (written_.count(tile.frame())) return false;
   Frame& f = frames_[tile.frame()];
-  if (f.tiles.count(tile.tile_index())) return false;  // a second copy: the first one won
+  if (f.pixels.has(tile.tile_index())) return false;  // a second copy: the first one won
   TileResult r;
   *error = farm::decode_tile_in_image(tile, job_.width(), job_.height(), &r);
   if (!error->empty()) return false;
-  if (f.image.width == 0) {
-    f.image = ImageRGB(job_.width(), job_.height());
-    f.variance.assign(f.image.pixel_count(), 0.0f);
-    f.spp.assign(f.image.pixel_count(), 0);
-    f.first = now_s();
-  }
   // Tiles of workers that predate per-pixel sample counts: every pixel took the job's spp.
   if (r.spp.empty()) r.spp.assign(r.variance.size(), uint32_t(job_.spp()));
-  place_tile(r, &f.image, &f.variance, &f.spp);
+  if (f.pixels.image().width == 0) {
+    f.pixels = FrameAssembly(grid_);
+    f.first = now_s();
+  }
+  if (std::string why = f.pixels.place(tile.tile_index(), r); !why.empty()) {
+    *error = why + " of frame " + std::to_string(tile.frame());
+    return false;
+  }
   for (float v : r.variance) variance_sum_ += double(v);
   pixels_ += int64_t(r.variance.size());
-  f.tiles.insert(tile.tile_index());
   f.last = now_s();
   f.tile_seconds += r.seconds;
   f.rays += r.rays.total();
@@ -82,17 +82,17 @@ bool FrameAssembler::add(const tessera::v1::TileData& tile, std::string* error) 
 
 bool FrameAssembler::complete(int frame) const {
   auto it = frames_.find(frame);
-  return it != frames_.end() && int(it->second.tiles.size()) == job_.tiles_per_frame();
+  return it != frames_.end() && it->second.pixels.complete();
 }
 
 std::string FrameAssembler::missing_tiles(int frame) const {
   auto it = frames_.find(frame);
-  const std::set<int> none;
-  const std::set<int>& have = it == frames_.end() ? none : it->second.tiles;
+  const auto have = [&](int t) { return it != frames_.end() && it->second.pixels.has(t); };
+  const int received = it == frames_.end() ? 0 : it->second.pixels.tiles_done();
   std::string list;
   int listed = 0, missing = 0;
   for (int t = 0; t < job_.tiles_per_frame(); ++t) {
-    if (have.count(t)) continue;
+    if (have(t)) continue;
     ++missing;
     if (listed < 10) {
       list += (list.empty() ? "" : ", ") + std::to_string(t);
@@ -100,7 +100,7 @@ std::string FrameAssembler::missing_tiles(int frame) const {
     }
   }
   if (missing > listed) list += ", ...";
-  return (missing == 1 ? "tile " : "tiles ") + list + " missing (" + std::to_string(have.size()) + " of " +
+  return (missing == 1 ? "tile " : "tiles ") + list + " missing (" + std::to_string(received) + " of " +
          std::to_string(job_.tiles_per_frame()) + " received)";
 }
 
@@ -125,7 +125,8 @@ FrameReport FrameAssembler::write(int frame, const std::string& pattern, const s
   rep.tile_seconds = f.tile_seconds;
   rep.rays = f.rays;
   rep.workers = f.workers;
-  rep.samples = summarize_samples(f.variance, f.spp, f.image.width, f.image.height, settings_);
+  const ImageRGB& image = f.pixels.image();
+  rep.samples = summarize_samples(f.pixels.variance(), f.pixels.spp(), image.width, image.height, settings_);
   std::string workers;
   for (const auto& w : f.workers) workers += (workers.empty() ? "" : ",") + w;
   ExrAttributes attrs{{"renderer", std::string("tessera 0.1.0 (farm)")},
@@ -142,11 +143,12 @@ FrameReport FrameAssembler::write(int frame, const std::string& pattern, const s
   std::error_code ec;
   if (!parent.empty()) std::filesystem::create_directories(parent, ec);
   if (color::is_float_exr_output(color, rep.path)) {
-    const ErrorChannels channels = error_channels ? make_error_channels(f.variance, f.spp) : ErrorChannels{};
-    write_exr(rep.path, f.image, attrs, ExrPixelType::kFloat,
+    const ErrorChannels channels =
+        error_channels ? make_error_channels(f.pixels.variance(), f.pixels.spp()) : ErrorChannels{};
+    write_exr(rep.path, image, attrs, ExrPixelType::kFloat,
               error_channels ? channels.channels() : std::vector<ExrChannel>{});
   } else {
-    color::write_output(f.image, rep.path, color, std::cout);
+    color::write_output(image, rep.path, color, std::cout);
   }
   std::filesystem::remove(preview_path(rep.path), ec);  // the preview has served its purpose
   written_.insert(frame);
@@ -157,20 +159,20 @@ FrameReport FrameAssembler::write(int frame, const std::string& pattern, const s
 int FrameAssembler::write_previews(const std::string& pattern, const color::OutputOptions& color) {
   int written = 0;
   for (const auto& [frame, f] : frames_) {
-    if (f.tiles.empty() || int(f.tiles.size()) == job_.tiles_per_frame()) continue;
+    if (f.pixels.tiles_done() == 0 || f.pixels.complete()) continue;
     const std::string path = preview_path(frame_output_path(pattern, frame));
     // Written beside and renamed into place: a viewer never sees half a file.
     const std::string tmp = path + ".tmp" + std::filesystem::path(path).extension().string();
     if (color::is_float_exr_output(color, path)) {
-      write_exr(tmp, f.image,
+      write_exr(tmp, f.pixels.image(),
                 {{"tessera:job", job_.job_id()},
                  {"tessera:frame", int64_t(frame)},
                  {"tessera:preview", std::string("missing tiles are black")},
-                 {"tessera:tilesDone", int64_t(f.tiles.size())},
+                 {"tessera:tilesDone", int64_t(f.pixels.tiles_done())},
                  {"tessera:tilesTotal", int64_t(job_.tiles_per_frame())}});
     } else {
       std::ostringstream quiet;  // the conversion report of a preview is noise
-      color::write_output(f.image, tmp, color, quiet);
+      color::write_output(f.pixels.image(), tmp, color, quiet);
     }
     std::filesystem::rename(tmp, path);
     ++written;

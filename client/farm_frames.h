@@ -1,6 +1,6 @@
 // Assembles a job's finished tiles into frames on the client and writes each complete frame as
-// a float OpenEXR, exactly as `tessera render` lays out the pixels (place_tile), so the files
-// are bit-identical to an in-process render.
+// a float OpenEXR, laid out by the same FrameAssembly as `tessera render` uses, so the files are
+// bit-identical to an in-process render.
 #pragma once
 
 #include <cmath>
@@ -12,8 +12,8 @@
 #include "image/exr_io.h"
 #include "image/image.h"
 #include "render/adaptive.h"
-#include "render/tile.h"
 #include "tessera/v1/client_service.pb.h"
+#include "tile/frame_assembly.h"
 
 #include "color/output_options.h"
 
@@ -71,16 +71,14 @@ class FrameAssembler {
 
  private:
   struct Frame {
-    ImageRGB image;
-    std::vector<float> variance;
-    std::vector<uint32_t> spp;
-    std::set<int> tiles;
+    FrameAssembly pixels;
     double first = 0, last = 0;  // arrival times
     double tile_seconds = 0;
     uint64_t rays = 0;
     std::set<std::string> workers;
   };
   tessera::v1::JobStatus job_;
+  TileGrid grid_;  // how the coordinator cut each frame (tile index -> rectangle)
   ImageSettings settings_;
   std::map<int, Frame> frames_;
   std::set<int> written_;

@@ -8,7 +8,8 @@
 
 #include <google/protobuf/stubs/logging.h>
 
-#include "farm/codec.h"
+#include "farm/overrides_codec.h"
+#include "farm/tile_codec.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static const bool quiet = [] {

@@ -6,7 +6,7 @@
 
 namespace tessera::rays {
 
-BundleScenes::BundleScenes(std::filesystem::path cache_dir, worker::BundleCache::FetchFn fetch, size_t max_frames)
+BundleScenes::BundleScenes(std::filesystem::path cache_dir, farm::BundleCache::FetchFn fetch, size_t max_frames)
     : cache_(std::move(cache_dir), std::move(fetch), max_frames) {}
 
 grpc::Status BundleScenes::get(const std::string& sha256, int frame, std::shared_ptr<const RayTracer>* tracer) {

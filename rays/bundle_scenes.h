@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <memory>
 
-#include "bundle_cache.h"
+#include "farm/bundle_cache.h"
 #include "scene_source.h"
 
 namespace tessera::rays {
@@ -14,7 +14,7 @@ namespace tessera::rays {
 class BundleScenes {
  public:
   // `fetch` downloads a bundle (farm::fetch_bundle); it throws farm::FetchError.
-  BundleScenes(std::filesystem::path cache_dir, worker::BundleCache::FetchFn fetch, size_t max_frames = 8);
+  BundleScenes(std::filesystem::path cache_dir, farm::BundleCache::FetchFn fetch, size_t max_frames = 8);
   grpc::Status get(const std::string& sha256, int frame, std::shared_ptr<const RayTracer>* tracer);
   SceneSource source() {
     return [this](const std::string& sha256, int frame, std::shared_ptr<const RayTracer>* t) {
@@ -23,7 +23,7 @@ class BundleScenes {
   }
 
  private:
-  worker::BundleCache cache_;
+  farm::BundleCache cache_;
 };
 
 }  // namespace tessera::rays

@@ -14,14 +14,14 @@
 #include <thread>
 
 #include "announcer.h"
-#include "auth.h"
+#include "farm/auth.h"
 #include "bundle_scenes.h"
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
 #include "large_buffers.h"
 #include "ray_service.h"
 #include "render/embree_device.h"
-#include "request_limits.h"
+#include "farm/request_limits.h"
 
 int main(int argc, char** argv) {
   using namespace tessera;
@@ -33,7 +33,7 @@ int main(int argc, char** argv) {
   std::string log_level = "info";
   rays::RayServiceOptions options;
   options.threads = int(std::max(1u, std::thread::hardware_concurrency()));
-  int64_t max_message_bytes = server::Limits{}.max_message_bytes;
+  int64_t max_message_bytes = farm::Limits{}.max_message_bytes;
   int max_frames = 8;
   std::string advertise;
   double announce_seconds = 5;
@@ -63,7 +63,7 @@ int main(int argc, char** argv) {
                "Do not announce this server: clients must name it with --server (standalone use)")
       ->group("Discovery");
   // Inbound: the same flags, files and environment variables as tessera-server's client side.
-  server::ServerSecurity inbound;
+  farm::ServerSecurity inbound;
   app.add_option("--client-token-file", inbound.client_token_file,
                  "File holding the token clients must send (else env TESSERA_CLIENT_TOKEN; none: open)")
       ->group("Security");
@@ -91,10 +91,10 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", kVersion);
   CLI11_PARSE(app, argc, argv);
 
-  server::Authenticator auth;
+  farm::Authenticator auth;
   std::shared_ptr<grpc::ServerCredentials> credentials;
   try {
-    auth = server::Authenticator(farm::read_token(inbound.client_token_file, "TESSERA_CLIENT_TOKEN"), "");
+    auth = farm::Authenticator(farm::read_token(inbound.client_token_file, "TESSERA_CLIENT_TOKEN"), "");
     credentials = inbound.credentials();
     outbound.token = farm::read_token(worker_token_file, "TESSERA_WORKER_TOKEN");
   } catch (const std::exception& e) {
@@ -150,7 +150,7 @@ int main(int argc, char** argv) {
   spdlog::info("{}: bundles from {}, {} threads per batch, at most {} rays per batch, Embree {}", kVersion,
                coordinator, options.threads, options.max_batch_rays, embree_isa());
   spdlog::info("security: {}, clients {}", inbound.tls_cert.empty() ? "plaintext" : "TLS",
-               auth.open(server::PeerRole::kClient) ? "open" : "need the client token");
+               auth.open(farm::PeerRole::kClient) ? "open" : "need the client token");
   std::printf("listening on %s:%d\n", host.c_str(), port);  // the line tests and scripts wait for
   std::fflush(stdout);
   std::unique_ptr<rays::Announcer> announcer;
@@ -164,7 +164,7 @@ int main(int argc, char** argv) {
     self.set_embree_isa(embree_isa());
     self.set_max_batch_rays(options.max_batch_rays);
     self.set_tls(!inbound.tls_cert.empty());
-    self.set_client_token(!auth.open(server::PeerRole::kClient));
+    self.set_client_token(!auth.open(farm::PeerRole::kClient));
     self.set_version(kVersion);
     spdlog::info("announcing {} as ray server {} to the coordinator every {} s", advertised, self.server_id(),
                  announce_seconds);

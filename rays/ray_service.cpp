@@ -12,7 +12,7 @@ namespace v1 = tessera::v1;
 using grpc::Status;
 using grpc::StatusCode;
 
-RayServiceImpl::RayServiceImpl(SceneSource scenes, server::Authenticator auth, RayServiceOptions options)
+RayServiceImpl::RayServiceImpl(SceneSource scenes, farm::Authenticator auth, RayServiceOptions options)
     : scenes_(std::move(scenes)), auth_(std::move(auth)), options_(options), arena_(std::max(1, options.threads)) {}
 
 Status RayServiceImpl::answer(const RayTracer& tracer, const v1::TraceRequest& req, v1::TraceResponse* resp) {
@@ -74,7 +74,7 @@ Status RayServiceImpl::answer(const RayTracer& tracer, const v1::TraceRequest& r
 }
 
 Status RayServiceImpl::Trace(grpc::ServerContext* ctx, const v1::TraceRequest* req, v1::TraceResponse* resp) {
-  if (Status s = auth_.check(*ctx, server::PeerRole::kClient); !s.ok()) return s;
+  if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) return s;
   if (!req->has_scene()) return Status(StatusCode::INVALID_ARGUMENT, "scene: required (bundle_sha256 and frame)");
   std::shared_ptr<const RayTracer> tracer;
   if (Status s = scenes_(req->scene().bundle_sha256(), req->scene().frame(), &tracer); !s.ok()) return s;
@@ -83,7 +83,7 @@ Status RayServiceImpl::Trace(grpc::ServerContext* ctx, const v1::TraceRequest* r
 
 Status RayServiceImpl::TraceStream(grpc::ServerContext* ctx,
                                    grpc::ServerReaderWriter<v1::TraceResponse, v1::TraceRequest>* stream) {
-  if (Status s = auth_.check(*ctx, server::PeerRole::kClient); !s.ok()) return s;
+  if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) return s;
   std::shared_ptr<const RayTracer> tracer;
   v1::SceneRef current;
   // Read() parses into `req` and answer() fills `resp` keeping their arrays' capacity, so these
@@ -110,7 +110,7 @@ Status RayServiceImpl::TraceStream(grpc::ServerContext* ctx,
 }
 
 Status RayServiceImpl::DescribeScene(grpc::ServerContext* ctx, const v1::SceneRef* req, v1::SceneDescription* resp) {
-  if (Status s = auth_.check(*ctx, server::PeerRole::kClient); !s.ok()) return s;
+  if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) return s;
   std::shared_ptr<const RayTracer> tracer;
   if (Status s = scenes_(req->bundle_sha256(), req->frame(), &tracer); !s.ok()) return s;
   const Scene& scene = tracer->scene();

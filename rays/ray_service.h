@@ -8,7 +8,7 @@
 #include <atomic>
 #include <cstdint>
 
-#include "auth.h"
+#include "farm/auth.h"
 #include "scene_source.h"
 #include "tessera/v1/ray_service.grpc.pb.h"
 
@@ -31,7 +31,7 @@ struct RayServiceCounters {
 
 class RayServiceImpl final : public tessera::v1::RayService::Service {
  public:
-  RayServiceImpl(SceneSource scenes, server::Authenticator auth, RayServiceOptions options);
+  RayServiceImpl(SceneSource scenes, farm::Authenticator auth, RayServiceOptions options);
 
   grpc::Status Trace(grpc::ServerContext* ctx, const tessera::v1::TraceRequest* req,
                      tessera::v1::TraceResponse* resp) override;
@@ -49,7 +49,7 @@ class RayServiceImpl final : public tessera::v1::RayService::Service {
                            tessera::v1::TraceResponse* resp);
 
   SceneSource scenes_;
-  server::Authenticator auth_;
+  farm::Authenticator auth_;
   RayServiceOptions options_;
   tbb::task_arena arena_;
   std::atomic<uint64_t> requests_{0}, rays_{0}, in_flight_{0};

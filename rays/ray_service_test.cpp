@@ -51,7 +51,7 @@ class RayServiceTest : public ::testing::Test {
       *t = tracer_;
       return grpc::Status::OK;
     };
-    service_ = std::make_unique<RayServiceImpl>(source, server::Authenticator(client_token, ""), options);
+    service_ = std::make_unique<RayServiceImpl>(source, farm::Authenticator(client_token, ""), options);
     grpc::ServerBuilder b;
     int port = 0;
     b.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);

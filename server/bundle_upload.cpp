@@ -8,7 +8,7 @@
 #include <random>
 #include <stdexcept>
 
-#include "request_limits.h"
+#include "farm/request_limits.h"
 
 namespace tessera::server {
 
@@ -61,7 +61,7 @@ grpc::Status UploadSlots::acquire() {
   const int n = ++active_;
   if (n <= max_) return grpc::Status::OK;
   --active_;
-  return over_limit(grpc::StatusCode::RESOURCE_EXHAUSTED, "the number of bundle uploads in progress", n,
+  return farm::over_limit(grpc::StatusCode::RESOURCE_EXHAUSTED, "the number of bundle uploads in progress", n,
                     "--max-concurrent-uploads", max_);
 }
 

@@ -6,7 +6,8 @@
 
 #include "bundle_upload.h"
 #include "farm/bundle.h"
-#include "farm/codec.h"
+#include "farm/client_identity.h"
+#include "farm/overrides_codec.h"
 #include "scene/scene_parser.h"
 
 namespace tessera::server {
@@ -40,7 +41,7 @@ class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk> {
       if (sha_.empty()) sha_ = chunk_.sha256();
       // Checked per chunk: the upload is refused as soon as it is over the limit.
       if (upload_->size() + int64_t(chunk_.data().size()) > max_bytes_) {
-        Finish(over_limit(StatusCode::RESOURCE_EXHAUSTED, "the scene bundle's size in bytes (so far)",
+        Finish(farm::over_limit(StatusCode::RESOURCE_EXHAUSTED, "the scene bundle's size in bytes (so far)",
                           upload_->size() + int64_t(chunk_.data().size()), "--max-bundle-bytes", max_bytes_));
         return;
       }
@@ -138,9 +139,9 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::WatchJobEvent> {
 
 Status ClientServiceImpl::authenticate(const grpc::CallbackServerContext& ctx, Caller* caller) const {
   std::string token_name;
-  Status s = auth_.check(ctx, PeerRole::kClient, &token_name);
+  Status s = auth_.check(ctx, farm::PeerRole::kClient, &token_name);
   if (!s.ok()) return s;
-  caller->identity = client_identity(ctx, token_name);
+  caller->identity = farm::client_identity(ctx, token_name);
   caller->admin = admins_.count(caller->identity) > 0;
   return s;
 }
@@ -155,7 +156,7 @@ Status ClientServiceImpl::authorize(const std::string& job, const Caller& caller
 
 grpc::ServerUnaryReactor* ClientServiceImpl::HasBundle(grpc::CallbackServerContext* ctx,
                                                        const v1::HasBundleRequest* req, v1::HasBundleResponse* resp) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
+  if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
   if (!farm::is_sha256_hex(req->sha256())) {
     return reply(ctx, Status(StatusCode::INVALID_ARGUMENT, "'" + req->sha256() + "' is not a lower-case hex SHA-256"));
   }
@@ -165,11 +166,11 @@ grpc::ServerUnaryReactor* ClientServiceImpl::HasBundle(grpc::CallbackServerConte
 
 grpc::ServerReadReactor<v1::BundleChunk>* ClientServiceImpl::UploadBundle(grpc::CallbackServerContext* ctx,
                                                                          v1::UploadBundleResponse* resp) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) {
-    return new Refused<grpc::ServerReadReactor<v1::BundleChunk>>(std::move(s));
+  if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) {
+    return new farm::Refused<grpc::ServerReadReactor<v1::BundleChunk>>(std::move(s));
   }
   if (Status s = uploads_.acquire(); !s.ok()) {
-    return new Refused<grpc::ServerReadReactor<v1::BundleChunk>>(std::move(s));
+    return new farm::Refused<grpc::ServerReadReactor<v1::BundleChunk>>(std::move(s));
   }
   return new UploadReactor(coord_.bundles(), resp, limits_.max_bundle_bytes, uploads_);
 }
@@ -201,7 +202,7 @@ grpc::ServerWriteReactor<v1::WatchJobEvent>* ClientServiceImpl::WatchJob(grpc::C
   Caller caller;
   Status s = authenticate(*ctx, &caller);
   if (s.ok()) s = authorize(req->job_id(), caller, "watch");
-  if (!s.ok()) return new Refused<grpc::ServerWriteReactor<v1::WatchJobEvent>>(std::move(s));
+  if (!s.ok()) return new farm::Refused<grpc::ServerWriteReactor<v1::WatchJobEvent>>(std::move(s));
   return new WatchReactor(coord_, req->job_id());
 }
 
@@ -215,13 +216,13 @@ grpc::ServerUnaryReactor* ClientServiceImpl::AckFrame(grpc::CallbackServerContex
 
 grpc::ServerUnaryReactor* ClientServiceImpl::GetJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req,
                                                     v1::JobStatus* resp) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
+  if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
   return reply(ctx, coord_.get_job(req->job_id(), resp));
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::ListJobs(grpc::CallbackServerContext* ctx, const v1::ListJobsRequest*,
                                                       v1::ListJobsResponse* resp) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
+  if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
   coord_.list_jobs(resp);
   return reply(ctx, Status::OK);
 }
@@ -245,7 +246,7 @@ grpc::ServerUnaryReactor* ClientServiceImpl::SetJobPriority(grpc::CallbackServer
 grpc::ServerUnaryReactor* ClientServiceImpl::ListWorkers(grpc::CallbackServerContext* ctx,
                                                          const v1::ListWorkersRequest*,
                                                          v1::ListWorkersResponse* resp) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
+  if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
   coord_.list_workers(resp);
   return reply(ctx, Status::OK);
 }
@@ -253,7 +254,7 @@ grpc::ServerUnaryReactor* ClientServiceImpl::ListWorkers(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* ClientServiceImpl::ListRayServers(grpc::CallbackServerContext* ctx,
                                                             const v1::ListRayServersRequest*,
                                                             v1::ListRayServersResponse* resp) {
-  if (Status s = auth_.check(*ctx, PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
+  if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
   coord_.ray_servers().list(resp);
   return reply(ctx, Status::OK);
 }

@@ -4,11 +4,12 @@
 #include <set>
 #include <string>
 
-#include "auth.h"
+#include "farm/auth.h"
 #include "bundle_upload.h"
 #include "coordinator.h"
 #include "job_access.h"
-#include "request_limits.h"
+#include "farm/request_limits.h"
+#include "job_quota.h"
 #include "tessera/v1/client_service.grpc.pb.h"
 
 namespace tessera::server {
@@ -19,7 +20,7 @@ class ClientServiceImpl final : public tessera::v1::ClientService::CallbackServi
   // The per-client quota starts from the active jobs the coordinator restored: a restart does
   // not give every client a fresh allowance.
   // `admins`: identities (job_access.h) that may watch, cancel and acknowledge any client's jobs.
-  explicit ClientServiceImpl(Coordinator& c, Authenticator auth = {}, Limits limits = {},
+  explicit ClientServiceImpl(Coordinator& c, farm::Authenticator auth = {}, farm::Limits limits = {},
                              std::set<std::string> admins = {})
       : coord_(c), auth_(std::move(auth)), limits_(limits), quota_(limits.max_jobs_per_client),
         admins_(std::move(admins)), uploads_(limits.max_concurrent_uploads) {
@@ -57,8 +58,8 @@ class ClientServiceImpl final : public tessera::v1::ClientService::CallbackServi
   grpc::Status authorize(const std::string& job, const Caller& caller, const char* action);
 
   Coordinator& coord_;
-  Authenticator auth_;
-  Limits limits_;
+  farm::Authenticator auth_;
+  farm::Limits limits_;
   JobQuota quota_;
   std::set<std::string> admins_;
   UploadSlots uploads_;

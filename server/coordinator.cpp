@@ -5,7 +5,8 @@
 #include <cstring>
 
 #include "farm/bundle.h"
-#include "farm/codec.h"
+#include "farm/overrides_codec.h"
+#include "farm/tile_codec.h"
 #include "scene/scene_parser.h"
 
 namespace tessera::server {
@@ -30,15 +31,6 @@ v1::JobState to_proto(JobState s) {
     case JobState::kFailed: return v1::JOB_STATE_FAILED;
   }
   return v1::JOB_STATE_UNSPECIFIED;
-}
-// Index of the first NaN or infinite float in little-endian float32 bytes, or -1.
-int64_t first_nonfinite(const std::string& bytes) {
-  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
-  for (size_t i = 0; i + 4 <= bytes.size(); i += 4) {
-    const uint32_t bits = uint32_t(p[i]) | uint32_t(p[i + 1]) << 8 | uint32_t(p[i + 2]) << 16 | uint32_t(p[i + 3]) << 24;
-    if ((bits & 0x7f800000u) == 0x7f800000u) return int64_t(i / 4);
-  }
-  return -1;
 }
 }  // namespace
 
@@ -612,25 +604,7 @@ void Coordinator::tile_result_locked(WorkerId id, const v1::TileResult& r) {
     return;
   }
   const auto rect = scheduler_.tile_rect(lease->tile.job, lease->tile.frame, lease->tile.tile);
-  std::string err = farm::check_tile(r.tile(), rect->width, rect->height);
-  if (err.empty() && (r.tile().rect().x0() != rect->x0 || r.tile().rect().y0() != rect->y0)) {
-    err = fmt::format("tile at ({}, {}), expected ({}, {})", r.tile().rect().x0(), r.tile().rect().y0(), rect->x0,
-                      rect->y0);
-  }
-  if (err.empty()) {
-    if (const int64_t i = first_nonfinite(r.tile().rgb()); i >= 0) {
-      const float v = [&] {
-        float f;
-        std::memcpy(&f, r.tile().rgb().data() + i * 4, 4);
-        return f;
-      }();
-      err = fmt::format("pixel ({}, {}) channel {} is {}", rect->x0 + (i / 3) % rect->width,
-                        rect->y0 + (i / 3) / rect->width, i % 3, std::isnan(v) ? "NaN" : "infinite");
-    } else if (const int64_t j = first_nonfinite(r.tile().variance()); j >= 0) {
-      err = fmt::format("variance of pixel ({}, {}) is not finite", rect->x0 + j % rect->width,
-                        rect->y0 + j / rect->width);
-    }
-  }
+  const std::string err = farm::validate_tile(r.tile(), *rect);
   if (!err.empty()) {
     scheduler_.fault(id, lease->tile.job, lease->id,
                      fmt::format("frame {} tile {}: {}", lease->tile.frame, lease->tile.tile, err));
@@ -666,10 +640,7 @@ void Coordinator::dispatch_locked() {
     p->mutable_overrides()->ParseFromString(a.overrides);
     p->set_frame(a.lease.tile.frame);
     p->set_tile_index(a.lease.tile.tile);
-    p->mutable_rect()->set_x0(a.rect.x0);
-    p->mutable_rect()->set_y0(a.rect.y0);
-    p->mutable_rect()->set_width(a.rect.width);
-    p->mutable_rect()->set_height(a.rect.height);
+    farm::to_proto(a.rect, p->mutable_rect());
     it->second->push(std::move(m));
     touched_workers_.push_back(it->second);
   }

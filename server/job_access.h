@@ -2,7 +2,7 @@
 // with the job) or an administrator (`tessera-server --admin IDENTITY`). Anyone may still read
 // a job's status.
 //
-// Identities (request_limits.h, client_identity): "cn:NAME" for a TLS client certificate,
+// Identities (farm/client_identity.h): "cn:NAME" for a TLS client certificate,
 // "token:NAME" for a named client token (client_tokens.h), else the peer's address
 // ("ipv4:10.0.0.7"). Only the first two authenticate a person; an address does not (a shared
 // token or an open farm says nothing about who is calling, and addresses change with NAT and

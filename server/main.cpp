@@ -11,7 +11,7 @@
 #include <cstdio>
 #include <iostream>
 
-#include "auth.h"
+#include "farm/auth.h"
 #include "bundle_store.h"
 #include "client_service.h"
 #include "coordinator.h"
@@ -20,7 +20,7 @@
 #include "monitor/http_listener.h"
 #include "monitor/monitor_feed.h"
 #include "monitor/monitor_routes.h"
-#include "request_limits.h"
+#include "farm/request_limits.h"
 #include "worker_service.h"
 
 namespace {
@@ -78,18 +78,18 @@ int main(int argc, char** argv) {
   app.add_option("--http-listen", http_listen,
                  "HOST:PORT for the web monitor, its JSON API and Prometheus /metrics (off unless given; "
                  "HTTPS with the --tls-cert certificate when TLS is on; port 0 picks a free one)");
-  ServerSecurity security;
+  farm::ServerSecurity security;
   security.add_flags(app);
   std::vector<std::string> admins;
   app.add_option("--admin", admins,
                  "A client identity that may watch, cancel and acknowledge every client's jobs "
                  "(token:NAME of a named client token, cn:NAME of a TLS client certificate); repeatable")
       ->group("Security");
-  Limits limits;
+  farm::Limits limits;
   limits.add_flags(app);
   app.set_version_flag("--version", "tessera-server 0.1.0");
   CLI11_PARSE(app, argc, argv);
-  Authenticator auth;
+  farm::Authenticator auth;
   std::shared_ptr<grpc::ServerCredentials> credentials;
   try {
     auth = security.authenticator();
@@ -203,7 +203,7 @@ int main(int argc, char** argv) {
     // After the gRPC line: scripts that wait for "listening on" get the gRPC port.
     std::printf("monitor on %s://%s:%d/\n", http->tls() ? "https" : "http", http_host.c_str(), http_port);
     const bool loopback = http_host == "127.0.0.1" || http_host == "localhost" || http_host == "[::1]";
-    if (!loopback && auth.open(PeerRole::kClient)) {
+    if (!loopback && auth.open(farm::PeerRole::kClient)) {
       spdlog::warn("the monitor on {} has no client token: anyone who reaches it can see and cancel jobs",
                    http_listen);
     } else if (!loopback && !http->tls()) {

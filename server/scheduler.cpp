@@ -54,16 +54,6 @@ const Scheduler::Job* Scheduler::find_job(const JobId& id) const {
   return it == jobs_.end() ? nullptr : &it->second;
 }
 
-Rect Scheduler::rect_of(const Job& job, int tile) const {
-  const int ts = job.spec.tile_size;
-  Rect r;
-  r.x0 = (tile % job.tiles_x) * ts;
-  r.y0 = (tile / job.tiles_x) * ts;
-  r.width = std::min(ts, job.spec.width - r.x0);
-  r.height = std::min(ts, job.spec.height - r.y0);
-  return r;
-}
-
 JobId Scheduler::submit(const JobSpec& spec) {
   JobId id = make_id_();
   while (jobs_.count(id)) id = make_id_();
@@ -73,10 +63,9 @@ JobId Scheduler::submit(const JobSpec& spec) {
   job.spec.tile_size = std::max(1, spec.tile_size);
   job.seq = next_seq_++;
   job.submitted = now_();
-  job.tiles_x = (spec.width + job.spec.tile_size - 1) / job.spec.tile_size;
-  job.tiles_y = (spec.height + job.spec.tile_size - 1) / job.spec.tile_size;
+  job.grid = TileGrid(spec.width, spec.height, job.spec.tile_size);
   const int frames = spec.last_frame - spec.first_frame + 1;
-  const int per_frame = job.tiles_x * job.tiles_y;
+  const int per_frame = job.grid.count();
   job.frames.resize(size_t(std::max(0, frames)));
   for (int f = 0; f < frames; ++f) {
     job.frames[size_t(f)].tiles.resize(size_t(per_frame));
@@ -287,7 +276,7 @@ Assignment Scheduler::issue(Worker& w, Job& job, int fi, int t, bool speculative
   a.lease.issued = now;
   a.lease.deadline = now + options_.lease_timeout;
   a.lease.speculative = speculative;
-  a.rect = rect_of(job, t);
+  a.rect = job.grid.rect(t);
   a.bundle_sha256 = job.spec.bundle_sha256;
   a.overrides = job.spec.overrides;
   tile.state = TileState::kLeased;
@@ -361,7 +350,7 @@ Scheduler::ResultOutcome Scheduler::complete(WorkerId worker, LeaseId lease_id, 
   for (LeaseId other : others) end_lease(other, LeaseEnd::kLostRace, false);
   events().tile_finished(lease.tile, tile.output, worker);
   if (frame.done == int(frame.tiles.size())) events().frame_finished(job.id, lease.tile.frame);
-  if (job.tiles_done == int64_t(job.frames.size()) * int64_t(job.tiles_x * job.tiles_y)) {
+  if (job.tiles_done == int64_t(job.frames.size()) * int64_t(job.grid.count())) {
     set_state(job, JobState::kDone);
   }
   return ResultOutcome::kAccepted;
@@ -432,10 +421,9 @@ void Scheduler::restore(JobRecord rec) {
   job.ended = rec.ended;
   job.duplicates = rec.duplicates;
   job.blocklisted.insert(rec.blocklisted.begin(), rec.blocklisted.end());
-  job.tiles_x = (job.spec.width + job.spec.tile_size - 1) / job.spec.tile_size;
-  job.tiles_y = (job.spec.height + job.spec.tile_size - 1) / job.spec.tile_size;
+  job.grid = TileGrid(job.spec.width, job.spec.height, job.spec.tile_size);
   const int frames = job.spec.last_frame - job.spec.first_frame + 1;
-  const int per_frame = job.tiles_x * job.tiles_y;
+  const int per_frame = job.grid.count();
   job.frames.resize(size_t(std::max(0, frames)));
   for (auto& fr : job.frames) fr.tiles.resize(size_t(per_frame));
   for (RestoredTile& d : rec.done) {
@@ -524,7 +512,7 @@ JobSnapshot Scheduler::snapshot(const Job& job) const {
   s.spec = job.spec;
   s.seq = job.seq;
   s.state = job.state;
-  s.tiles_per_frame = job.tiles_x * job.tiles_y;
+  s.tiles_per_frame = job.grid.count();
   s.tiles_total = int64_t(job.frames.size()) * s.tiles_per_frame;
   s.tiles_done = job.tiles_done;
   s.duplicates_discarded = job.duplicates;
@@ -587,14 +575,14 @@ std::vector<std::pair<TileKey, TileOutput>> Scheduler::finished_tiles(const JobI
   return out;
 }
 
-std::optional<Rect> Scheduler::tile_rect(const JobId& id, int frame, int tile) const {
+std::optional<TileRect> Scheduler::tile_rect(const JobId& id, int frame, int tile) const {
   const Job* job = find_job(id);
   if (!job) return std::nullopt;
   const int fi = frame - job->spec.first_frame;
-  if (fi < 0 || fi >= int(job->frames.size()) || tile < 0 || tile >= job->tiles_x * job->tiles_y) {
+  if (fi < 0 || fi >= int(job->frames.size()) || !job->grid.contains(tile)) {
     return std::nullopt;
   }
-  return rect_of(*job, tile);
+  return job->grid.rect(tile);
 }
 
 size_t Scheduler::queued_tiles() const {

@@ -22,6 +22,8 @@
 #include <tuple>
 #include <vector>
 
+#include "tile/tile_grid.h"
+
 namespace tessera::server {
 
 using Clock = std::chrono::steady_clock;
@@ -29,11 +31,6 @@ using TimePoint = Clock::time_point;
 using JobId = std::string;
 using WorkerId = uint64_t;
 using LeaseId = uint64_t;
-
-struct Rect {
-  int x0 = 0, y0 = 0, width = 0, height = 0;
-  bool operator==(const Rect&) const = default;
-};
 
 // What the coordinator decided at submit time (after validating the scene).
 struct JobSpec {
@@ -79,7 +76,7 @@ struct Lease {
 // A tile handed to a worker: the lease plus everything the worker needs to render it.
 struct Assignment {
   Lease lease;
-  Rect rect;
+  TileRect rect;
   std::string bundle_sha256;
   std::string overrides;
 };
@@ -265,7 +262,7 @@ class Scheduler {
   std::optional<Lease> lease(LeaseId id) const;
   // Every finished, unacknowledged tile of the job, by frame then tile (for a client attaching).
   std::vector<std::pair<TileKey, TileOutput>> finished_tiles(const JobId& id) const;
-  std::optional<Rect> tile_rect(const JobId& id, int frame, int tile) const;
+  std::optional<TileRect> tile_rect(const JobId& id, int frame, int tile) const;
   size_t queued_tiles() const;
 
  private:
@@ -285,7 +282,7 @@ class Scheduler {
     JobSpec spec;
     uint64_t seq = 0;
     JobState state = JobState::kQueued;
-    int tiles_x = 0, tiles_y = 0;
+    TileGrid grid;  // how each frame is cut into tiles
     std::vector<Frame> frames;
     std::deque<std::pair<int, int>> queue;  // (frame index, tile) waiting for a worker
     int64_t tiles_done = 0;
@@ -323,7 +320,6 @@ class Scheduler {
   void end_lease(LeaseId id, LeaseEnd why, bool requeue);
   void set_state(Job& job, JobState s);
   JobSnapshot snapshot(const Job& job) const;
-  Rect rect_of(const Job& job, int tile) const;
 
   SchedulerOptions options_;
   NowFn now_;

@@ -63,8 +63,8 @@ TEST_F(SchedulerTest, SplitsFramesIntoTilesWithEdgeTiles) {
   EXPECT_EQ(j->tiles_per_frame, 3 * 2);
   EXPECT_EQ(j->tiles_total, 12);
   EXPECT_EQ(j->state, JobState::kQueued);
-  EXPECT_EQ(*s.tile_rect(id, 0, 2), (Rect{32, 0, 8, 16}));
-  EXPECT_EQ(*s.tile_rect(id, 1, 5), (Rect{32, 16, 8, 4}));
+  EXPECT_EQ(*s.tile_rect(id, 0, 2), (TileRect{32, 0, 8, 16}));
+  EXPECT_EQ(*s.tile_rect(id, 1, 5), (TileRect{32, 16, 8, 4}));
   EXPECT_FALSE(s.tile_rect(id, 2, 0));
 }
 

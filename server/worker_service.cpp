@@ -128,16 +128,16 @@ class FetchReactor : public grpc::ServerWriteReactor<v1::BundleChunk> {
 
 grpc::ServerBidiReactor<v1::WorkerMessage, v1::CoordinatorMessage>* WorkerServiceImpl::Connect(
     grpc::CallbackServerContext* ctx) {
-  if (Status s = auth_.check(*ctx, PeerRole::kWorker); !s.ok()) {
-    return new Refused<grpc::ServerBidiReactor<v1::WorkerMessage, v1::CoordinatorMessage>>(std::move(s));
+  if (Status s = auth_.check(*ctx, farm::PeerRole::kWorker); !s.ok()) {
+    return new farm::Refused<grpc::ServerBidiReactor<v1::WorkerMessage, v1::CoordinatorMessage>>(std::move(s));
   }
   return new WorkerSession(coord_, ctx->peer());
 }
 
 grpc::ServerWriteReactor<v1::BundleChunk>* WorkerServiceImpl::FetchBundle(grpc::CallbackServerContext* ctx,
                                                                          const v1::FetchBundleRequest* req) {
-  if (Status s = auth_.check(*ctx, PeerRole::kWorker); !s.ok()) {
-    return new Refused<grpc::ServerWriteReactor<v1::BundleChunk>>(std::move(s));
+  if (Status s = auth_.check(*ctx, farm::PeerRole::kWorker); !s.ok()) {
+    return new farm::Refused<grpc::ServerWriteReactor<v1::BundleChunk>>(std::move(s));
   }
   return new FetchReactor(coord_.bundles(), req->sha256());
 }
@@ -145,7 +145,7 @@ grpc::ServerWriteReactor<v1::BundleChunk>* WorkerServiceImpl::FetchBundle(grpc::
 grpc::ServerUnaryReactor* WorkerServiceImpl::AnnounceRayServer(grpc::CallbackServerContext* ctx,
                                                                const v1::RayServerAnnouncement* req,
                                                                v1::RayServerAnnouncementAck* ack) {
-  Status s = auth_.check(*ctx, PeerRole::kWorker);
+  Status s = auth_.check(*ctx, farm::PeerRole::kWorker);
   if (!s.ok()) {
     // Said here too: the operator looking at the coordinator sees why a ray server is not listed.
     spdlog::warn("ray server announcement from {} refused: {}", ctx->peer(), s.error_message());

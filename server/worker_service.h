@@ -2,7 +2,7 @@
 // fetches.
 #pragma once
 
-#include "auth.h"
+#include "farm/auth.h"
 #include "coordinator.h"
 #include "tessera/v1/worker_service.grpc.pb.h"
 
@@ -11,7 +11,7 @@ namespace tessera::server {
 class WorkerServiceImpl final : public tessera::v1::WorkerService::CallbackService {
  public:
   // Every method first checks the worker token (auth.h).
-  explicit WorkerServiceImpl(Coordinator& c, Authenticator auth = {}) : coord_(c), auth_(std::move(auth)) {}
+  explicit WorkerServiceImpl(Coordinator& c, farm::Authenticator auth = {}) : coord_(c), auth_(std::move(auth)) {}
 
   grpc::ServerBidiReactor<tessera::v1::WorkerMessage, tessera::v1::CoordinatorMessage>* Connect(
       grpc::CallbackServerContext* ctx) override;
@@ -24,7 +24,7 @@ class WorkerServiceImpl final : public tessera::v1::WorkerService::CallbackServi
 
  private:
   Coordinator& coord_;
-  Authenticator auth_;
+  farm::Authenticator auth_;
 };
 
 }  // namespace tessera::server

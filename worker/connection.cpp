@@ -7,7 +7,7 @@
 
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
-#include "farm/codec.h"
+#include "farm/tile_codec.h"
 #include "render/embree_device.h"
 #include "render/tile_renderer.h"
 
@@ -244,7 +244,7 @@ void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assig
   v1::WorkerMessage out;
   try {
     auto scene = cache_.frame(a.bundle_sha256(), a.overrides().SerializeAsString(), a.frame());
-    const TileRect rect{a.rect().x0(), a.rect().y0(), a.rect().width(), a.rect().height()};
+    const TileRect rect = farm::from_proto(a.rect());
     const TileResult tile = render_tile(*scene, rect);
     auto* r = out.mutable_result();
     r->set_lease_id(a.lease_id());

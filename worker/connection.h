@@ -14,7 +14,7 @@
 #include <set>
 #include <string>
 
-#include "bundle_cache.h"
+#include "farm/bundle_cache.h"
 #include "farm/channel.h"
 #include "render_pool.h"
 #include "tessera/v1/worker_service.grpc.pb.h"

@@ -30,6 +30,7 @@
 #include "render/ray_log.h"
 #include "render/tile_renderer.h"
 #include "scene/scene_parser.h"
+#include "tile/tile_grid.h"
 
 namespace fs = std::filesystem;
 using namespace tessera;
@@ -254,7 +255,7 @@ int main(int argc, char** argv) {
   scene.image.spp = spp;
   if (depth) scene.image.max_depth = *depth;
   const RenderScene rs(scene, 0, {triangles});
-  const std::vector<TileRect> tiles = split_into_tiles(width, height, 32);
+  const std::vector<TileRect> tiles = TileGrid(width, height, 32).rects();
 
   // 1. The renderer, one thread, whole frame (sampling + tracing + shading + accumulation).
   double render_s = 1e30;

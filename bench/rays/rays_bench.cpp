@@ -328,7 +328,7 @@ int main(int argc, char** argv) {
           *t = tracer;
           return grpc::Status::OK;
         },
-        server::Authenticator(), options);
+        farm::Authenticator(), options);
     grpc::ServerBuilder builder;
     int port = 0;
     builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);

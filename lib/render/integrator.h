@@ -5,7 +5,7 @@
 
 #include "render/render_scene.h"
 #include "render/sampler.h"
-#include "render/tile.h"
+#include "tile/tile_result.h"
 
 namespace tessera {
 

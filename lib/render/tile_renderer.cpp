@@ -11,18 +11,10 @@
 
 #include "render/integrator.h"
 #include "render/pixel_estimate.h"
+#include "tile/frame_assembly.h"
+#include "tile/tile_grid.h"
 
 namespace tessera {
-
-std::vector<TileRect> split_into_tiles(int width, int height, int tile) {
-  std::vector<TileRect> tiles;
-  for (int y = 0; y < height; y += tile) {
-    for (int x = 0; x < width; x += tile) {
-      tiles.push_back({x, y, std::min(tile, width - x), std::min(tile, height - y)});
-    }
-  }
-  return tiles;
-}
 
 namespace {
 
@@ -165,38 +157,28 @@ double FrameResult::estimated_rmse() const {
   return std::sqrt(sum / double(variance.size()));
 }
 
-void place_tile(const TileResult& tile, ImageRGB* image, std::vector<float>* variance, std::vector<uint32_t>* spp) {
-  const TileRect& r = tile.rect;
-  for (int y = 0; y < r.height; ++y) {
-    const size_t src = size_t(y) * size_t(r.width);
-    const size_t dst = size_t(r.y0 + y) * size_t(image->width) + size_t(r.x0);
-    std::copy_n(&tile.rgb[3 * src], 3 * size_t(r.width), image->at(r.x0, r.y0 + y));
-    if (variance) std::copy_n(&tile.variance[src], size_t(r.width), &(*variance)[dst]);
-    if (spp && !tile.spp.empty()) std::copy_n(&tile.spp[src], size_t(r.width), &(*spp)[dst]);
-  }
-}
-
 FrameResult render_frame(const RenderScene& scene, int tile_size, int threads,
                          const std::function<void(int, int)>& progress) {
   const auto start = std::chrono::steady_clock::now();
   const ImageSettings& img = scene.image();
   FrameResult out;
-  out.image = ImageRGB(img.width, img.height);
-  out.variance.assign(out.image.pixel_count(), 0.0f);
-  out.spp.assign(out.image.pixel_count(), 0);
-  const std::vector<TileRect> tiles = split_into_tiles(img.width, img.height, tile_size);
+  const TileGrid grid(img.width, img.height, tile_size);
+  FrameAssembly frame(grid);
   std::mutex mutex;
   std::atomic<int> done{0};
   tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
   arena.execute([&] {
-    tbb::parallel_for(size_t(0), tiles.size(), [&](size_t i) {
-      const TileResult t = render_tile(scene, tiles[i]);
+    tbb::parallel_for(0, grid.count(), [&](int i) {
+      const TileResult t = render_tile(scene, grid.rect(i));
       std::lock_guard lock(mutex);
-      place_tile(t, &out.image, &out.variance, &out.spp);
+      frame.place(i, t);  // cannot fail: the tile is the grid's own
       out.rays += t.rays;
-      if (progress) progress(++done, int(tiles.size()));
+      if (progress) progress(++done, grid.count());
     });
   });
+  out.image = frame.take_image();
+  out.variance = frame.take_variance();
+  out.spp = frame.take_spp();
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   out.settings = img;
   return out;

@@ -6,7 +6,7 @@
 #include "image/image.h"
 #include "render/adaptive.h"
 #include "render/render_scene.h"
-#include "render/tile.h"
+#include "tile/tile_result.h"
 
 namespace tessera {
 
@@ -26,11 +26,6 @@ struct FrameResult {
   // The estimate with the spp range and, for a target-error render, the blocks left above it.
   SampleSummary summary() const;
 };
-
-// Copies a finished tile into a frame (the client assembles farm tiles the same way). `spp` is
-// left as it is where the tile carries no sample counts (tiles of older workers).
-void place_tile(const TileResult& tile, ImageRGB* image, std::vector<float>* variance,
-                std::vector<uint32_t>* spp = nullptr);
 
 // Renders a whole frame in-process with `threads` threads (0 = all cores), tile by tile.
 // `progress` (optional) is called after each tile with (tiles done, tiles total).

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "color/tonemap.h"
-#include "image/image.h"
 #include "tessera/v1/common.pb.h"
+#include "tile/frame_assembly.h"
 
 namespace tessera::server {
 
@@ -32,10 +32,10 @@ class FrameCanvas {
   // wrong sizes). A tile already placed is ignored (the first copy of a tile wins, as in the
   // scheduler).
   std::string add(const tessera::v1::TileData& tile);
-  bool has(int tile_index) const { return tile_index >= 0 && size_t(tile_index) < worker_of_.size() && worker_of_[size_t(tile_index)] >= 0; }
-  int tiles_done() const { return tiles_done_; }
-  int tiles_x() const { return tiles_x_; }
-  int tiles_y() const { return tiles_y_; }
+  bool has(int tile_index) const { return frame_.has(tile_index); }
+  int tiles_done() const { return frame_.tiles_done(); }
+  int tiles_x() const { return frame_.grid().columns(); }
+  int tiles_y() const { return frame_.grid().rows(); }
   // For each tile (row-major): the index in workers() of the worker that rendered it, or -1.
   const std::vector<int>& worker_of() const { return worker_of_; }
   const std::vector<std::string>& workers() const { return workers_; }
@@ -43,10 +43,7 @@ class FrameCanvas {
   std::string png(const color::ToneMapSettings& tonemap) const;
 
  private:
-  ImageRGB image_;
-  int tile_size_;
-  int tiles_x_, tiles_y_;
-  int tiles_done_ = 0;
+  FrameAssembly frame_;  // the colour only: the monitor shows no error layers
   std::vector<int> worker_of_;
   std::vector<std::string> workers_;
   std::map<std::string, int> worker_index_;

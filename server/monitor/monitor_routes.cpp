@@ -48,7 +48,7 @@ void send_error(httplib::Response& res, const Status& s) {
   send_json(res, http_status(s.error_code()), json{{"error", s.error_message()}});
 }
 
-// "cn:NAME" of a verified TLS client certificate (mutual TLS), as client_identity() in gRPC.
+// "cn:NAME" of a verified TLS client certificate (mutual TLS), as farm::client_identity() in gRPC.
 std::string certificate_identity(const httplib::Request& req) {
   if (!req.ssl) return {};
   X509* cert = SSL_get1_peer_certificate(req.ssl);
@@ -83,7 +83,7 @@ void MonitorRoutes::install(httplib::Server& server) const {
     const std::string value = req.get_header_value("Authorization");
     if (req.has_header("Authorization")) header = value;
     std::string token_name;
-    Status s = self->auth.check_authorization(header, PeerRole::kClient, &token_name);
+    Status s = self->auth.check_authorization(header, farm::PeerRole::kClient, &token_name);
     if (!s.ok()) return s;
     caller->identity = certificate_identity(req);
     if (caller->identity.empty() && !token_name.empty()) caller->identity = "token:" + token_name;
@@ -146,7 +146,7 @@ void MonitorRoutes::install(httplib::Server& server) const {
     Caller caller;
     if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
     send_json(res, 200,
-              {{"identity", caller.identity}, {"admin", caller.admin}, {"token_required", !self->auth.open(PeerRole::kClient)}});
+              {{"identity", caller.identity}, {"admin", caller.admin}, {"token_required", !self->auth.open(farm::PeerRole::kClient)}});
   });
   server.Get("/api/farm", [=](const httplib::Request& req, httplib::Response& res) {
     Caller caller;

@@ -15,7 +15,7 @@
 #include <set>
 #include <string>
 
-#include "auth.h"
+#include "farm/auth.h"
 
 namespace httplib {
 class Server;
@@ -31,7 +31,7 @@ struct MonitorRoutes {
   Coordinator& coordinator;
   MonitorFeed& feed;
   FarmMetrics* metrics = nullptr;  // null: no /metrics
-  const Authenticator& auth;
+  const farm::Authenticator& auth;
   std::set<std::string> admins;
 
   void install(httplib::Server& server) const;

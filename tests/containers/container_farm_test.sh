@@ -53,11 +53,23 @@ command -v idiff >/dev/null || fail "idiff (openimageio-tools) is missing: run s
 log "engine $(docker version --format '{{.Server.Version}}'), $("${compose[@]}" version --short 2>/dev/null || echo compose)"
 
 # ---- the base image, made locally when no registry can give it --------------------------------
+# The Debian mirror this machine's apt already installs from (a deb822 .sources stanza or a
+# one-line sources.list entry for bookworm): the image comes from the same place, wherever that is.
+apt_mirror() {
+  local uri
+  uri=$(awk '/^[[:space:]]*$/ {u = ""} /^URIs:/ {u = $2} /^Suites:/ && / bookworm( |$)/ && u != "" {print u; exit}' \
+          /etc/apt/sources.list.d/*.sources 2>/dev/null)
+  [ -n "$uri" ] || uri=$(awk '$1 == "deb" && / bookworm / {for (i = 2; i <= NF; i++) if ($i ~ /^[a-z]+:\/\//) {print $i; exit}}' \
+                           /etc/apt/sources.list /etc/apt/sources.list.d/*.list 2>/dev/null | head -1)
+  echo "$uri"
+}
 if ! docker image inspect debian:bookworm-slim >/dev/null 2>&1; then
   command -v debootstrap >/dev/null || skip "debian:bookworm-slim is missing and debootstrap is not installed"
-  log "making debian:bookworm-slim with debootstrap"
+  mirror=$(apt_mirror)
+  [ -n "$mirror" ] || skip "debian:bookworm-slim is missing and apt's sources name no bookworm mirror to debootstrap from"
+  log "making debian:bookworm-slim with debootstrap from $mirror"
   rootfs=$(mktemp -d /tmp/tessera-bookworm-rootfs.XXXXXX)
-  debootstrap --variant=minbase bookworm "$rootfs" http://deb.debian.org/debian >/tmp/tessera-debootstrap.log 2>&1 ||
+  debootstrap --variant=minbase bookworm "$rootfs" "$mirror" >/tmp/tessera-debootstrap.log 2>&1 ||
     { tail -20 /tmp/tessera-debootstrap.log; rm -rf "$rootfs"; fail "debootstrap failed (log above)"; }
   tar -C "$rootfs" -c . | docker import - debian:bookworm-slim >/dev/null
   rm -rf "$rootfs"

@@ -1,4 +1,4 @@
-#include "auth.h"
+#include "farm/auth.h"
 
 #include <openssl/crypto.h>
 #include <openssl/evp.h>
@@ -8,10 +8,10 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
-#include "client_tokens.h"
+#include "farm/client_tokens.h"
 #include "farm/channel.h"
 
-namespace tessera::server {
+namespace tessera::farm {
 
 namespace {
 
@@ -142,4 +142,4 @@ void ServerSecurity::log_posture(const std::string& listen, const Authenticator&
   }
 }
 
-}  // namespace tessera::server
+}  // namespace tessera::farm

@@ -1,4 +1,4 @@
-#include "client_tokens.h"
+#include "farm/client_tokens.h"
 
 #include <cctype>
 #include <filesystem>
@@ -7,7 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace tessera::server {
+namespace tessera::farm {
 
 namespace fs = std::filesystem;
 
@@ -74,4 +74,4 @@ std::map<std::string, std::string> read_client_tokens(const std::string& path) {
   return out;
 }
 
-}  // namespace tessera::server
+}  // namespace tessera::farm

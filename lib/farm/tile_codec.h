@@ -1,15 +1,18 @@
-// Conversions between the renderer's plain structs and the tessera.v1 wire messages. Pixels go
-// on the wire as little-endian IEEE-754 float32 (the byte order is fixed by the protocol, not by
-// the host), so a Python or big-endian client reads them the same way.
+// Tiles on the wire: conversions between the tile module's values (tile/) and the tessera.v1
+// messages, and the checks a peer runs on a tile it received. Pixels go on the wire as
+// little-endian IEEE-754 float32 (the byte order is fixed by the protocol, not by the host), so a
+// Python or big-endian client reads them the same way.
 #pragma once
 
 #include <string>
 
-#include "render/tile.h"
-#include "scene/scene_parser.h"
 #include "tessera/v1/common.pb.h"
+#include "tile/tile_result.h"
 
 namespace tessera::farm {
+
+void to_proto(const TileRect& r, tessera::v1::TileRect* out);
+TileRect from_proto(const tessera::v1::TileRect& r);
 
 void encode_tile(const TileResult& tile, tessera::v1::TileData* out);
 // Checks sizes (rgb = 3*w*h floats, variance = w*h floats) and decodes. Returns an empty string
@@ -23,12 +26,10 @@ std::string check_tile(const tessera::v1::TileData& in, int expected_width, int 
 // overflow: the client must not trust a rectangle it received over the network).
 std::string decode_tile_in_image(const tessera::v1::TileData& in, int width, int height, TileResult* out);
 
-void to_proto(const ImageOverrides& o, tessera::v1::ImageOverrides* out);
-// Throws SceneError naming the field for an unknown sampler name.
-ImageOverrides from_proto(const tessera::v1::ImageOverrides& o);
-// The glTF reading options travel in the same message (gltf_* fields); only non-defaults are set.
-void to_proto(const GltfOptions& o, tessera::v1::ImageOverrides* out);
-// Throws SceneError naming the field and its range (gltf_scene_index >= 0, gltf_fps in (0, 1000]).
-GltfOptions gltf_options_from_proto(const tessera::v1::ImageOverrides& o);
+// What the coordinator checks of a worker's result before it accepts it, without decoding: the
+// sizes and position are those of the tile it leased (`expected`), and every colour and variance
+// value is finite (a NaN would poison every later average of the frame). "" or what is wrong,
+// naming the pixel in image coordinates.
+std::string validate_tile(const tessera::v1::TileData& in, const TileRect& expected);
 
 }  // namespace tessera::farm

@@ -1,6 +1,7 @@
-#include "farm/codec.h"
+#include "farm/tile_codec.h"
 
 #include <bit>
+#include <cmath>
 #include <cstring>
 
 namespace tessera::farm {
@@ -41,14 +42,34 @@ void le_to_words(const std::string& s, std::vector<T>* v) {
   }
 }
 
+// The index of the first float32 (little-endian) in `bytes` that is NaN or infinite, or -1.
+int64_t first_nonfinite(const std::string& bytes) {
+  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
+  for (size_t i = 0; i + 4 <= bytes.size(); i += 4) {
+    const uint32_t bits = uint32_t(p[i]) | uint32_t(p[i + 1]) << 8 | uint32_t(p[i + 2]) << 16 | uint32_t(p[i + 3]) << 24;
+    if ((bits & 0x7f800000u) == 0x7f800000u) return int64_t(i / 4);
+  }
+  return -1;
+}
+
+float le_float_at(const std::string& bytes, int64_t index) {
+  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data()) + index * 4;
+  return std::bit_cast<float>(uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24);
+}
+
 }  // namespace
 
+void to_proto(const TileRect& r, tessera::v1::TileRect* out) {
+  out->set_x0(r.x0);
+  out->set_y0(r.y0);
+  out->set_width(r.width);
+  out->set_height(r.height);
+}
+
+TileRect from_proto(const tessera::v1::TileRect& r) { return {r.x0(), r.y0(), r.width(), r.height()}; }
+
 void encode_tile(const TileResult& tile, tessera::v1::TileData* out) {
-  auto* r = out->mutable_rect();
-  r->set_x0(tile.rect.x0);
-  r->set_y0(tile.rect.y0);
-  r->set_width(tile.rect.width);
-  r->set_height(tile.rect.height);
+  to_proto(tile.rect, out->mutable_rect());
   words_to_le(tile.rgb, out->mutable_rgb());
   words_to_le(tile.variance, out->mutable_variance());
   words_to_le(tile.spp, out->mutable_spp());
@@ -84,7 +105,7 @@ std::string decode_tile(const tessera::v1::TileData& in, TileResult* out) {
   if (in.rect().width() <= 0 || in.rect().height() <= 0) return "tile has an empty rectangle";
   std::string err = check_tile(in, in.rect().width(), in.rect().height());
   if (!err.empty()) return err;
-  out->rect = {in.rect().x0(), in.rect().y0(), in.rect().width(), in.rect().height()};
+  out->rect = from_proto(in.rect());
   le_to_words(in.rgb(), &out->rgb);
   le_to_words(in.variance(), &out->variance);
   le_to_words(in.spp(), &out->spp);
@@ -107,61 +128,23 @@ std::string decode_tile_in_image(const tessera::v1::TileData& in, int width, int
   return decode_tile(in, out);
 }
 
-void to_proto(const ImageOverrides& o, tessera::v1::ImageOverrides* out) {
-  if (o.width) out->set_width(*o.width);
-  if (o.height) out->set_height(*o.height);
-  if (o.spp) out->set_spp(*o.spp);
-  if (o.max_depth) out->set_max_depth(*o.max_depth);
-  if (o.seed) out->set_seed(*o.seed);
-  if (o.sampler) out->set_sampler(sampler_name(*o.sampler));
-  if (o.target_rmse) out->set_target_rmse(*o.target_rmse);
-  if (o.min_spp) out->set_min_spp(*o.min_spp);
-  if (o.max_spp) out->set_max_spp(*o.max_spp);
-}
-
-ImageOverrides from_proto(const tessera::v1::ImageOverrides& o) {
-  ImageOverrides out;
-  if (o.has_width()) out.width = o.width();
-  if (o.has_height()) out.height = o.height();
-  if (o.has_spp()) out.spp = o.spp();
-  if (o.has_max_depth()) out.max_depth = o.max_depth();
-  if (o.has_seed()) out.seed = o.seed();
-  if (o.has_sampler()) {
-    out.sampler = sampler_from_name(o.sampler());
-    if (!out.sampler) {
-      throw SceneError(std::string("overrides.sampler: must be one of ") + sampler_names() + ", got '" +
-                       o.sampler() + "'");
-    }
+std::string validate_tile(const tessera::v1::TileData& in, const TileRect& expected) {
+  std::string err = check_tile(in, expected.width, expected.height);
+  if (!err.empty()) return err;
+  if (in.rect().x0() != expected.x0 || in.rect().y0() != expected.y0) {
+    return "tile at (" + std::to_string(in.rect().x0()) + ", " + std::to_string(in.rect().y0()) + "), expected (" +
+           std::to_string(expected.x0) + ", " + std::to_string(expected.y0) + ")";
   }
-  if (o.has_target_rmse()) out.target_rmse = o.target_rmse();
-  if (o.has_min_spp()) out.min_spp = o.min_spp();
-  if (o.has_max_spp()) out.max_spp = o.max_spp();
-  return out;
-}
-
-void to_proto(const GltfOptions& o, tessera::v1::ImageOverrides* out) {
-  if (!o.camera.empty()) out->set_gltf_camera(o.camera);
-  if (o.scene_index != GltfOptions{}.scene_index) out->set_gltf_scene_index(o.scene_index);
-  if (o.fps != GltfOptions::kDefaultFps) out->set_gltf_fps(o.fps);
-}
-
-GltfOptions gltf_options_from_proto(const tessera::v1::ImageOverrides& o) {
-  GltfOptions out;
-  if (o.has_gltf_camera()) out.camera = o.gltf_camera();
-  if (o.has_gltf_scene_index()) {
-    if (o.gltf_scene_index() < 0) {
-      throw SceneError("overrides.gltf_scene_index: must be >= 0, got " + std::to_string(o.gltf_scene_index()));
-    }
-    out.scene_index = o.gltf_scene_index();
+  const auto pixel = [&](int64_t p) {
+    return "(" + std::to_string(expected.x0 + p % expected.width) + ", " + std::to_string(expected.y0 + p / expected.width) +
+           ")";
+  };
+  if (const int64_t i = first_nonfinite(in.rgb()); i >= 0) {
+    return "pixel " + pixel(i / 3) + " channel " + std::to_string(i % 3) + " is " +
+           (std::isnan(le_float_at(in.rgb(), i)) ? "NaN" : "infinite");
   }
-  if (o.has_gltf_fps()) {
-    if (!(o.gltf_fps() > 0 && o.gltf_fps() <= GltfOptions::kMaxFps)) {
-      throw SceneError("overrides.gltf_fps: must be in (0, " + std::to_string(int(GltfOptions::kMaxFps)) + "], got " +
-                       std::to_string(o.gltf_fps()));
-    }
-    out.fps = o.gltf_fps();
-  }
-  return out;
+  if (const int64_t j = first_nonfinite(in.variance()); j >= 0) return "variance of pixel " + pixel(j) + " is not finite";
+  return {};
 }
 
 }  // namespace tessera::farm

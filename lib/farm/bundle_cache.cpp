@@ -1,13 +1,13 @@
-#include "bundle_cache.h"
+#include "farm/bundle_cache.h"
 
 #include <spdlog/spdlog.h>
 
 #include "farm/bundle.h"
-#include "farm/codec.h"
+#include "farm/overrides_codec.h"
 #include "scene/scene_parser.h"
 #include "tessera/v1/common.pb.h"
 
-namespace tessera::worker {
+namespace tessera::farm {
 
 namespace fs = std::filesystem;
 
@@ -110,4 +110,4 @@ std::shared_ptr<const RenderScene> BundleCache::frame(const std::string& sha256,
   return fut.get();
 }
 
-}  // namespace tessera::worker
+}  // namespace tessera::farm

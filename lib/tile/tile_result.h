@@ -1,17 +1,14 @@
-// The unit of work of the farm: a rectangle of one frame, rendered to float HDR RGB with the
-// per-pixel estimated variance, the samples each pixel took, and the counts of rays traced.
+// A finished tile: a rectangle of one frame rendered to float HDR RGB with the per-pixel
+// estimated variance, the samples each pixel took, and the counts of rays traced. What a worker
+// sends, the coordinator stores and forwards, and a client (or an in-process render) assembles.
 #pragma once
 
 #include <cstdint>
 #include <vector>
 
-namespace tessera {
+#include "tile/tile_rect.h"
 
-struct TileRect {
-  int x0 = 0, y0 = 0;        // top-left pixel, image coordinates (y down)
-  int width = 0, height = 0;
-  bool operator==(const TileRect&) const = default;
-};
+namespace tessera {
 
 struct RayCounts {
   uint64_t camera = 0;      // primary rays
@@ -37,8 +34,5 @@ struct TileResult {
   RayCounts rays;
   double seconds = 0;           // wall time spent rendering the tile
 };
-
-// Splits a width x height frame into tiles of `tile` pixels, row-major order.
-std::vector<TileRect> split_into_tiles(int width, int height, int tile);
 
 }  // namespace tessera

@@ -16,7 +16,7 @@
 #include "render/render_scene.h"
 #include "scene/scene.h"
 
-namespace tessera::worker {
+namespace tessera::farm {
 
 class BundleCache {
  public:
@@ -43,4 +43,4 @@ class BundleCache {
   std::mutex fetch_mu_;               // one download at a time
 };
 
-}  // namespace tessera::worker
+}  // namespace tessera::farm

@@ -11,10 +11,10 @@
 #include <map>
 #include <string>
 
-namespace tessera::server {
+namespace tessera::farm {
 
 // name -> token. Throws std::runtime_error naming the file (and line) for an unreadable path, a
 // line without ':', an empty name or token, a name used twice, or one token given to two names.
 std::map<std::string, std::string> read_client_tokens(const std::string& path);
 
-}  // namespace tessera::server
+}  // namespace tessera::farm

@@ -1,5 +1,5 @@
 // Shared-secret tokens for the two kinds of peers. Clients and workers send
-// `authorization: Bearer <token>` metadata on every call (proto/farm/channel adds it); each
+// `authorization: Bearer <token>` metadata on every call (farm/channel.h adds it); each
 // ClientService method checks the client token, each WorkerService method the worker token.
 // A role with no token configured is open (and main() warns when it listens beyond loopback).
 //
@@ -25,7 +25,7 @@ namespace CLI {
 class App;
 }
 
-namespace tessera::server {
+namespace tessera::farm {
 
 enum class PeerRole { kClient, kWorker };
 
@@ -76,4 +76,4 @@ class Refused : public Base {
   void OnDone() override { delete this; }
 };
 
-}  // namespace tessera::server
+}  // namespace tessera::farm

@@ -1,6 +1,7 @@
 // Tile decoding as the client does it: a rectangle from the network must fit the image, with no
 // integer overflow in the check.
-#include "farm/codec.h"
+#include "farm/overrides_codec.h"
+#include "farm/tile_codec.h"
 
 #include <gtest/gtest.h>
 

@@ -1,8 +1,8 @@
-#include "request_limits.h"
+#include "farm/request_limits.h"
 
 #include <CLI/CLI.hpp>
 
-namespace tessera::server {
+namespace tessera::farm {
 
 void Limits::add_flags(CLI::App& app) {
   app.add_option("--max-message-bytes", max_message_bytes, "Largest gRPC message accepted")
@@ -57,28 +57,4 @@ grpc::Status Limits::check_job(const Scene& scene, int first_frame, int last_fra
   return grpc::Status::OK;
 }
 
-void JobQuota::settle(const std::string& client, const std::string& job_id) {
-  std::lock_guard lock(mu_);
-  if (--pending_[client] <= 0) pending_.erase(client);
-  if (!job_id.empty()) jobs_[client].insert(job_id);
-}
-
-void JobQuota::restore(const std::string& client, const std::string& job_id) {
-  std::lock_guard lock(mu_);
-  jobs_[client].insert(job_id);
-}
-
-std::string client_identity(const grpc::ServerContextBase& ctx, const std::string& token_name) {
-  if (auto auth = ctx.auth_context()) {
-    for (const auto& cn : auth->FindPropertyValues(GRPC_X509_CN_PROPERTY_NAME)) {
-      return "cn:" + std::string(cn.data(), cn.size());
-    }
-  }
-  if (!token_name.empty()) return "token:" + token_name;
-  // "ipv4:127.0.0.1:54321" / "ipv6:[::1]:54321": the address without the port.
-  const std::string peer = ctx.peer();
-  const auto colon = peer.rfind(':');
-  return colon == std::string::npos || colon < 5 ? peer : peer.substr(0, colon);
-}
-
-}  // namespace tessera::server
+}  // namespace tessera::farm
