@@ -8,6 +8,7 @@
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
 #include "farm/tile_codec.h"
+#include "reconnect_policy.h"
 #include "render/embree_device.h"
 #include "render/tile_renderer.h"
 
@@ -84,20 +85,19 @@ void WorkerConnection::sleep_backoff(std::chrono::milliseconds d) {
 
 int WorkerConnection::run() {
   static thread_local std::mt19937 rng{std::random_device{}()};
-  auto backoff = options_.backoff_initial;
+  ReconnectPolicy policy(options_.backoff_initial, options_.backoff_max);
+  std::uniform_real_distribution<double> jitter(ReconnectPolicy::kMinJitter, ReconnectPolicy::kMaxJitter);
   while (!stop_) {
-    if (run_session()) backoff = options_.backoff_initial;
+    const bool accepted = run_session();
     if (stop_) break;
-    std::uniform_real_distribution<double> jitter(0.8, 1.2);
-    const auto wait = std::chrono::milliseconds(int64_t(double(backoff.count()) * jitter(rng)));
+    const auto wait = policy.next_wait(accepted, jitter(rng));
     spdlog::info("reconnecting to {} in {:.1f} s", options_.coordinator, wait.count() / 1000.0);
-    if (channel_->GetState(false) == GRPC_CHANNEL_READY) {
-      sleep_backoff(wait);  // connected yet refused (a bad token...): the backoff is what it is for
+    if (ReconnectPolicy::how_to_wait(channel_->GetState(false) == GRPC_CHANNEL_READY) ==
+        ReconnectPolicy::Wait::kFullBackoff) {
+      sleep_backoff(wait);
     } else {
-      // The coordinator is away: go as soon as it listens again, not when the backoff ends.
       farm::wait_for_coordinator(*channel_, wait, [this] { return stop_.load(); });
     }
-    backoff = std::min(options_.backoff_max, backoff * 2);
   }
   spdlog::info("worker stopped");
   return 0;

@@ -58,7 +58,7 @@ class WorkerConnection {
   WorkerOptions options_;
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<tessera::v1::WorkerService::Stub> stub_;
-  BundleCache cache_;
+  farm::BundleCache cache_;
   RenderPool pool_;
   std::atomic<bool> stop_{false};
   std::mutex mu_;                      // guards current_ and the backoff wait
