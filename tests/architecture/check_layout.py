@@ -1,0 +1,210 @@
+#!/usr/bin/env python3
+"""Checks the rules of docs/architecture.md that a reader could break without noticing.
+
+- Rooms: which product folders may include which headers (server/ never reaches lib/render,
+  rays/ nothing of server/ or worker/, lib/tile nothing of Embree or gRPC, lib/color no
+  command-line parsing, programs not each other's code), and, when a build folder is given, that
+  the programs' link lines agree (tessera-server links no renderer or Embree; tessera-rays no
+  coordinator or worker library).
+- Size: no product source file over 700 lines, no function over 150 lines.
+
+Usage: check_layout.py SOURCE_DIR [BUILD_DIR]. Prints every breach and exits 1 if there is one.
+"""
+import os
+import re
+import sys
+
+MAX_FILE_LINES = 700
+MAX_FUNCTION_LINES = 150
+PRODUCT_ROOMS = ["lib", "server", "worker", "client", "rays"]
+
+# (room prefix, regex of a forbidden #include target, why)
+INCLUDE_RULES = [
+    ("server/", r'^render/|^embree3/|^rays/', "the coordinator must not reach the renderer"),
+    ("server/", r'^(bundle_cache|connection|render_pool)\.h$', "the coordinator must not use the worker's code"),
+    ("rays/", r'^(coordinator|scheduler|job_store|client_service|worker_service|connection|render_pool)\.h$',
+     "the ray server must not use the coordinator's or the worker's code"),
+    ("worker/", r'^(coordinator|scheduler|job_store|client_service|worker_service)\.h$',
+     "the worker must not use the coordinator's code"),
+    ("client/", r'^(coordinator|scheduler|job_store|client_service|worker_service|connection|render_pool)\.h$',
+     "the CLI must not use the coordinator's or the worker's code"),
+    ("lib/tile/", r'^(render|farm|scene|color|rays)/|^embree3/|^grpcpp/|^Imf|^OpenEXR/',
+     "tiles are plain values: no renderer, no wire, no OpenEXR"),
+    ("lib/color/", r'^CLI/', "command-line parsing belongs to the programs"),
+    ("lib/render/", r'^(farm|color|rays)/|^grpcpp/', "the renderer knows nothing of the farm"),
+    ("lib/scene/", r'^(render|farm|color|rays|tile)/|^embree3/|^grpcpp/', "scenes are plain data"),
+    ("lib/farm/", r'^(rays|color)/', "the shared room holds what the programs share on the wire"),
+]
+# Only these files of lib/farm may include the renderer: the bundle cache of render scenes.
+FARM_RENDER_FILES = {"lib/farm/bundle_cache.h", "lib/farm/bundle_cache.cpp"}
+
+# (executable, link.txt path in the build folder, forbidden library regex)
+LINK_RULES = [
+    ("tessera-server", "server/CMakeFiles/tessera-server.dir/link.txt",
+     r'libtessera_render\.a|libtessera_bundle_cache\.a|libtessera_rays\.a|libembree|libtessera_worker_core\.a'),
+    ("tessera-rays", "rays/CMakeFiles/tessera-rays.dir/link.txt",
+     r'libtessera_coordinator\.a|libtessera_scheduler\.a|libtessera_job_store\.a|libtessera_worker_core\.a'),
+    ("tessera-worker", "worker/CMakeFiles/tessera-worker.dir/link.txt",
+     r'libtessera_coordinator\.a|libtessera_scheduler\.a|libtessera_job_store\.a'),
+]
+
+INCLUDE = re.compile(r'^\s*#\s*include\s*[<"]([^">]+)[">]')
+
+
+def product_files(src):
+    for room in PRODUCT_ROOMS:
+        for root, _, files in os.walk(os.path.join(src, room)):
+            for f in sorted(files):
+                if not f.endswith((".cpp", ".h")) or f.endswith("_test.cpp"):
+                    continue
+                path = os.path.join(root, f)
+                yield os.path.relpath(path, src), path
+
+
+def strip_code(text):
+    """Comments, strings and character literals blanked, line breaks kept."""
+    out, i, n = [], 0, len(text)
+    while i < n:
+        c = text[i]
+        if text.startswith("//", i):
+            j = text.find("\n", i)
+            j = n if j < 0 else j
+            i = j
+        elif text.startswith("/*", i):
+            j = text.find("*/", i + 2)
+            j = n if j < 0 else j + 2
+            out.append("\n" * text.count("\n", i, j))
+            i = j
+        elif text.startswith('R"', i):
+            m = re.match(r'R"([^(]*)\(', text[i:])
+            if m:
+                end = text.find(")" + m.group(1) + '"', i)
+                end = n if end < 0 else end + len(m.group(1)) + 2
+                out.append('""' + "\n" * text.count("\n", i, end))
+                i = end
+            else:
+                out.append(c)
+                i += 1
+        elif c in "\"'":
+            j = i + 1
+            while j < n and text[j] != c:
+                j += 2 if text[j] == "\\" else 1
+            out.append(c + c)
+            i = j + 1
+        else:
+            out.append(c)
+            i += 1
+    return "".join(out)
+
+
+def long_functions(text):
+    """(first line, lines) of each function body longer than the limit. A function is a brace block
+    opened outside any other function whose head has a parameter list and is not a type, namespace
+    or initializer."""
+    code = strip_code(text)
+    found = []
+    stack = []  # for each open brace: is it a function body, its start line
+    head_start = 0
+    line = 1
+    in_function = 0
+    for i, c in enumerate(code):
+        if c == "\n":
+            line += 1
+        elif c == "{":
+            head = code[head_start:i]
+            is_function = False
+            if in_function == 0:
+                h = " ".join(head.split())
+                is_type = re.search(r'\b(namespace|class|struct|union|enum)\b[^()]*$', h) is not None
+                is_function = "(" in h and not is_type and not h.rstrip().endswith("=") and \
+                    re.search(r'\)\s*(const|noexcept|override|final|->[^{]*|mutable|\s)*\s*$|\)\s*:.*\)\s*$', h) is not None
+            stack.append((is_function, line))
+            if is_function:
+                in_function += 1
+            head_start = i + 1
+        elif c == "}":
+            if stack:
+                is_function, start = stack.pop()
+                if is_function:
+                    in_function -= 1
+                    if line - start + 1 > MAX_FUNCTION_LINES:
+                        found.append((start, line - start + 1))
+            head_start = i + 1
+        elif c == ";" and in_function == 0:
+            head_start = i + 1
+    return found
+
+
+def reaches(src, rel, forbidden_prefix, seen=None):
+    """The chain of project headers by which `rel` includes a file under `forbidden_prefix`, or
+    None. Quoted includes resolve against the file's folder, its room (server/, ...) and lib/."""
+    seen = set() if seen is None else seen
+    with open(os.path.join(src, rel), encoding="utf-8", errors="replace") as f:
+        text = f.read()
+    room = rel.split("/")[0]
+    for l in text.splitlines():
+        m = re.match(r'^\s*#\s*include\s*"([^"]+)"', l)
+        if not m:
+            continue
+        for base in (os.path.dirname(rel), room, "lib", "proto"):
+            cand = os.path.normpath(os.path.join(base, m.group(1)))
+            if os.path.isfile(os.path.join(src, cand)):
+                break
+        else:
+            continue  # generated or system header
+        if cand.startswith(forbidden_prefix):
+            return [cand]
+        if cand in seen:
+            continue
+        seen.add(cand)
+        chain = reaches(src, cand, forbidden_prefix, seen)
+        if chain:
+            return [cand] + chain
+    return None
+
+
+def main():
+    src = sys.argv[1]
+    build = sys.argv[2] if len(sys.argv) > 2 else None
+    breaches = []
+    for rel, path in product_files(src):
+        with open(path, encoding="utf-8", errors="replace") as f:
+            text = f.read()
+        lines = text.count("\n")
+        if lines > MAX_FILE_LINES:
+            breaches.append(f"{rel}: {lines} lines, over {MAX_FILE_LINES}: split it by concept")
+        for start, n in long_functions(text):
+            breaches.append(f"{rel}:{start}: a function of {n} lines, over {MAX_FUNCTION_LINES}")
+        for k, l in enumerate(text.splitlines(), 1):
+            m = INCLUDE.match(l)
+            if not m:
+                continue
+            target = m.group(1)
+            for room, pattern, why in INCLUDE_RULES:
+                if rel.startswith(room) and re.search(pattern, target):
+                    breaches.append(f"{rel}:{k}: includes {target}: {why}")
+            if rel.startswith("lib/farm/") and rel not in FARM_RENDER_FILES and re.search(r'^render/|^embree3/', target):
+                breaches.append(f"{rel}:{k}: includes {target}: only the bundle cache of lib/farm may use the renderer")
+        if rel.startswith("server/"):
+            chain = reaches(src, rel, "lib/render/")
+            if chain:
+                breaches.append(f"{rel}: reaches the renderer through {' -> '.join(chain)}")
+    if build:
+        for exe, link, pattern in LINK_RULES:
+            p = os.path.join(build, link)
+            if not os.path.exists(p):
+                breaches.append(f"{exe}: no link line at {p} (build it first)")
+                continue
+            with open(p) as f:
+                bad = sorted(set(re.findall(pattern, f.read())))
+            if bad:
+                breaches.append(f"{exe} links {', '.join(bad)}")
+    for b in breaches:
+        print(b)
+    checked = sum(1 for _ in product_files(src))
+    print(f"check_layout: {checked} product files, {len(breaches)} breaches")
+    return 1 if breaches else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
