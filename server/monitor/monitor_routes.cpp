@@ -72,99 +72,59 @@ std::optional<int> int_param(const httplib::Request& req, const char* name, Stat
   return std::nullopt;
 }
 
-}  // namespace
+// Actions change state: they must come from the page's fetch() (a JSON body), not from a form
+// another site posts into a browser that can reach the coordinator (forms cannot send JSON
+// without a CORS preflight, which this server never grants).
+Status json_body(const httplib::Request& req, json* body) {
+  if (req.get_header_value("Content-Type").rfind("application/json", 0) != 0) {
+    return Status(StatusCode::INVALID_ARGUMENT, "actions take a JSON body (Content-Type: application/json)");
+  }
+  *body = json::parse(req.body.empty() ? "{}" : req.body, nullptr, false);
+  if (body->is_discarded() || !body->is_object()) return Status(StatusCode::INVALID_ARGUMENT, "the body is not a JSON object");
+  return Status::OK;
+}
 
-void MonitorRoutes::install(httplib::Server& server) const {
-  // The handlers outlive this call: they share a copy of the routes' references and settings.
-  const auto self = std::make_shared<const MonitorRoutes>(*this);
-  // Who is calling, as ClientServiceImpl::authenticate decides it.
-  auto authenticate = [self](const httplib::Request& req, Caller* caller) {
-    std::optional<std::string_view> header;
-    const std::string value = req.get_header_value("Authorization");
-    if (req.has_header("Authorization")) header = value;
-    std::string token_name;
-    Status s = self->auth.check_authorization(header, farm::PeerRole::kClient, &token_name);
-    if (!s.ok()) return s;
-    caller->identity = certificate_identity(req);
-    if (caller->identity.empty() && !token_name.empty()) caller->identity = "token:" + token_name;
-    if (caller->identity.empty()) {
-      caller->identity = req.remote_addr.find(':') == std::string::npos ? "ipv4:" + req.remote_addr
-                                                                         : "ipv6:[" + req.remote_addr + "]";
-    }
-    caller->admin = self->admins.count(caller->identity) > 0;
-    return s;
-  };
-  auto authorize = [self](const std::string& job, const Caller& caller, const char* action) {
-    const std::optional<std::string> owner = self->coordinator.job_owner(job);
-    if (!owner) return Status(StatusCode::NOT_FOUND, "no job '" + job + "' on this coordinator");
-    Status s = check_job_access(job, *owner, caller, action);
-    if (!s.ok()) spdlog::warn("monitor: {} refused: {}", caller.identity, s.error_message());
-    return s;
-  };
-  // Actions change state: they must come from the page's fetch() (a JSON body), not from a form
-  // another site posts into a browser that can reach the coordinator (forms cannot send JSON
-  // without a CORS preflight, which this server never grants).
-  auto json_body = [](const httplib::Request& req, json* body) {
-    if (req.get_header_value("Content-Type").rfind("application/json", 0) != 0) {
-      return Status(StatusCode::INVALID_ARGUMENT, "actions take a JSON body (Content-Type: application/json)");
-    }
-    *body = json::parse(req.body.empty() ? "{}" : req.body, nullptr, false);
-    if (body->is_discarded() || !body->is_object()) return Status(StatusCode::INVALID_ARGUMENT, "the body is not a JSON object");
-    return Status::OK;
-  };
+void send_page(std::string_view name, httplib::Response& res) {
+  const WebAsset* a = web_asset(name);
+  if (!a) {
+    res.status = 404;
+    res.set_content("no such file", "text/plain");
+    return;
+  }
+  res.set_content(std::string(a->bytes), std::string(a->content_type).c_str());
+}
 
-  // The caller may do `action` to the job the route names: returns its id, or nothing after
-  // answering with the refusal.
-  auto job_request = [=](const httplib::Request& req, httplib::Response& res, const char* action, Caller* caller) {
-    const std::string id = req.matches[1];
-    Status s = authenticate(req, caller);
-    if (s.ok()) s = authorize(id, *caller, action);
-    if (s.ok()) return std::optional<std::string>(id);
-    send_error(res, s);
-    return std::optional<std::string>();
-  };
+// The handlers, sharing a copy of the routes' references and settings: they outlive install().
+class Handlers {
+ public:
+  explicit Handlers(const MonitorRoutes& routes) : self_(routes) {}
 
-  server.set_post_routing_handler([](const httplib::Request&, httplib::Response& res) {
-    res.set_header("X-Content-Type-Options", "nosniff");
-    res.set_header("Content-Security-Policy", "default-src 'self'; img-src 'self' blob: data:; frame-ancestors 'none'");
-  });
-
-  auto page = [](std::string_view name, httplib::Response& res) {
-    const WebAsset* a = web_asset(name);
-    if (!a) {
-      res.status = 404;
-      res.set_content("no such file", "text/plain");
-      return;
-    }
-    res.set_content(std::string(a->bytes), std::string(a->content_type).c_str());
-  };
-  server.Get("/", [page](const httplib::Request&, httplib::Response& res) { page("index.html", res); });
-  server.Get(R"(/static/([A-Za-z0-9_.-]+))",
-             [page](const httplib::Request& req, httplib::Response& res) { page(req.matches[1].str(), res); });
-
-  server.Get("/api/whoami", [=](const httplib::Request& req, httplib::Response& res) {
+  void whoami(const httplib::Request& req, httplib::Response& res) const {
     Caller caller;
     if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
     send_json(res, 200,
-              {{"identity", caller.identity}, {"admin", caller.admin}, {"token_required", !self->auth.open(farm::PeerRole::kClient)}});
-  });
-  server.Get("/api/farm", [=](const httplib::Request& req, httplib::Response& res) {
+              {{"identity", caller.identity}, {"admin", caller.admin}, {"token_required", !self_.auth.open(farm::PeerRole::kClient)}});
+  }
+
+  void farm(const httplib::Request& req, httplib::Response& res) const {
     Caller caller;
     if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
-    send_json(res, 200, self->feed.farm());
-  });
-  server.Get(kJobRoute, [=](const httplib::Request& req, httplib::Response& res) {
+    send_json(res, 200, self_.feed.farm());
+  }
+
+  void job(const httplib::Request& req, httplib::Response& res) const {
     Caller caller;
     const auto id = job_request(req, res, "watch", &caller);
     if (!id) return;
     Status bad;
     const auto frame = int_param(req, "frame", &bad);
     if (!bad.ok()) return send_error(res, bad);
-    auto j = self->feed.job(*id, frame);
+    auto j = self_.feed.job(*id, frame);
     if (!j) return send_error(res, Status(StatusCode::NOT_FOUND, "job " + *id + " is no longer in the coordinator's memory"));
     send_json(res, 200, *j);
-  });
-  server.Get(std::string(kJobRoute) + "/preview.png", [=](const httplib::Request& req, httplib::Response& res) {
+  }
+
+  void preview(const httplib::Request& req, httplib::Response& res) const {
     Caller caller;
     const auto id = job_request(req, res, "watch", &caller);
     if (!id) return;
@@ -181,26 +141,28 @@ void MonitorRoutes::install(httplib::Server& server) const {
     if (!bad.ok()) return send_error(res, bad);
     std::optional<std::string> png;
     try {
-      png = self->feed.preview(*id, frame, tonemap);
+      png = self_.feed.preview(*id, frame, tonemap);
     } catch (const std::exception& e) {
       return send_error(res, Status(StatusCode::INTERNAL, std::string("cannot encode the preview: ") + e.what()));
     }
     if (!png) return send_error(res, Status(StatusCode::NOT_FOUND, "no finished tile of that frame of job " + *id + " in memory"));
     res.set_header("Cache-Control", "no-store");
     res.set_content(std::move(*png), "image/png");
-  });
-  server.Post(std::string(kJobRoute) + "/cancel", [=](const httplib::Request& req, httplib::Response& res) {
+  }
+
+  void cancel(const httplib::Request& req, httplib::Response& res) const {
     Caller caller;
     json body;
     const auto id = job_request(req, res, "cancel", &caller);
     if (!id) return;
     if (Status s = json_body(req, &body); !s.ok()) return send_error(res, s);
     tessera::v1::JobStatus status;
-    if (Status s = self->coordinator.cancel(*id, &status); !s.ok()) return send_error(res, s);
+    if (Status s = self_.coordinator.cancel(*id, &status); !s.ok()) return send_error(res, s);
     spdlog::info("monitor: {} cancelled job {}", caller.identity, *id);
     send_json(res, 200, {{"id", *id}, {"state", "cancelled"}});
-  });
-  server.Post(std::string(kJobRoute) + "/priority", [=](const httplib::Request& req, httplib::Response& res) {
+  }
+
+  void priority(const httplib::Request& req, httplib::Response& res) const {
     Caller caller;
     json body;
     const auto id = job_request(req, res, "change the priority of", &caller);
@@ -214,17 +176,82 @@ void MonitorRoutes::install(httplib::Server& server) const {
       return send_error(res, Status(StatusCode::INVALID_ARGUMENT, "priority: " + std::to_string(p) + " is out of range"));
     }
     tessera::v1::JobStatus status;
-    if (Status s = self->coordinator.set_priority(*id, int(p), &status); !s.ok()) return send_error(res, s);
+    if (Status s = self_.coordinator.set_priority(*id, int(p), &status); !s.ok()) return send_error(res, s);
     spdlog::info("monitor: {} set the priority of job {} to {}", caller.identity, *id, p);
     send_json(res, 200, {{"id", *id}, {"priority", status.priority()}});
-  });
-  if (self->metrics) {
-    server.Get("/metrics", [=](const httplib::Request& req, httplib::Response& res) {
-      Caller caller;
-      if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
-      res.set_content(self->metrics->scrape(), "text/plain; version=0.0.4; charset=utf-8");
-    });
   }
+
+  void metrics(const httplib::Request& req, httplib::Response& res) const {
+    Caller caller;
+    if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
+    res.set_content(self_.metrics->scrape(), "text/plain; version=0.0.4; charset=utf-8");
+  }
+
+ private:
+  // Who is calling, as ClientServiceImpl::authenticate decides it.
+  Status authenticate(const httplib::Request& req, Caller* caller) const {
+    std::optional<std::string_view> header;
+    const std::string value = req.get_header_value("Authorization");
+    if (req.has_header("Authorization")) header = value;
+    std::string token_name;
+    Status s = self_.auth.check_authorization(header, farm::PeerRole::kClient, &token_name);
+    if (!s.ok()) return s;
+    caller->identity = certificate_identity(req);
+    if (caller->identity.empty() && !token_name.empty()) caller->identity = "token:" + token_name;
+    if (caller->identity.empty()) {
+      caller->identity = req.remote_addr.find(':') == std::string::npos ? "ipv4:" + req.remote_addr
+                                                                         : "ipv6:[" + req.remote_addr + "]";
+    }
+    caller->admin = self_.admins.count(caller->identity) > 0;
+    return s;
+  }
+
+  Status authorize(const std::string& job, const Caller& caller, const char* action) const {
+    const std::optional<std::string> owner = self_.coordinator.job_owner(job);
+    if (!owner) return Status(StatusCode::NOT_FOUND, "no job '" + job + "' on this coordinator");
+    Status s = check_job_access(job, *owner, caller, action);
+    if (!s.ok()) spdlog::warn("monitor: {} refused: {}", caller.identity, s.error_message());
+    return s;
+  }
+
+  // The caller may do `action` to the job the route names: returns its id, or nothing after
+  // answering with the refusal.
+  std::optional<std::string> job_request(const httplib::Request& req, httplib::Response& res, const char* action,
+                                         Caller* caller) const {
+    const std::string id = req.matches[1];
+    Status s = authenticate(req, caller);
+    if (s.ok()) s = authorize(id, *caller, action);
+    if (s.ok()) return id;
+    send_error(res, s);
+    return std::nullopt;
+  }
+
+  const MonitorRoutes self_;
+};
+
+}  // namespace
+
+void MonitorRoutes::install(httplib::Server& server) const {
+  const auto h = std::make_shared<const Handlers>(*this);
+  using Handler = void (Handlers::*)(const httplib::Request&, httplib::Response&) const;
+  const auto bind = [h](Handler f) {
+    return [h, f](const httplib::Request& req, httplib::Response& res) { ((*h).*f)(req, res); };
+  };
+
+  server.set_post_routing_handler([](const httplib::Request&, httplib::Response& res) {
+    res.set_header("X-Content-Type-Options", "nosniff");
+    res.set_header("Content-Security-Policy", "default-src 'self'; img-src 'self' blob: data:; frame-ancestors 'none'");
+  });
+  server.Get("/", [](const httplib::Request&, httplib::Response& res) { send_page("index.html", res); });
+  server.Get(R"(/static/([A-Za-z0-9_.-]+))",
+             [](const httplib::Request& req, httplib::Response& res) { send_page(req.matches[1].str(), res); });
+  server.Get("/api/whoami", bind(&Handlers::whoami));
+  server.Get("/api/farm", bind(&Handlers::farm));
+  server.Get(kJobRoute, bind(&Handlers::job));
+  server.Get(std::string(kJobRoute) + "/preview.png", bind(&Handlers::preview));
+  server.Post(std::string(kJobRoute) + "/cancel", bind(&Handlers::cancel));
+  server.Post(std::string(kJobRoute) + "/priority", bind(&Handlers::priority));
+  if (metrics) server.Get("/metrics", bind(&Handlers::metrics));
 }
 
 }  // namespace tessera::server
