@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "farm/temp_file.h"
 #include "farm/tile_codec.h"
 #include "image/output_path.h"
 #include "sample_report.h"
@@ -162,7 +163,10 @@ int FrameAssembler::write_previews(const std::string& pattern, const color::Outp
     if (f.pixels.tiles_done() == 0 || f.pixels.complete()) continue;
     const std::string path = preview_path(frame_output_path(pattern, frame));
     // Written beside and renamed into place: a viewer never sees half a file.
-    const std::string tmp = path + ".tmp" + std::filesystem::path(path).extension().string();
+    const std::filesystem::path p(path);
+    const std::string tmp =
+        farm::make_temp_file(p.parent_path().empty() ? "." : p.parent_path(), p.stem().string() + ".tmp",
+                             p.extension().string(), farm::TempAccess::kReadable);
     if (color::is_float_exr_output(color, path)) {
       write_exr(tmp, f.pixels.image(),
                 {{"tessera:job", job_.job_id()},

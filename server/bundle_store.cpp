@@ -1,11 +1,11 @@
 #include "bundle_store.h"
 
 #include <fstream>
-#include <random>
 #include <sstream>
 #include <vector>
 
 #include "farm/bundle.h"
+#include "farm/temp_file.h"
 
 namespace tessera::server {
 
@@ -37,8 +37,7 @@ void BundleStore::put(const std::string& sha256, const std::string& bytes) {
   std::lock_guard lock(mu_);
   farm::extract_bundle(bytes, dir_ / sha256);  // validates structure and paths
   if (fs::exists(file_of(sha256))) return;
-  static thread_local std::mt19937_64 rng{std::random_device{}()};
-  const fs::path tmp = dir_ / (sha256 + ".tmp" + std::to_string(rng()));
+  const fs::path tmp = farm::make_temp_file(dir_, sha256 + ".tmp");
   {
     std::ofstream out(tmp, std::ios::binary);
     out.write(bytes.data(), std::streamsize(bytes.size()));

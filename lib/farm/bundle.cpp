@@ -5,12 +5,12 @@
 #include <fstream>
 #include <limits>
 #include <set>
-#include <random>
 #include <sstream>
 
 #include <google/protobuf/io/coded_stream.h>
 #include <google/protobuf/io/zero_copy_stream_impl_lite.h>
 
+#include "farm/temp_file.h"
 #include "tessera/v1/common.pb.h"
 
 namespace tessera::farm {
@@ -150,10 +150,10 @@ fs::path extract_bundle(std::string_view bytes, const fs::path& dir) {
   parse_bundle(bytes, &bundle);
   if (fs::exists(extracted_scene_path(dir))) return extracted_scene_path(dir);
 
-  static thread_local std::mt19937_64 rng{std::random_device{}()};
-  const fs::path tmp = dir.parent_path() / (dir.filename().string() + ".tmp" + std::to_string(rng()));
-  fs::create_directories(tmp);
+  fs::create_directories(dir.parent_path());
+  fs::path tmp;
   try {
+    tmp = make_temp_dir(dir.parent_path(), dir.filename().string() + ".tmp");
     for (const auto& f : bundle.files()) {
       const fs::path p = tmp / f.path();
       fs::create_directories(p.parent_path());
