@@ -128,7 +128,8 @@ if want ray_ceiling; then
     echo "| scene | frame | rays | renderer Mrays/s | bare rtcIntersect1/Occluded1 | bare 8-wide packets | bare 16-wide | ceiling: robust triangles, packets | ratio to single / 8 / 16 | ratio to the ceiling | goal |"
     echo "|---|---|---:|---:|---:|---:|---:|---:|---|---:|---|"
   } >>"$SUMMARY"
-  # scene:goal (issue 14, goal 2: primary + shadow rays, depth 0); the full-depth rows are context.
+  # scene:goal (the ratio to the ceiling aimed at for primary + shadow rays, depth 0); the full-depth
+  # rows are context.
   for entry in whitted:0.3 cornell:0 bunny:0.5 armadillo:0.5; do
     scene=${entry%%:*} goal=${entry#*:}
     file=scenes/$scene.json
@@ -143,7 +144,7 @@ if want ray_ceiling; then
 fi
 
 if want ray_ceiling; then
-  # Issue 14, goal 3: the watertight test (the default) against Embree's robust test, frame time
+  # The watertight test (the default) against Embree's robust test, frame time
   # of the whole renderer and bare Embree's single rays against its packets, same frame.
   echo "== watertight triangles against Embree's robust test (${CW}x${CH}, $CSPP spp, depth 0, 1 thread)" >&2
   {

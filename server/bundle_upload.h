@@ -1,7 +1,7 @@
 // One bundle upload in progress: its bytes go to a temporary file in the bundle store while
 // their SHA-256 is computed, so an upload costs the coordinator one chunk of memory however
 // large the bundle is (they used to be buffered whole: four concurrent 300 MB uploads took it to
-// 1.7 GB before each was refused for a wrong hash, issue 15 defect 3). Only a bundle whose bytes
+// 1.7 GB before each was refused for a wrong hash). Only a bundle whose bytes
 // hash to what was announced is read back, validated and stored (BundleStore::put_file, one at
 // a time). UploadSlots bounds how many uploads run at once.
 #pragma once

@@ -348,8 +348,8 @@ TEST_F(SchedulerTest, RestoredJobWithEveryTileDoneIsDone) {
 }
 
 TEST_F(SchedulerTest, RestoredDoneJobWithALostTileRunsAgain) {
-  // Stored as done, but the store dropped one tile whose record was unreadable (issue 15,
-  // defect 4): the job must run again for that tile rather than stay done one tile short.
+  // Stored as done, but the store dropped one tile whose record was unreadable: the job must
+  // run again for that tile rather than stay done one tile short.
   JobRecord r;
   r.id = "old";
   r.spec = spec(32, 16, 16);  // 2 tiles

@@ -1,4 +1,4 @@
-// Blender's Cycles as a peer on a glTF scene (issue 17): compares Cycles' render of a .glb
+// Blender's Cycles as a peer on a glTF scene: compares Cycles' render of a .glb
 // (bench/cycles/cycles_render.py, run by bench/run_all.sh: Whitted-like transport, linear EXR)
 // with Tessera's render of the same file at the same size and samples per pixel, in this
 // process: RMSE in linear light of each against a high-spp Tessera reference, of the two against

@@ -1,5 +1,5 @@
 # Renders a glTF scene with Blender's Cycles restricted to Whitted-like transport, for
-# bench/cycles/cycles_compare (issue 17's peer). Blender runs as an external program only:
+# bench/cycles/cycles_compare (the glTF peer). Blender runs as an external program only:
 #
 #   blender -b --factory-startup --python bench/cycles/cycles_render.py -- \
 #       SCENE.glb OUT.exr WIDTH HEIGHT SPP MAX_DEPTH THREADS

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The farm's soak (issue 15): one long job rendered while everything goes wrong at once, with
+# The farm's soak (docs/reliability.md): one long job rendered while everything goes wrong at once, with
 # real processes. Not part of CI (30 minutes by default); `--minutes 3 --frames 120` is a smoke.
 #
 #   bench/farm/soak.sh [--minutes 30] [--frames 1000] [--build build] [--keep]

@@ -1,4 +1,4 @@
-// POV-Ray as a peer (issue 6, part 3): compares POV-Ray's render of bench/povray/whitted.pov
+// POV-Ray as a peer (docs/performance.md section 3): compares POV-Ray's render of bench/povray/whitted.pov
 // (rendered by bench/run_all.sh, linear EXR) with Tessera's render of scenes/whitted.json at
 // the same size, in this process: RMSE in linear light of each against a high-spp Tessera
 // reference, of the two against each other, and samples per second (wall and CPU) of each.

@@ -1,4 +1,4 @@
-// The coordinator's Prometheus metrics (issue 16), served as text by GET /metrics on the HTTP
+// The coordinator's Prometheus metrics, served as text by GET /metrics on the HTTP
 // listener (server/monitor/http_listener.h). Names follow Prometheus conventions: `tessera_`
 // prefix, base units (seconds, bytes), `_total` on counters.
 //

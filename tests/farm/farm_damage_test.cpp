@@ -1,4 +1,4 @@
-// Damaged storage with real processes (issue 15, defects 4-6): the coordinator is stopped, its
+// Damaged storage with real processes: the coordinator is stopped, its
 // files under --data-dir are damaged the way a disk, an operator or a bad restore would, and it
 // is started again. It must never report success over a wrong or missing frame: a damaged or
 // misplaced tile is rendered again (its job runs again), and an emptied database does not make

@@ -1,4 +1,4 @@
-// Reconnecting after a coordinator restart (issue 15, defect 8): a worker whose own backoff has
+// Reconnecting after a coordinator restart: a worker whose own backoff has
 // grown to several seconds must still be back within about a second of the coordinator
 // listening again, because it waits for the channel to connect rather than sleeping its backoff.
 #include <gtest/gtest.h>

@@ -90,10 +90,10 @@ def main():
                    lambda: stub.SubmitJob(cs.SubmitJobRequest(bundle_sha256=sha), timeout=10),
                    "mtllib outside the bundle", "invalid scene: s.json: objects[0].file: m.obj: refers to", forbid=tmp)
         elif check == "instance-bomb":
-            # issue 15, defect 2: a glTF of ~0.8 MB whose 1,000 nodes all instance one
-            # 20,000-triangle mesh (its buffer in a side .bin): 20 M triangles once flattened.
-            # The coordinator (--max-primitives 100000) must refuse it before flattening; the
-            # test reads its peak memory afterwards.
+            # an instance bomb, once flattened before the primitive limit was checked: a glTF
+            # of ~0.8 MB whose 1,000 nodes all instance one 20,000-triangle mesh (its buffer in a
+            # side .bin): 20 M triangles once flattened. The coordinator (--max-primitives 100000)
+            # must refuse it before flattening; the test reads its peak memory afterwards.
             import json, struct
             tris = 20000
             verts = []
@@ -119,9 +119,10 @@ def main():
                    lambda: stub.SubmitJob(cs.SubmitJobRequest(bundle_sha256=sha), timeout=120),
                    "1,000 instances of a 20,000-triangle mesh", "limit max_primitives")
         elif check == "upload-flood":
-            # issue 15, defect 3: four concurrent 100 MB uploads announcing a wrong hash (the
-            # server runs with --max-concurrent-uploads 4): each refused at its end for the hash,
-            # a fifth at the same time refused at once; the test reads the peak memory after.
+            # a flood of uploads, once buffered whole in memory: four concurrent 100 MB uploads
+            # announcing a wrong hash (the server runs with --max-concurrent-uploads 4): each
+            # refused at its end for the hash, a fifth at the same time refused at once; the test
+            # reads the peak memory after.
             import threading
             chunk = b"\x5a" * (1 << 20)
             release = threading.Event()

@@ -186,7 +186,7 @@ double probe_peak_rss(Farm& farm, const std::string& check) {
 }
 
 TEST(FarmSecurity, InstancedMeshOverThePrimitiveLimitIsRefusedBeforeItIsFlattened) {
-  // Issue 15, defect 2: 1,000 instances of a 20,000-triangle mesh took the coordinator to
+  // 1,000 instances of a 20,000-triangle mesh took the coordinator to
   // 1.1 GB before --max-primitives 100000 refused it.
   Farm farm;
   farm.start_server({"--max-primitives", "100000"});
@@ -199,7 +199,7 @@ TEST(FarmSecurity, InstancedMeshOverThePrimitiveLimitIsRefusedBeforeItIsFlattene
 }
 
 TEST(FarmSecurity, ConcurrentUploadsStreamToDiskAndAreBounded) {
-  // Issue 15, defect 3: four concurrent 300 MB uploads with a wrong hash took the coordinator to
+  // Four concurrent 300 MB uploads with a wrong hash took the coordinator to
   // 1.7 GB. Here 4 x 100 MB: each goes to disk while hashed (one chunk in memory) and is refused
   // for its hash; a fifth concurrent upload is refused at once (--max-concurrent-uploads 4).
   Farm farm;
@@ -214,7 +214,7 @@ TEST(FarmSecurity, ConcurrentUploadsStreamToDiskAndAreBounded) {
   }
 }
 
-// Job ownership (issue 15, defect 9): a job belongs to the identity that submitted it.
+// Job ownership: a job belongs to the identity that submitted it.
 // `tessera ARGS` for a job, returning the result.
 CliResult on_job(Farm& farm, const std::vector<std::string>& args, const std::vector<std::string>& who) {
   std::vector<std::string> a = args;

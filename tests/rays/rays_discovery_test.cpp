@@ -1,4 +1,4 @@
-// Ray servers found through the coordinator (issue 18, docs/rays.md "Where it is served"), with
+// Ray servers found through the coordinator (docs/rays.md "Where it is served"), with
 // real processes: tessera-rays announces itself, `tessera rayservers` lists it, `tessera rays
 // --coordinator` without --server uses it (answers byte-identical to the in-process run), a
 // killed server expires and the client says so, a stopped one leaves at once, a restarted coordinator lists it again, a wrong
