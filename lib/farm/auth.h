@@ -43,7 +43,7 @@ class Authenticator {
   // named client token, `*name` is set to its name (left empty for the shared token).
   grpc::Status check(const grpc::ServerContextBase& ctx, PeerRole role, std::string* name = nullptr) const;
   // The same check on the value of an `authorization` header ("Bearer TOKEN"; nullopt when the
-  // request had none): the HTTP monitor checks its requests with it (issue 16).
+  // request had none): the HTTP monitor checks its requests with it.
   grpc::Status check_authorization(std::optional<std::string_view> value, PeerRole role,
                                    std::string* name = nullptr) const;
 

@@ -38,7 +38,8 @@ std::shared_ptr<grpc::Channel> make_coordinator_channel(const std::string& addre
 // on timeout, or when `stop` says so; it is polled every 100 ms). A peer that lost its
 // coordinator waits with this instead of sleeping its backoff: gRPC keeps retrying the
 // connection by itself (at most 1 s apart), so a coordinator that is listening again is used at
-// once, however long the peer's own backoff has grown (issue 15, defect 8).
+// once, however long the peer's own backoff has grown (a worker that slept out a long backoff
+// once stayed away for seconds after its coordinator came back).
 bool wait_for_coordinator(grpc::Channel& channel, std::chrono::milliseconds up_to,
                           const std::function<bool()>& stop = {});
 
