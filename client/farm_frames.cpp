@@ -10,6 +10,7 @@
 #include "farm/tile_codec.h"
 #include "image/output_path.h"
 #include "sample_report.h"
+#include "scene/scene_parser.h"
 
 namespace tessera::cli {
 

@@ -11,16 +11,16 @@
 #include <cstdio>
 #include <iostream>
 
-#include "farm/auth.h"
 #include "bundle_store.h"
 #include "client_service.h"
 #include "coordinator.h"
+#include "farm/auth.h"
+#include "farm/request_limits.h"
 #include "job_store.h"
 #include "metrics/farm_metrics.h"
 #include "monitor/http_listener.h"
 #include "monitor/monitor_feed.h"
 #include "monitor/monitor_routes.h"
-#include "farm/request_limits.h"
 #include "worker_service.h"
 
 namespace {
@@ -44,6 +44,7 @@ void raise_descriptor_limit() {
 
 int main(int argc, char** argv) {
   using namespace tessera::server;
+  namespace farm = tessera::farm;
   std::string listen = "127.0.0.1:7878";
   std::string data_dir = "tessera-data";
   std::string log_level = "info";
