@@ -25,27 +25,12 @@
 #include "ray_servers.h"
 #include "scheduler.h"
 #include "scene/scene.h"
-#include "stream_outbox.h"
+#include "stream_sink.h"
 #include "tessera/v1/client_service.pb.h"
 #include "tessera/v1/worker_service.pb.h"
 
 namespace tessera::server {
 
-// Type-erased write side of a stream, so the coordinator does not depend on the reactor types.
-template <class Msg>
-class StreamSink {
- public:
-  virtual ~StreamSink() = default;
-  virtual void push(Msg m) = 0;
-  // Queues a message built only when it is written (see stream_outbox.h).
-  virtual void push_deferred(std::function<void(Msg*)> make) = 0;
-  virtual void finish(grpc::Status s) = 0;
-  virtual void pump() = 0;
-  virtual size_t queued() const = 0;  // messages not yet handed to gRPC
-  // Watch streams: set (under the coordinator's mutex) while this stream's backlog holds its job
-  // back; the stream calls Coordinator::watcher_drained once it has caught up.
-  std::atomic<bool> throttled{false};
-};
 using WorkerSink = StreamSink<tessera::v1::CoordinatorMessage>;
 using WatchSink = StreamSink<tessera::v1::WatchJobEvent>;
 
