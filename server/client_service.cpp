@@ -9,6 +9,7 @@
 #include "farm/client_identity.h"
 #include "farm/overrides_codec.h"
 #include "scene/scene_parser.h"
+#include "stream_sink.h"
 
 namespace tessera::server {
 
@@ -96,15 +97,7 @@ class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk> {
 // The watch stream: the coordinator pushes events into the outbox; this reactor writes them.
 class WatchReactor : public grpc::ServerWriteReactor<v1::WatchJobEvent> {
  public:
-  struct Sink : WatchSink {
-    explicit Sink(WatchReactor* r) : box(r) {}
-    void push(v1::WatchJobEvent m) override { box.push(std::move(m)); }
-    void push_deferred(std::function<void(v1::WatchJobEvent*)> make) override { box.push_deferred(std::move(make)); }
-    void finish(Status s) override { box.finish(std::move(s)); }
-    void pump() override { box.pump(); }
-    size_t queued() const override { return box.queued(); }
-    Outbox<WatchReactor, v1::WatchJobEvent> box;
-  };
+  using Sink = OutboxSink<WatchReactor, v1::WatchJobEvent>;
 
   WatchReactor(Coordinator& c, const std::string& job) : coord_(c), sink_(std::make_shared<Sink>(this)) {
     Status s = coord_.attach_watcher(job, sink_);

@@ -3,7 +3,16 @@
 //
 // Locking: `mu_` guards the scheduler and the stream registries. Scheduler events (the
 // SchedulerListener methods) run under `mu_` and only queue messages into outboxes; the queued
-// outboxes are pumped after `mu_` is released (see stream_outbox.h for why).
+// outboxes are pumped after `mu_` is released (see stream_outbox.h for why). Every public entry
+// point goes through locked() (defined at the end of this header), which does exactly that.
+//
+// The member functions are defined by concept, one file each:
+//   coordinator.cpp           lifetime: restore from the job store, the expiry thread, eviction,
+//                             observers and snapshots
+//   coordinator_jobs.cpp      the job API: submit, status, cancel, priority, frame acknowledgement
+//   coordinator_watchers.cpp  watch streams: attach, detach, flow control of slow clients
+//   coordinator_workers.cpp   worker sessions: registration, messages, results, dispatch
+//   scheduler_events.cpp      the SchedulerListener: log, persist, notify streams and observers
 #pragma once
 
 #include <grpcpp/grpcpp.h>
@@ -18,34 +27,21 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
 #include "bundle_store.h"
+#include "coordinator_messages.h"
 #include "job_store.h"
 #include "ray_servers.h"
 #include "scheduler.h"
 #include "scene/scene.h"
-#include "stream_outbox.h"
+#include "stream_sink.h"
 #include "tessera/v1/client_service.pb.h"
 #include "tessera/v1/worker_service.pb.h"
 
 namespace tessera::server {
 
-// Type-erased write side of a stream, so the coordinator does not depend on the reactor types.
-template <class Msg>
-class StreamSink {
- public:
-  virtual ~StreamSink() = default;
-  virtual void push(Msg m) = 0;
-  // Queues a message built only when it is written (see stream_outbox.h).
-  virtual void push_deferred(std::function<void(Msg*)> make) = 0;
-  virtual void finish(grpc::Status s) = 0;
-  virtual void pump() = 0;
-  virtual size_t queued() const = 0;  // messages not yet handed to gRPC
-  // Watch streams: set (under the coordinator's mutex) while this stream's backlog holds its job
-  // back; the stream calls Coordinator::watcher_drained once it has caught up.
-  std::atomic<bool> throttled{false};
-};
 using WorkerSink = StreamSink<tessera::v1::CoordinatorMessage>;
 using WatchSink = StreamSink<tessera::v1::WatchJobEvent>;
 
@@ -128,7 +124,7 @@ class Coordinator : private SchedulerListener {
   void worker_gone(WorkerId id, std::string_view reason);
   void worker_message(WorkerId id, const tessera::v1::WorkerMessage& msg);
 
-  // --- observers (issue 16: metrics, the web monitor) --------------------------------------
+  // --- observers (the Prometheus metrics, the web monitor) ---------------------------------
   // `observer` receives every scheduler event after the coordinator handled it, under the
   // coordinator's mutex: it must be quick and must not call back into the coordinator. Add
   // observers before any stream starts; they must outlive the coordinator's streams.
@@ -136,7 +132,7 @@ class Coordinator : private SchedulerListener {
   FarmSnapshot snapshot();
   // Every finished tile of the job still in memory (frames not yet acknowledged).
   std::vector<std::pair<TileKey, TileOutput>> finished_tiles(const std::string& id);
-  void status_of(const JobSnapshot& s, tessera::v1::JobStatus* out) const { status_proto(s, out); }
+  void status_of(const JobSnapshot& s, tessera::v1::JobStatus* out) const { job_status_proto(s, out); }
 
   // Stops the expiry thread (before the gRPC server shuts down).
   void stop();
@@ -160,7 +156,6 @@ class Coordinator : private SchedulerListener {
   auto locked(F&& f);
   void dispatch_locked();
   void tile_result_locked(WorkerId id, const tessera::v1::TileResult& r);
-  void status_proto(const JobSnapshot& s, tessera::v1::JobStatus* out) const;
   void expiry_loop();
   void restore_locked();
   void evict_locked(const JobId& id, const char* why);
@@ -199,5 +194,30 @@ class Coordinator : private SchedulerListener {
   bool stopping_ = false;
   std::thread expiry_;
 };
+
+template <class F>
+auto Coordinator::locked(F&& f) {
+  std::vector<std::shared_ptr<WorkerSink>> workers;
+  std::vector<std::shared_ptr<WatchSink>> watchers;
+  auto pump = [&] {
+    for (auto& w : workers) w->pump();
+    for (auto& w : watchers) w->pump();
+  };
+  std::unique_lock lock(mu_);
+  if constexpr (std::is_void_v<decltype(f())>) {
+    f();
+    workers.swap(touched_workers_);
+    watchers.swap(touched_watchers_);
+    lock.unlock();
+    pump();
+  } else {
+    auto result = f();
+    workers.swap(touched_workers_);
+    watchers.swap(touched_watchers_);
+    lock.unlock();
+    pump();
+    return result;
+  }
+}
 
 }  // namespace tessera::server

@@ -10,6 +10,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 
 #include "bundle_store.h"
 #include "client_service.h"
@@ -23,7 +24,64 @@
 #include "monitor/monitor_routes.h"
 #include "worker_service.h"
 
+using namespace tessera::server;
+namespace farm = tessera::farm;
+
 namespace {
+
+// Everything the command line sets.
+struct ServerFlags {
+  std::string listen = "127.0.0.1:7878";
+  std::string data_dir = "tessera-data";
+  std::string log_level = "info";
+  int heartbeat_ms = 1000;
+  int lease_timeout_ms = 10000;
+  bool no_speculation = false;
+  int max_faults = 3;
+  double retention_hours = 24;
+  size_t watch_backlog_tiles = CoordinatorOptions{}.watch_backlog_tiles;
+  std::string http_listen;
+  farm::ServerSecurity security;
+  std::vector<std::string> admins;
+  farm::Limits limits;
+};
+
+// nullopt to go on; else the exit code (--help, --version, a malformed command line).
+std::optional<int> parse_flags(int argc, char** argv, ServerFlags& f) {
+  CLI::App app{"tessera-server: the Tessera render farm coordinator"};
+  app.add_option("--listen", f.listen, "HOST:PORT to listen on (port 0 picks a free one; 0.0.0.0 for all interfaces)")
+      ->capture_default_str();
+  app.add_option("--data-dir", f.data_dir,
+                 "Directory for scene bundles, the job database (tessera.db) and finished tiles")
+      ->capture_default_str();
+  app.add_option("--log-level", f.log_level, "trace, debug, info, warn, error")->capture_default_str();
+  app.add_option("--heartbeat-ms", f.heartbeat_ms, "Heartbeat interval asked of workers")
+      ->check(CLI::Range(50, 60000))->capture_default_str();
+  app.add_option("--lease-timeout-ms", f.lease_timeout_ms, "Silence after which a worker loses its tiles")
+      ->check(CLI::Range(200, 3600000))->capture_default_str();
+  app.add_flag("--no-speculation", f.no_speculation, "Never hand out second copies of in-flight tiles");
+  app.add_option("--max-faults", f.max_faults, "Bad results after which a worker gets no more tiles of that job")
+      ->check(CLI::Range(1, 1000))->capture_default_str();
+  app.add_option("--retention-hours", f.retention_hours,
+                 "Ended jobs whose frames no client took leave memory after this long (they stay in the database)")
+      ->check(CLI::Range(0.0, 24.0 * 3650))->capture_default_str();
+  app.add_option("--watch-backlog-tiles", f.watch_backlog_tiles,
+                 "Hold a job (no new leases) while one of its watch streams has this many tiles unsent; "
+                 "bounds the coordinator's memory for slow clients (0: no bound)")
+      ->check(CLI::Range(size_t(0), size_t(1) << 24))->capture_default_str();
+  app.add_option("--http-listen", f.http_listen,
+                 "HOST:PORT for the web monitor, its JSON API and Prometheus /metrics (off unless given; "
+                 "HTTPS with the --tls-cert certificate when TLS is on; port 0 picks a free one)");
+  f.security.add_flags(app);
+  app.add_option("--admin", f.admins,
+                 "A client identity that may watch, cancel and acknowledge every client's jobs "
+                 "(token:NAME of a named client token, cn:NAME of a TLS client certificate); repeatable")
+      ->group("Security");
+  f.limits.add_flags(app);
+  app.set_version_flag("--version", "tessera-server 0.1.0");
+  CLI11_PARSE(app, argc, argv);
+  return std::nullopt;
+}
 
 // Every connection costs a descriptor, and gRPC 1.51 (Debian bookworm) stops accepting for good
 // when accept4() fails with EMFILE: the listener is dropped, connections queue and are never
@@ -40,70 +98,9 @@ void raise_descriptor_limit() {
   spdlog::info("descriptor limit {} (was {}; hard limit {})", lim.rlim_cur, before, lim.rlim_max);
 }
 
-}  // namespace
 
-int main(int argc, char** argv) {
-  using namespace tessera::server;
-  namespace farm = tessera::farm;
-  std::string listen = "127.0.0.1:7878";
-  std::string data_dir = "tessera-data";
-  std::string log_level = "info";
-  int heartbeat_ms = 1000;
-  int lease_timeout_ms = 10000;
-  bool no_speculation = false;
-  int max_faults = 3;
-  double retention_hours = 24;
-  size_t watch_backlog_tiles = CoordinatorOptions{}.watch_backlog_tiles;
-
-  CLI::App app{"tessera-server: the Tessera render farm coordinator"};
-  app.add_option("--listen", listen, "HOST:PORT to listen on (port 0 picks a free one; 0.0.0.0 for all interfaces)")
-      ->capture_default_str();
-  app.add_option("--data-dir", data_dir, "Directory for scene bundles, the job database (tessera.db) and finished tiles")
-      ->capture_default_str();
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
-  app.add_option("--heartbeat-ms", heartbeat_ms, "Heartbeat interval asked of workers")
-      ->check(CLI::Range(50, 60000))->capture_default_str();
-  app.add_option("--lease-timeout-ms", lease_timeout_ms, "Silence after which a worker loses its tiles")
-      ->check(CLI::Range(200, 3600000))->capture_default_str();
-  app.add_flag("--no-speculation", no_speculation, "Never hand out second copies of in-flight tiles");
-  app.add_option("--max-faults", max_faults, "Bad results after which a worker gets no more tiles of that job")
-      ->check(CLI::Range(1, 1000))->capture_default_str();
-  app.add_option("--retention-hours", retention_hours,
-                 "Ended jobs whose frames no client took leave memory after this long (they stay in the database)")
-      ->check(CLI::Range(0.0, 24.0 * 3650))->capture_default_str();
-  app.add_option("--watch-backlog-tiles", watch_backlog_tiles,
-                 "Hold a job (no new leases) while one of its watch streams has this many tiles unsent; "
-                 "bounds the coordinator's memory for slow clients (0: no bound)")
-      ->check(CLI::Range(size_t(0), size_t(1) << 24))->capture_default_str();
-  std::string http_listen;
-  app.add_option("--http-listen", http_listen,
-                 "HOST:PORT for the web monitor, its JSON API and Prometheus /metrics (off unless given; "
-                 "HTTPS with the --tls-cert certificate when TLS is on; port 0 picks a free one)");
-  farm::ServerSecurity security;
-  security.add_flags(app);
-  std::vector<std::string> admins;
-  app.add_option("--admin", admins,
-                 "A client identity that may watch, cancel and acknowledge every client's jobs "
-                 "(token:NAME of a named client token, cn:NAME of a TLS client certificate); repeatable")
-      ->group("Security");
-  farm::Limits limits;
-  limits.add_flags(app);
-  app.set_version_flag("--version", "tessera-server 0.1.0");
-  CLI11_PARSE(app, argc, argv);
-  farm::Authenticator auth;
-  std::shared_ptr<grpc::ServerCredentials> credentials;
-  try {
-    auth = security.authenticator();
-    credentials = security.credentials();
-  } catch (const std::exception& e) {
-    std::cerr << "tessera-server: " << e.what() << "\n";
-    return 2;
-  }
-
-  spdlog::set_level(spdlog::level::from_str(log_level));
-  spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
-  raise_descriptor_limit();
-
+// Returns SIGINT and SIGTERM, blocked: main takes them with sigwait.
+sigset_t block_signals() {
   // A peer that closes its connection while the HTTP side (cpp-httplib, OpenSSL) writes to it must
   // cost an error on that one connection, not the process: neither library asks the kernel not to
   // raise SIGPIPE on every write (gRPC does), so ignore it for the whole process.
@@ -114,56 +111,59 @@ int main(int argc, char** argv) {
   sigaddset(&sigs, SIGINT);
   sigaddset(&sigs, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &sigs, nullptr);
+  return sigs;
+}
 
-  std::unique_ptr<BundleStore> store;
-  try {
-    store = std::make_unique<BundleStore>(data_dir);
-  } catch (const std::exception& e) {
-    std::cerr << "tessera-server: " << e.what() << "\n";
-    return 1;
-  }
-  // The database is the source of truth: a corrupt or unwritable store stops us here, loudly.
-  std::unique_ptr<JobStore> jobs;
-  try {
-    jobs = std::make_unique<JobStore>(data_dir);
-  } catch (const std::exception& e) {
-    std::cerr << "tessera-server: " << e.what() << "\n";
-    return 1;
-  }
+CoordinatorOptions coordinator_options(const ServerFlags& f) {
   CoordinatorOptions opts;
-  opts.heartbeat_interval = std::chrono::milliseconds(heartbeat_ms);
-  opts.scheduler.lease_timeout = std::chrono::milliseconds(lease_timeout_ms);
-  opts.scheduler.speculate = !no_speculation;
-  opts.scheduler.max_faults = max_faults;
-  opts.retention = std::chrono::seconds(int64_t(retention_hours * 3600));
-  opts.watch_backlog_tiles = watch_backlog_tiles;
-  Coordinator coordinator(opts, *store, jobs.get());
-  // The HTTP side: nothing of it exists, and nothing observes the farm, unless asked for.
+  opts.heartbeat_interval = std::chrono::milliseconds(f.heartbeat_ms);
+  opts.scheduler.lease_timeout = std::chrono::milliseconds(f.lease_timeout_ms);
+  opts.scheduler.speculate = !f.no_speculation;
+  opts.scheduler.max_faults = f.max_faults;
+  opts.retention = std::chrono::seconds(int64_t(f.retention_hours * 3600));
+  opts.watch_backlog_tiles = f.watch_backlog_tiles;
+  return opts;
+}
+
+// The HTTP side: the web monitor, its JSON API and the Prometheus metrics. Nothing of it exists,
+// and nothing observes the farm, unless --http-listen asks for it.
+struct HttpSide {
   std::unique_ptr<FarmMetrics> metrics;
   std::unique_ptr<MonitorFeed> feed;
   std::unique_ptr<HttpListener> http;
-  if (!http_listen.empty()) {
-    try {
-      http = std::make_unique<HttpListener>(http_listen, HttpTls{security.tls_cert, security.tls_key, security.tls_ca});
-    } catch (const std::exception& e) {
-      std::cerr << "tessera-server: " << e.what() << "\n";
-      return 2;
-    }
-    metrics = std::make_unique<FarmMetrics>(coordinator, jobs.get());
-    feed = std::make_unique<MonitorFeed>(coordinator);
-    MonitorRoutes{coordinator, *feed, metrics.get(), auth, {admins.begin(), admins.end()}}.install(http->server());
-  }
-  ClientServiceImpl client_service(coordinator, auth, limits, {admins.begin(), admins.end()});
-  WorkerServiceImpl worker_service(coordinator, auth);
+};
 
+// False (said on stderr) when the listener cannot be made: a malformed address, unreadable TLS files.
+bool open_http_side(const ServerFlags& f, Coordinator& coordinator, JobStore* jobs, const farm::Authenticator& auth,
+                    HttpSide* out) {
+  if (f.http_listen.empty()) return true;
+  try {
+    out->http = std::make_unique<HttpListener>(f.http_listen,
+                                               HttpTls{f.security.tls_cert, f.security.tls_key, f.security.tls_ca});
+  } catch (const std::exception& e) {
+    std::cerr << "tessera-server: " << e.what() << "\n";
+    return false;
+  }
+  out->metrics = std::make_unique<FarmMetrics>(coordinator, jobs);
+  out->feed = std::make_unique<MonitorFeed>(coordinator);
+  MonitorRoutes{coordinator, *out->feed, out->metrics.get(), auth, {f.admins.begin(), f.admins.end()}}.install(
+      out->http->server());
+  return true;
+}
+
+// Builds and starts the gRPC server with both services; null when it cannot listen. `*port` is the
+// port bound.
+std::unique_ptr<grpc::Server> start_grpc_server(const ServerFlags& f,
+                                                const std::shared_ptr<grpc::ServerCredentials>& credentials,
+                                                ClientServiceImpl& client_service, WorkerServiceImpl& worker_service,
+                                                int* port) {
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
-  int port = 0;
-  builder.AddListeningPort(listen, credentials, &port);
+  builder.AddListeningPort(f.listen, credentials, port);
   builder.RegisterService(&client_service);
   builder.RegisterService(&worker_service);
-  builder.SetMaxReceiveMessageSize(int(limits.max_message_bytes));  // a 256x256 tile is 1 MiB; bundles: 1 MiB chunks
+  builder.SetMaxReceiveMessageSize(int(f.limits.max_message_bytes));  // a 256x256 tile is 1 MiB; bundles: 1 MiB chunks
   // Clients and workers ping to keep long-lived streams honest; accept their pings.
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5000);
@@ -172,24 +172,98 @@ int main(int argc, char** argv) {
   // closed (gRPC's default is 120 s): idle or garbage connections cannot hold descriptors long.
   builder.AddChannelArgument(GRPC_ARG_SERVER_HANDSHAKE_TIMEOUT_MS, 10000);
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
-  if (!server || port == 0) {
-    std::cerr << "tessera-server: cannot listen on " << listen << " (address in use or not local?)\n";
-    return 1;
-  }
+  if (!server || *port == 0) return nullptr;
   // Probes may ask about each service by name, not only the whole server ("").
   if (auto* health = server->GetHealthCheckService()) {
     for (const char* name : {"tessera.v1.ClientService", "tessera.v1.WorkerService"}) {
       health->SetServingStatus(name, true);
     }
   }
-  const std::string host = listen.substr(0, listen.rfind(':'));
-  spdlog::info("tessera-server 0.1.0: data in {}, heartbeat {} ms, lease timeout {} ms", data_dir, heartbeat_ms,
-               lease_timeout_ms);
-  security.log_posture(listen, auth);
-  int http_port = 0;
+  return server;
+}
+
+// The lines on stdout that tests and scripts wait for, and warnings about an exposed monitor.
+void print_listening(const ServerFlags& f, int port, const HttpListener* http, int http_port,
+                     const farm::Authenticator& auth) {
+  const std::string host = f.listen.substr(0, f.listen.rfind(':'));
+  std::printf("listening on %s:%d\n", host.c_str(), port);
   if (http) {
+    const std::string http_host = f.http_listen.substr(0, f.http_listen.rfind(':'));
+    // After the gRPC line: scripts that wait for "listening on" get the gRPC port.
+    std::printf("monitor on %s://%s:%d/\n", http->tls() ? "https" : "http", http_host.c_str(), http_port);
+    const bool loopback = http_host == "127.0.0.1" || http_host == "localhost" || http_host == "[::1]";
+    if (!loopback && auth.open(farm::PeerRole::kClient)) {
+      spdlog::warn("the monitor on {} has no client token: anyone who reaches it can see and cancel jobs",
+                   f.http_listen);
+    } else if (!loopback && !http->tls()) {
+      spdlog::warn("the monitor on {} checks client tokens over plain HTTP: tokens cross the network in "
+                   "clear; use TLS (--tls-cert) or a reverse proxy with TLS", f.http_listen);
+    }
+  }
+  std::fflush(stdout);
+}
+
+// Waits for SIGINT or SIGTERM, then stops taking work and closes the streams.
+void serve_until_signal(sigset_t sigs, HttpListener* http, Coordinator& coordinator, grpc::Server& server) {
+  int sig = 0;
+  sigwait(&sigs, &sig);
+  spdlog::info("signal {}: shutting down", sig);
+  if (http) http->stop();
+  coordinator.stop();
+  // Give streams a moment to finish; then everything still open is cancelled.
+  server.Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+  server.Wait();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ServerFlags flags;
+  if (std::optional<int> exit_code = parse_flags(argc, argv, flags)) return *exit_code;
+  farm::Authenticator auth;
+  std::shared_ptr<grpc::ServerCredentials> credentials;
+  try {
+    auth = flags.security.authenticator();
+    credentials = flags.security.credentials();
+  } catch (const std::exception& e) {
+    std::cerr << "tessera-server: " << e.what() << "\n";
+    return 2;
+  }
+
+  spdlog::set_level(spdlog::level::from_str(flags.log_level));
+  spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
+  raise_descriptor_limit();
+  const sigset_t sigs = block_signals();
+
+  std::unique_ptr<BundleStore> store;
+  std::unique_ptr<JobStore> jobs;
+  try {
+    store = std::make_unique<BundleStore>(flags.data_dir);
+    // The database is the source of truth: a corrupt or unwritable store stops us here, loudly.
+    jobs = std::make_unique<JobStore>(flags.data_dir);
+  } catch (const std::exception& e) {
+    std::cerr << "tessera-server: " << e.what() << "\n";
+    return 1;
+  }
+  Coordinator coordinator(coordinator_options(flags), *store, jobs.get());
+  HttpSide web;
+  if (!open_http_side(flags, coordinator, jobs.get(), auth, &web)) return 2;
+  ClientServiceImpl client_service(coordinator, auth, flags.limits, {flags.admins.begin(), flags.admins.end()});
+  WorkerServiceImpl worker_service(coordinator, auth);
+
+  int port = 0;
+  std::unique_ptr<grpc::Server> server = start_grpc_server(flags, credentials, client_service, worker_service, &port);
+  if (!server) {
+    std::cerr << "tessera-server: cannot listen on " << flags.listen << " (address in use or not local?)\n";
+    return 1;
+  }
+  spdlog::info("tessera-server 0.1.0: data in {}, heartbeat {} ms, lease timeout {} ms", flags.data_dir,
+               flags.heartbeat_ms, flags.lease_timeout_ms);
+  flags.security.log_posture(flags.listen, auth);
+  int http_port = 0;
+  if (web.http) {
     try {
-      http_port = http->start();
+      http_port = web.http->start();
     } catch (const std::exception& e) {
       std::cerr << "tessera-server: " << e.what() << "\n";
       coordinator.stop();
@@ -197,31 +271,9 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
-  // The machine-readable line tests and scripts wait for.
-  std::printf("listening on %s:%d\n", host.c_str(), port);
-  if (http) {
-    const std::string http_host = http_listen.substr(0, http_listen.rfind(':'));
-    // After the gRPC line: scripts that wait for "listening on" get the gRPC port.
-    std::printf("monitor on %s://%s:%d/\n", http->tls() ? "https" : "http", http_host.c_str(), http_port);
-    const bool loopback = http_host == "127.0.0.1" || http_host == "localhost" || http_host == "[::1]";
-    if (!loopback && auth.open(farm::PeerRole::kClient)) {
-      spdlog::warn("the monitor on {} has no client token: anyone who reaches it can see and cancel jobs",
-                   http_listen);
-    } else if (!loopback && !http->tls()) {
-      spdlog::warn("the monitor on {} checks client tokens over plain HTTP: tokens cross the network in "
-                   "clear; use TLS (--tls-cert) or a reverse proxy with TLS", http_listen);
-    }
-  }
-  std::fflush(stdout);
+  print_listening(flags, port, web.http.get(), http_port, auth);
 
-  int sig = 0;
-  sigwait(&sigs, &sig);
-  spdlog::info("signal {}: shutting down", sig);
-  if (http) http->stop();
-  coordinator.stop();
-  // Give streams a moment to finish; then everything still open is cancelled.
-  server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
-  server->Wait();
+  serve_until_signal(sigs, web.http.get(), coordinator, *server);
   spdlog::info("stopped");
   return 0;
 }

@@ -5,6 +5,7 @@
 #include <atomic>
 
 #include "farm/bundle.h"
+#include "stream_sink.h"
 
 namespace tessera::server {
 
@@ -20,15 +21,7 @@ constexpr size_t kChunkBytes = size_t(1) << 20;
 // assignments, revocations) come from the coordinator through the outbox.
 class WorkerSession : public grpc::ServerBidiReactor<v1::WorkerMessage, v1::CoordinatorMessage> {
  public:
-  struct Sink : WorkerSink {
-    explicit Sink(WorkerSession* s) : box(s) {}
-    void push(v1::CoordinatorMessage m) override { box.push(std::move(m)); }
-    void push_deferred(std::function<void(v1::CoordinatorMessage*)> make) override { box.push_deferred(std::move(make)); }
-    void finish(Status s) override { box.finish(std::move(s)); }
-    void pump() override { box.pump(); }
-    size_t queued() const override { return box.queued(); }
-    Outbox<WorkerSession, v1::CoordinatorMessage> box;
-  };
+  using Sink = OutboxSink<WorkerSession, v1::CoordinatorMessage>;
 
   WorkerSession(Coordinator& c, std::string peer)
       : coord_(c), peer_(std::move(peer)), sink_(std::make_shared<Sink>(this)) {

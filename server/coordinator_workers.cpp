@@ -1,0 +1,123 @@
+// Worker sessions: registration, the messages a worker sends (tile requests, results, returned
+// and failed leases), the checks a result must pass before it counts, and dispatch: the leases the
+// scheduler hands out, sent to their workers.
+#include "coordinator.h"
+
+#include <spdlog/spdlog.h>
+
+#include "farm/tile_codec.h"
+
+namespace tessera::server {
+
+namespace v1 = tessera::v1;
+
+WorkerId Coordinator::register_worker(const WorkerInfo& info, std::shared_ptr<WorkerSink> sink) {
+  return locked([&] {
+    const WorkerId id = scheduler_.add_worker(info);
+    workers_[id] = sink;
+    v1::CoordinatorMessage m;
+    m.mutable_welcome()->set_worker_id(std::to_string(id));
+    m.mutable_welcome()->set_heartbeat_interval_ms(int(options_.heartbeat_interval.count()));
+    m.mutable_welcome()->set_lease_timeout_ms(int(options_.scheduler.lease_timeout.count()));
+    sink->push(m);
+    touched_workers_.push_back(sink);
+    return id;
+  });
+}
+
+void Coordinator::worker_gone(WorkerId id, std::string_view reason) {
+  locked([&] {
+    scheduler_.remove_worker(id, reason);
+    workers_.erase(id);
+    dispatch_locked();
+  });
+}
+
+void Coordinator::worker_message(WorkerId id, const v1::WorkerMessage& msg) {
+  locked([&] {
+    scheduler_.heartbeat(id);  // any message is a sign of life
+    switch (msg.msg_case()) {
+      case v1::WorkerMessage::kRequest:
+        scheduler_.request_tiles(id, msg.request().count());
+        break;
+      case v1::WorkerMessage::kResult:
+        tile_result_locked(id, msg.result());
+        break;
+      case v1::WorkerMessage::kReturned:
+        scheduler_.return_leases(id, {msg.returned().lease_ids().begin(), msg.returned().lease_ids().end()});
+        break;
+      case v1::WorkerMessage::kFailed: {
+        auto lease = scheduler_.lease(msg.failed().lease_id());
+        if (!lease || lease->worker != id) break;  // revoked meanwhile: nothing to count
+        scheduler_.fault(id, lease->tile.job, lease->id,
+                         fmt::format("frame {} tile {}: worker cannot render: {}", lease->tile.frame, lease->tile.tile,
+                                     msg.failed().reason()));
+        break;
+      }
+      default:
+        break;
+    }
+    dispatch_locked();
+  });
+}
+
+void Coordinator::tile_result_locked(WorkerId id, const v1::TileResult& r) {
+  auto lease = scheduler_.lease(r.lease_id());
+  if (!lease || lease->worker != id) {
+    // A lease this worker held and lost (revoked, expired, from before a restart) is normal
+    // traffic. A lease id never issued, or another worker's live lease, is a lie: a fault.
+    const bool never_issued = r.lease_id() == 0 || r.lease_id() >= scheduler_.next_lease();
+    if (!never_issued && !lease) {
+      spdlog::debug("worker {}: result for lease {} ignored (revoked, expired or from before a restart)", id,
+                    r.lease_id());
+      return;
+    }
+    const std::string why = never_issued
+                                ? fmt::format("stale lease {}: never issued by this coordinator", r.lease_id())
+                                : fmt::format("lease {} belongs to worker {}", r.lease_id(), lease->worker);
+    if (scheduler_.fault(id, r.tile().job_id(), std::nullopt,
+                         fmt::format("frame {} tile {}: {}", r.tile().frame(), r.tile().tile_index(), why)) == 0) {
+      spdlog::warn("worker {}: refused a result for unknown job '{}': {}", id, r.tile().job_id(), why);
+    }
+    return;
+  }
+  const auto rect = scheduler_.tile_rect(lease->tile.job, lease->tile.frame, lease->tile.tile);
+  const std::string err = farm::validate_tile(r.tile(), *rect);
+  if (!err.empty()) {
+    scheduler_.fault(id, lease->tile.job, lease->id,
+                     fmt::format("frame {} tile {}: {}", lease->tile.frame, lease->tile.tile, err));
+    return;
+  }
+  // The coordinator is the authority on what the tile is: overwrite the identifying fields.
+  v1::TileData tile = r.tile();
+  tile.set_job_id(lease->tile.job);
+  tile.set_frame(lease->tile.frame);
+  tile.set_tile_index(lease->tile.tile);
+  if (auto w = scheduler_.worker(id)) tile.set_worker(w->info.name);
+  TileOutput out;
+  out.rays = tile.rays().camera() + tile.rays().shadow() + tile.rays().secondary();
+  out.seconds = tile.seconds();
+  out.payload = std::make_shared<const std::string>(tile.SerializeAsString());
+  const auto outcome = scheduler_.complete(id, r.lease_id(), std::move(out));
+  // One line per result received: tests count re-rendered tiles from these.
+  spdlog::debug("result: lease {} job {} frame {} tile {} from worker {}: {}", r.lease_id(), lease->tile.job,
+                lease->tile.frame, lease->tile.tile, id,
+                outcome == Scheduler::ResultOutcome::kAccepted ? "accepted" : "duplicate");
+}
+
+void Coordinator::dispatch_locked() {
+  for (const Assignment& a : scheduler_.dispatch()) {
+    auto it = workers_.find(a.lease.worker);
+    if (it == workers_.end()) continue;
+    it->second->push(assignment_message(a));
+    touched_workers_.push_back(it->second);
+  }
+}
+
+void Coordinator::list_workers(v1::ListWorkersResponse* out) {
+  locked([&] {
+    for (const auto& w : scheduler_.workers()) worker_proto(w, out->add_workers());
+  });
+}
+
+}  // namespace tessera::server

@@ -1,0 +1,159 @@
+// The coordinator as the scheduler's listener. Every event runs under the coordinator's mutex: it
+// first tells the observers (metrics, web monitor), then persists the change in the job store,
+// logs it and queues what the streams must hear (status and tiles to watchers, revocations and
+// goodbyes to workers). Nothing here writes to a stream: locked() pumps the touched outboxes once
+// the mutex is released.
+#include "coordinator.h"
+
+#include <spdlog/spdlog.h>
+
+namespace tessera::server {
+
+namespace v1 = tessera::v1;
+using grpc::Status;
+using grpc::StatusCode;
+
+void Coordinator::job_submitted(const JobSnapshot& s) {
+  notify([&](SchedulerListener& o) { o.job_submitted(s); });
+
+  if (jobs_store_) jobs_store_->job_submitted(s);
+  awaiting_first_tile_[s.id] = s.submitted;
+  spdlog::info("job {} submitted: '{}', frames {}-{}, {}x{} {} spp, {} tiles of {} px, priority {}", s.id,
+               s.spec.name, s.spec.first_frame, s.spec.last_frame, s.spec.width, s.spec.height, s.spec.spp,
+               s.tiles_total, s.spec.tile_size, s.spec.priority);
+}
+
+void Coordinator::job_state_changed(const JobId& id, JobState state) {
+  notify([&](SchedulerListener& o) { o.job_state_changed(id, state); });
+
+  auto s = scheduler_.job(id);
+  if (jobs_store_) jobs_store_->job_updated(*s);
+  if (job_ended(state)) {
+    ended_[id] = s->ended.value_or(Clock::now());
+    awaiting_first_tile_.erase(id);
+  }
+  if (state == JobState::kFailed) {
+    spdlog::error("job {} failed: {}", id, s->error);
+  } else if (state == JobState::kDone) {
+    spdlog::info("job {} done in {:.2f} s: {} tiles, {:.1f} Mrays, {} duplicate results discarded", id,
+                 std::chrono::duration<double>(*s->ended - s->submitted).count(), s->tiles_done, s->rays / 1e6,
+                 s->duplicates_discarded);
+  } else {
+    spdlog::info("job {} {}", id, job_state_name(state));
+  }
+  if (!job_ended(state)) return;
+  auto [b, e] = watchers_.equal_range(id);
+  for (auto it = b; it != e; ++it) {
+    v1::WatchJobEvent ev;
+    job_status_proto(*s, ev.mutable_status());
+    it->second->push(ev);
+    it->second->finish(Status::OK);
+    touched_watchers_.push_back(it->second);
+  }
+  watchers_.erase(id);
+}
+
+void Coordinator::job_priority_changed(const JobId& id, int priority) {
+  notify([&](SchedulerListener& o) { o.job_priority_changed(id, priority); });
+  if (jobs_store_) jobs_store_->job_updated(*scheduler_.job(id));
+  spdlog::info("job {} priority set to {}", id, priority);
+}
+
+void Coordinator::tile_leased(const Assignment& a) {
+  notify([&](SchedulerListener& o) { o.tile_leased(a); });
+
+  if (jobs_store_) jobs_store_->lease_issued(a.lease, std::to_string(a.lease.worker));
+  spdlog::debug("lease {} job {} frame {} tile {} to worker {}{}", a.lease.id, a.lease.tile.job, a.lease.tile.frame,
+                a.lease.tile.tile, a.lease.worker, a.lease.speculative ? " (speculative copy)" : "");
+}
+
+void Coordinator::lease_ended(const Lease& lease, LeaseEnd why) {
+  notify([&](SchedulerListener& o) { o.lease_ended(lease, why); });
+
+  if (jobs_store_) jobs_store_->lease_ended(lease.id);
+  if (why == LeaseEnd::kExpired) {
+    spdlog::warn("lease {} of worker {} expired: job {} frame {} tile {} requeued", lease.id, lease.worker,
+                 lease.tile.job, lease.tile.frame, lease.tile.tile);
+  }
+  if (why != LeaseEnd::kLostRace && why != LeaseEnd::kCancelled && why != LeaseEnd::kBlocklisted) return;
+  auto it = workers_.find(lease.worker);
+  if (it == workers_.end()) return;
+  v1::CoordinatorMessage m;
+  m.mutable_revoke()->add_lease_ids(lease.id);
+  it->second->push(std::move(m));
+  touched_workers_.push_back(it->second);
+}
+
+void Coordinator::tile_finished(const TileKey& key, const TileOutput& out, WorkerId worker) {
+  notify([&](SchedulerListener& o) { o.tile_finished(key, out, worker); });
+
+  if (jobs_store_) jobs_store_->tile_done(key, out);
+  if (auto it = awaiting_first_tile_.find(key.job); it != awaiting_first_tile_.end()) {
+    spdlog::info("job {} first tile {:.3f} s after submit", key.job,
+                 std::chrono::duration<double>(Clock::now() - it->second).count());
+    awaiting_first_tile_.erase(it);
+  }
+  auto [b, e] = watchers_.equal_range(key.job);
+  for (auto it = b; it != e; ++it) push_tile_locked(key.job, it->second, out.payload);
+}
+
+void Coordinator::frame_finished(const JobId& id, int frame) {
+  notify([&](SchedulerListener& o) { o.frame_finished(id, frame); });
+
+  spdlog::info("job {} frame {} finished", id, frame);
+  auto [b, e] = watchers_.equal_range(id);
+  for (auto it = b; it != e; ++it) {
+    v1::WatchJobEvent ev;
+    ev.set_frame_done(frame);
+    it->second->push(ev);
+    touched_watchers_.push_back(it->second);
+  }
+}
+
+void Coordinator::frame_acknowledged(const JobId& id, int frame) {
+  notify([&](SchedulerListener& o) { o.frame_acknowledged(id, frame); });
+
+  if (jobs_store_) {
+    if (const auto s = scheduler_.job(id)) jobs_store_->frame_acknowledged(id, frame, s->tiles_per_frame);
+  }
+  spdlog::info("job {} frame {} delivered to the client; its tiles are released", id, frame);
+}
+
+void Coordinator::worker_joined(const WorkerStats& w) {
+  notify([&](SchedulerListener& o) { o.worker_joined(w); });
+
+  spdlog::info("worker {} '{}' joined from {}: {} threads, Embree {}", w.id, w.info.name, w.info.peer,
+               w.info.threads, w.info.embree_isa);
+  if (!isas_.empty() && !isas_.count(w.info.embree_isa)) {
+    spdlog::warn("worker {} '{}' runs Embree {} kernels, other workers ran {}: tiles may differ in the last bits",
+                 w.id, w.info.name, w.info.embree_isa, *isas_.begin());
+  }
+  isas_.insert(w.info.embree_isa);
+}
+
+void Coordinator::worker_left(const WorkerStats& w, std::string_view reason) {
+  notify([&](SchedulerListener& o) { o.worker_left(w, reason); });
+
+  spdlog::info("worker {} '{}' left ({}): {} tiles rendered, {} leases requeued", w.id, w.info.name, reason,
+               w.tiles_done, w.in_flight);
+  auto it = workers_.find(w.id);
+  if (it == workers_.end()) return;
+  it->second->finish(Status(StatusCode::UNAVAILABLE, "coordinator dropped this worker: " + std::string(reason)));
+  touched_workers_.push_back(it->second);
+  workers_.erase(it);
+}
+
+void Coordinator::worker_faulted(const JobId& job, const WorkerStats& w, std::string_view reason, int faults,
+                                 bool blocklisted) {
+  notify([&](SchedulerListener& o) { o.worker_faulted(job, w, reason, faults, blocklisted); });
+
+  spdlog::warn("worker {} '{}': refused result for job {}: {} (fault {} of {} for this job)", w.id, w.info.name, job,
+               reason, faults, scheduler_.options().max_faults);
+  if (blocklisted) {
+    spdlog::error("worker {} '{}' is blocklisted for job {} after {} faults: it gets no more of its tiles", w.id,
+                  w.info.name, job, faults);
+    if (jobs_store_) jobs_store_->worker_blocklisted(job, w.info.name);  // survives a restart
+  }
+}
+
+}  // namespace tessera::server
