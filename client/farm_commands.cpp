@@ -23,6 +23,7 @@
 #include "farm_frames.h"
 #include "image_options.h"
 #include "image/output_path.h"
+#include "output_flags.h"
 #include "sample_report.h"
 #include "scene/scene_parser.h"
 
@@ -650,7 +651,7 @@ void register_farm_commands(CLI::App& app) {
     cmd->add_flag("--detach", a->detach, "Submit and return; fetch the frames later with `tessera watch`");
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
     add_frame_output_options(cmd, &a->error_channels, &a->preview_every);
-    color::add_output_options(*cmd, a->color);  // -o frame_####.png etc.: see `tessera convert`
+    add_output_options(*cmd, a->color);  // -o frame_####.png etc.: see `tessera convert`
     cmd->callback([a] {
       guarded("submit", [&] {
         if (a->output.empty() && !a->detach) throw FarmError{kExitBadInput, "-o/--output is required (or --detach)"};
@@ -666,7 +667,7 @@ void register_farm_commands(CLI::App& app) {
     add_coordinator_option(cmd, &a->coordinator, &a->security);
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
     add_frame_output_options(cmd, &a->error_channels, &a->preview_every);
-    color::add_output_options(*cmd, a->color);
+    add_output_options(*cmd, a->color);
     cmd->callback([a] { guarded("watch", [&] { return run_watch(*a); }); });
   }
   {

@@ -14,6 +14,7 @@
 #include "image_options.h"
 #include "image/exr_io.h"
 #include "image/output_path.h"
+#include "output_flags.h"
 #include "render/embree_device.h"
 #include "render/tile_renderer.h"
 #include "sample_report.h"
@@ -154,7 +155,7 @@ void register_render_command(CLI::App& app) {
   cmd->add_flag("--error-channels", args->error_channels,
                 "Add per-pixel layers to the EXR: error.Y (estimated RMSE of the pixel) and spp.Y (its samples)");
   // -o with another extension (or --format) writes that format directly: see `tessera convert`.
-  color::add_output_options(*cmd, args->color);
+  add_output_options(*cmd, args->color);
   cmd->callback([args] {
     const int rc = run_render(*args);
     if (rc != 0) throw CLI::RuntimeError(rc);
