@@ -11,6 +11,7 @@
 #include "color/rgbe.h"
 #include "commands.h"
 #include "image/exr_io.h"
+#include "output_flags.h"
 
 namespace tessera::cli {
 
@@ -51,7 +52,7 @@ void register_color_commands(CLI::App& app) {
       ->required()
       ->check(CLI::ExistingFile);
   convert->add_option("output", convert_args->output, "Output file")->required();
-  color::add_output_options(*convert, convert_args->out);
+  add_output_options(*convert, convert_args->out);
   convert->callback([convert_args] {
     const ImageRGB image = read_hdr_input(convert_args->input);
     color::write_output(image, convert_args->output, convert_args->out, std::cout);

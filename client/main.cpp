@@ -13,7 +13,10 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "tessera 0.1.0");
   tessera::cli::register_render_command(app);
   tessera::cli::register_color_commands(app);
-  tessera::cli::register_farm_commands(app);
+  tessera::cli::register_submit_command(app);
+  tessera::cli::register_watch_command(app);
+  tessera::cli::register_job_commands(app);
+  tessera::cli::register_listing_commands(app);
   tessera::cli::register_health_command(app);
   tessera::cli::register_rays_command(app);
   try {

@@ -204,6 +204,58 @@ std::optional<v1::SceneDescription> describe_on(v1::RayService::Stub& stub, grpc
                   describe_rays_server(s, address)};
 }
 
+// Traces the rays on the server at `used` (which described the scene `ref`), appending the hits
+// to h->hits; throws RaysError if the stream fails or ends early.
+void trace_stream(v1::RayService::Stub& stub, const v1::SceneRef& ref, const RaysArgs& a, const RayTable& rays,
+                  HitFields fields, std::chrono::system_clock::time_point deadline, const std::string& used,
+                  HitTable* h) {
+  // One stream; a writer thread keeps every batch in flight while this one reads the answers
+  // (they come back in order), so the network and the tracing overlap.
+  grpc::ClientContext ctx;
+  // The run's deadline for the whole stream too: a server that stops answering mid-way ends the
+  // run instead of hanging it.
+  ctx.set_deadline(deadline);
+  auto stream = stub.TraceStream(&ctx);
+  const size_t n = rays.rays.size(), batch = size_t(a.batch);
+  std::thread writer([&] {
+    for (size_t begin = 0; begin < n; begin += batch) {
+      const size_t end = std::min(n, begin + batch);
+      v1::TraceRequest req;
+      if (begin == 0) *req.mutable_scene() = ref;
+      req.set_occlusion(a.occlusion);
+      rays::encode_fields(fields, &req);
+      rays::encode_rays({rays.rays.begin() + long(begin), rays.rays.begin() + long(end)}, {}, &req);
+      if (!stream->Write(req)) break;  // the stream failed: Finish() says why
+    }
+    stream->WritesDone();
+  });
+  v1::TraceResponse resp;
+  std::string problem;
+  for (size_t begin = 0; begin < n && stream->Read(&resp); begin += batch) {
+    const size_t count = std::min(n, begin + batch) - begin;
+    try {
+      std::vector<rays::WorldHit> hits = rays::decode_hits(resp, count, a.occlusion, fields);
+      h->hits.insert(h->hits.end(), hits.begin(), hits.end());
+    } catch (const std::runtime_error& e) {
+      problem = e.what();
+      ctx.TryCancel();
+      break;
+    }
+  }
+  writer.join();
+  const grpc::Status s = stream->Finish();
+  if (!problem.empty()) throw RaysError{kExitFailure, "the ray service at " + used + " answered badly: " + problem};
+  if (s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED) {
+    throw RaysError{kExitFailure, "the ray service at " + used + " did not answer all " + std::to_string(n) +
+                                      " rays within --timeout " + std::to_string(a.timeout) + " s"};
+  }
+  if (!s.ok()) {
+    throw RaysError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
+                    describe_rays_server(s, used)};
+  }
+  if (h->hits.size() != n) throw RaysError{kExitFailure, "the ray service at " + used + " ended the stream early"};
+}
+
 // Traces on --server, or on the first ray server the coordinator lists that answers; `*used`
 // is its address.
 HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, HitFields fields, std::string* used) {
@@ -257,51 +309,7 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, HitFields field
                                       " ray server(s) the coordinator lists answered (" + unreachable +
                                       "); pass --server HOST:PORT to name one"};
   }
-  // One stream; a writer thread keeps every batch in flight while this one reads the answers
-  // (they come back in order), so the network and the tracing overlap.
-  grpc::ClientContext ctx;
-  // The run's deadline for the whole stream too: a server that stops answering mid-way ends the
-  // run instead of hanging it.
-  ctx.set_deadline(deadline);
-  auto stream = stub->TraceStream(&ctx);
-  const size_t n = rays.rays.size(), batch = size_t(a.batch);
-  std::thread writer([&] {
-    for (size_t begin = 0; begin < n; begin += batch) {
-      const size_t end = std::min(n, begin + batch);
-      v1::TraceRequest req;
-      if (begin == 0) *req.mutable_scene() = ref;
-      req.set_occlusion(a.occlusion);
-      rays::encode_fields(fields, &req);
-      rays::encode_rays({rays.rays.begin() + long(begin), rays.rays.begin() + long(end)}, {}, &req);
-      if (!stream->Write(req)) break;  // the stream failed: Finish() says why
-    }
-    stream->WritesDone();
-  });
-  v1::TraceResponse resp;
-  std::string problem;
-  for (size_t begin = 0; begin < n && stream->Read(&resp); begin += batch) {
-    const size_t count = std::min(n, begin + batch) - begin;
-    try {
-      std::vector<rays::WorldHit> hits = rays::decode_hits(resp, count, a.occlusion, fields);
-      h.hits.insert(h.hits.end(), hits.begin(), hits.end());
-    } catch (const std::runtime_error& e) {
-      problem = e.what();
-      ctx.TryCancel();
-      break;
-    }
-  }
-  writer.join();
-  const grpc::Status s = stream->Finish();
-  if (!problem.empty()) throw RaysError{kExitFailure, "the ray service at " + *used + " answered badly: " + problem};
-  if (s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED) {
-    throw RaysError{kExitFailure, "the ray service at " + *used + " did not answer all " + std::to_string(n) +
-                                      " rays within --timeout " + std::to_string(a.timeout) + " s"};
-  }
-  if (!s.ok()) {
-    throw RaysError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
-                    describe_rays_server(s, *used)};
-  }
-  if (h.hits.size() != n) throw RaysError{kExitFailure, "the ray service at " + *used + " ended the stream early"};
+  trace_stream(*stub, ref, a, rays, fields, deadline, *used, &h);
   return h;
 }
 

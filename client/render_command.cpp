@@ -14,6 +14,7 @@
 #include "image_options.h"
 #include "image/exr_io.h"
 #include "image/output_path.h"
+#include "output_flags.h"
 #include "render/embree_device.h"
 #include "render/tile_renderer.h"
 #include "sample_report.h"
@@ -35,6 +36,55 @@ struct RenderArgs {
   color::OutputOptions color;  // tone mapping / format when -o is not a float EXR
 };
 
+// The farm confines a scene to its bundle (files under the scene's folder); locally nothing is
+// refused, but a scene that reads elsewhere (an absolute or ../ mtllib, say) is not portable.
+void warn_outside_bundle(const std::string& scene_path, const Scene& scene) {
+  for (const std::string& dep : scene.dependencies) {
+    const std::filesystem::path p = std::filesystem::path(dep).lexically_normal();
+    if (p.is_absolute() || (!p.empty() && *p.begin() == "..")) {
+      spdlog::warn("{}: reads '{}', outside the scene's folder: `tessera submit` cannot bundle it", scene_path, dep);
+    }
+  }
+}
+
+// The EXR header of a float EXR output: how it was rendered and its error estimate.
+ExrAttributes render_attributes(const RenderArgs& a, const Scene& scene, const RenderOptions& options,
+                                const FrameResult& r, const SampleSummary& samples) {
+  ExrAttributes attrs{{"renderer", std::string("tessera 0.1.0 (") + embree_isa() + ")"},
+                      {"tessera:scene", std::filesystem::path(a.scene).filename().string()},
+                      {"tessera:frame", int64_t(a.frame)},
+                      {"tessera:maxDepth", int64_t(scene.image.max_depth)},
+                      {"tessera:sampler", std::string(sampler_name(scene.image.sampler))},
+                      {"tessera:triangleTest", std::string(triangle_test_name(options.triangles))},
+                      {"tessera:seed", std::to_string(scene.image.seed)},
+                      {"tessera:renderSeconds", r.seconds},
+                      {"tessera:raysTraced", std::to_string(r.rays.total())}};
+  if (!scene.image.adaptive()) attrs["tessera:spp"] = int64_t(scene.image.spp);
+  add_sample_attributes(samples, scene.image, &attrs);
+  return attrs;
+}
+
+// `conversion`: the tone mapping's JSON report when the output was converted, else empty.
+void print_json_report(const RenderArgs& a, const std::string& out, const Scene& scene, const FrameResult& r,
+                       const SampleSummary& samples, double build_s, double mrays, const std::string& conversion) {
+  nlohmann::json j{{"output", out},
+                   {"scene", a.scene},
+                   {"frame", a.frame},
+                   {"width", scene.image.width},
+                   {"height", scene.image.height},
+                   {"sampler", sampler_name(scene.image.sampler)},
+                   {"seconds", r.seconds},
+                   {"build_seconds", build_s},
+                   {"mrays_per_s", mrays},
+                   {"rays", {{"camera", r.rays.camera}, {"shadow", r.rays.shadow}, {"secondary", r.rays.secondary},
+                             {"nonfinite_samples", r.rays.nonfinite_samples}}},
+                   {"renderer", embree_isa()}};
+  if (!scene.image.adaptive()) j["spp"] = scene.image.spp;
+  j.update(samples_json(samples, scene.image));
+  if (!conversion.empty()) j["conversion"] = nlohmann::json::parse(conversion);
+  std::printf("%s\n", j.dump(2).c_str());
+}
+
 int run_render(const RenderArgs& a) {
   Scene scene;
   try {
@@ -43,14 +93,7 @@ int run_render(const RenderArgs& a) {
     std::cerr << "tessera render: " << e.what() << "\n";
     return 2;
   }
-  // The farm confines a scene to its bundle (files under the scene's folder); locally nothing is
-  // refused, but a scene that reads elsewhere (an absolute or ../ mtllib, say) is not portable.
-  for (const std::string& dep : scene.dependencies) {
-    const std::filesystem::path p = std::filesystem::path(dep).lexically_normal();
-    if (p.is_absolute() || (!p.empty() && *p.begin() == "..")) {
-      spdlog::warn("{}: reads '{}', outside the scene's folder: `tessera submit` cannot bundle it", a.scene, dep);
-    }
-  }
+  warn_outside_bundle(a.scene, scene);
   if (a.frame < 0 || a.frame >= scene.frame_count()) {
     std::cerr << "tessera render: --frame: must be in [0, " << scene.frame_count() - 1 << "], got " << a.frame
               << "\n";
@@ -74,17 +117,7 @@ int run_render(const RenderArgs& a) {
   });
   const double mrays = double(r.rays.total()) / r.seconds / 1e6;
   const SampleSummary samples = r.summary();
-  ExrAttributes attrs{{"renderer", std::string("tessera 0.1.0 (") + embree_isa() + ")"},
-                      {"tessera:scene", std::filesystem::path(a.scene).filename().string()},
-                      {"tessera:frame", int64_t(a.frame)},
-                      {"tessera:maxDepth", int64_t(scene.image.max_depth)},
-                      {"tessera:sampler", std::string(sampler_name(scene.image.sampler))},
-                      {"tessera:triangleTest", std::string(triangle_test_name(options.triangles))},
-                      {"tessera:seed", std::to_string(scene.image.seed)},
-                      {"tessera:renderSeconds", r.seconds},
-                      {"tessera:raysTraced", std::to_string(r.rays.total())}};
-  if (!scene.image.adaptive()) attrs["tessera:spp"] = int64_t(scene.image.spp);
-  add_sample_attributes(samples, scene.image, &attrs);
+  const ExrAttributes attrs = render_attributes(a, scene, options, r, samples);
   const bool float_exr = color::is_float_exr_output(a.color, out);
   std::ostringstream conversion;
   if (a.error_channels && !float_exr) {
@@ -112,22 +145,7 @@ int run_render(const RenderArgs& a) {
   if (const std::string w = target_warning(samples, scene.image); !w.empty()) spdlog::warn("{}", w);
   // --report json (shared with the color options): the whole result as one JSON object.
   if (a.color.report == "json") {
-    nlohmann::json j{{"output", out},
-                     {"scene", a.scene},
-                     {"frame", a.frame},
-                     {"width", scene.image.width},
-                     {"height", scene.image.height},
-                     {"sampler", sampler_name(scene.image.sampler)},
-                     {"seconds", r.seconds},
-                     {"build_seconds", build_s},
-                     {"mrays_per_s", mrays},
-                     {"rays", {{"camera", r.rays.camera}, {"shadow", r.rays.shadow}, {"secondary", r.rays.secondary},
-                               {"nonfinite_samples", r.rays.nonfinite_samples}}},
-                     {"renderer", embree_isa()}};
-    if (!scene.image.adaptive()) j["spp"] = scene.image.spp;
-    j.update(samples_json(samples, scene.image));
-    if (!conversion.str().empty()) j["conversion"] = nlohmann::json::parse(conversion.str());
-    std::printf("%s\n", j.dump(2).c_str());
+    print_json_report(a, out, scene, r, samples, build_s, mrays, conversion.str());
     return 0;
   }
   const std::string spp = scene.image.adaptive() ? "adaptive" : std::to_string(scene.image.spp) + " spp";
@@ -154,7 +172,7 @@ void register_render_command(CLI::App& app) {
   cmd->add_flag("--error-channels", args->error_channels,
                 "Add per-pixel layers to the EXR: error.Y (estimated RMSE of the pixel) and spp.Y (its samples)");
   // -o with another extension (or --format) writes that format directly: see `tessera convert`.
-  color::add_output_options(*cmd, args->color);
+  add_output_options(*cmd, args->color);
   cmd->callback([args] {
     const int rc = run_render(*args);
     if (rc != 0) throw CLI::RuntimeError(rc);

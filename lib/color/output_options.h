@@ -1,13 +1,11 @@
 // The output options of `tessera convert`, reusable by any command that produces a frame
-// (`tessera render`, `tessera submit`): add them to a CLI11 subcommand, then write the frame.
+// (`tessera render`, `tessera submit`): a plain struct the program fills (the client's
+// command-line flags do, in client/output_flags.h), resolved here against the output path.
 //
-//   OutputOptions out;
-//   add_output_options(*render_cmd, out);
+//   OutputOptions out;               // filled from --tonemap, --format, ...
 //   ... after rendering ...
 //   write_output(image, out_path, out, std::cout);  // prints the one-line report
 #pragma once
-
-#include <CLI/CLI.hpp>
 
 #include <ostream>
 #include <string>
@@ -26,9 +24,6 @@ struct OutputOptions {
   std::string dither = "none";  // none | bayer | blue-noise | floyd-steinberg
   std::string report = "text";  // text | json
 };
-
-// Adds --tonemap, --exposure, --white, --format, --colors, --dither and --report.
-void add_output_options(CLI::App& command, OutputOptions& options);
 
 // Turns the parsed strings into ConvertOptions for this output path; throws ColorError when
 // the format cannot be told from the extension or options conflict.

@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "color/color_error.h"
@@ -12,39 +14,44 @@
 namespace tessera::color {
 namespace {
 
-// Parses a command line for a subcommand carrying the output options, as `tessera render`
-// would after add_output_options.
-OutputOptions parse(std::vector<std::string> args) {
-  CLI::App app;
+// The flags that fill OutputOptions (--tonemap, --colors, ...) are the client's: their parsing
+// and range checks are tested in client/output_flags_test.cpp.
+TEST(OutputOptions, ResolvesEveryOption) {
   OutputOptions o;
-  CLI::App* sub = app.add_subcommand("render");
-  add_output_options(*sub, o);
-  args.insert(args.begin(), "render");
-  std::reverse(args.begin(), args.end());  // CLI11 takes a reversed vector
-  app.parse(args);
-  return o;
-}
-
-TEST(OutputOptions, ParsesEveryOption) {
-  const OutputOptions o = parse({"--tonemap", "pbr-neutral", "--exposure", "-1.5", "--white", "8",
-                                 "--format", "palette", "--colors", "64", "--dither",
-                                 "floyd-steinberg", "--report", "json"});
-  EXPECT_EQ(o.tonemap, "pbr-neutral");
-  EXPECT_EQ(o.exposure_ev, -1.5f);
-  EXPECT_EQ(o.white, 8.0f);
-  EXPECT_EQ(o.colors, 64);
+  o.tonemap = "pbr-neutral";
+  o.exposure_ev = -1.5f;
+  o.white = 8.0f;
+  o.format = "palette";
+  o.colors = 64;
+  o.dither = "floyd-steinberg";
   const ConvertOptions c = resolve_output_options(o, "x.png");
   EXPECT_EQ(c.format, OutputFormat::kPalette);
   EXPECT_EQ(c.tonemap.op, ToneMapOperator::kPbrNeutral);
+  EXPECT_EQ(c.tonemap.exposure_ev, -1.5f);
+  EXPECT_EQ(c.tonemap.white, 8.0f);
   EXPECT_EQ(c.dither, DitherMethod::kFloydSteinberg);
   EXPECT_EQ(c.colors, 64);
 }
 
-TEST(OutputOptions, RejectsBadValuesAtParseTime) {
-  EXPECT_THROW(parse({"--tonemap", "filmic"}), CLI::ValidationError);
-  EXPECT_THROW(parse({"--colors", "1"}), CLI::ValidationError);
-  EXPECT_THROW(parse({"--colors", "257"}), CLI::ValidationError);
-  EXPECT_THROW(parse({"--format", "jpeg"}), CLI::ValidationError);
+TEST(OutputOptions, UnknownNamesAreRefusedNamingTheFlag) {
+  OutputOptions o;
+  o.tonemap = "filmic";
+  EXPECT_THROW(
+      {
+        try {
+          resolve_output_options(o, "a.png");
+        } catch (const ColorError& e) {
+          EXPECT_STREQ(e.what(), "unknown --tonemap filmic");
+          throw;
+        }
+      },
+      ColorError);
+  o.tonemap = "clamp";
+  o.dither = "ordered";
+  EXPECT_THROW(resolve_output_options(o, "a.png"), ColorError);
+  o.dither = "none";
+  o.format = "jpeg";
+  EXPECT_THROW(resolve_output_options(o, "a.png"), ColorError);
 }
 
 TEST(OutputOptions, FormatComesFromTheExtensionUnlessGiven) {

@@ -1,0 +1,56 @@
+#include "farm_command.h"
+
+#include <iostream>
+#include <stdexcept>
+
+namespace tessera::cli {
+
+FarmError job_error(const FarmClient& client, const grpc::Status& s, const std::string& what) {
+  return FarmError{s.error_code() == grpc::StatusCode::NOT_FOUND ? kExitBadInput : kExitFailure,
+                   client.describe(s, what)};
+}
+
+FarmClient connect(const std::string& coordinator, const SecurityFlags& flags) {
+  try {
+    return FarmClient(resolve_coordinator(coordinator), resolve_security(flags));
+  } catch (const std::runtime_error& e) {
+    throw FarmError{kExitBadInput, e.what()};
+  }
+}
+
+tessera::v1::JobStatus get_job(FarmClient& client, const std::string& job) {
+  tessera::v1::GetJobRequest req;
+  req.set_job_id(job);
+  tessera::v1::JobStatus st;
+  auto ctx = client.context();
+  grpc::Status s = client.stub().GetJob(ctx.get(), req, &st);
+  if (!s.ok()) {
+    throw job_error(client, s, "looking up job " + job);
+  }
+  return st;
+}
+
+void add_coordinator_option(CLI::App* cmd, std::string* target, SecurityFlags* security) {
+  cmd->add_option("--coordinator", *target,
+                  "Coordinator HOST:PORT (default: $TESSERA_COORDINATOR, else 127.0.0.1:7878)");
+  cmd->add_option("--token-file", security->token_file, "File holding the client token (else $TESSERA_CLIENT_TOKEN)")
+      ->group("Security");
+  cmd->add_option("--tls-ca", security->tls_ca, "PEM CA certificate of the coordinator: connect with TLS "
+                                                "(else $TESSERA_TLS_CA)")->group("Security");
+  cmd->add_option("--tls-cert", security->tls_cert, "PEM client certificate, for a coordinator that asks for one")
+      ->group("Security");
+  cmd->add_option("--tls-key", security->tls_key, "PEM private key of --tls-cert")->group("Security");
+}
+
+void guarded(const char* name, const std::function<int()>& command) {
+  int rc = 0;
+  try {
+    rc = command();
+  } catch (const FarmError& e) {
+    std::cerr << "tessera " << name << ": " << e.message << "\n";
+    rc = e.code;
+  }
+  if (rc != 0) throw CLI::RuntimeError(rc);
+}
+
+}  // namespace tessera::cli
