@@ -10,7 +10,9 @@
 #include <vector>
 
 #include "render/embree_device.h"
+#include "render/hit.h"
 #include "render/ray.h"
+#include "render/render_options.h"
 #include "render/triangle_cluster.h"
 #include "scene/scene.h"
 
@@ -18,56 +20,6 @@ namespace tessera {
 
 struct RayBatch;
 struct HitBatch;
-
-// Identifies the primitive a ray leaves from, so flat and convex primitives can exclude
-// themselves exactly instead of relying on an epsilon.
-struct PrimRef {
-  enum class Kind : uint8_t { kNone, kTriangle, kSphere, kPlane };
-  Kind kind = Kind::kNone;
-  uint32_t id = 0;  // triangle index within its geometry bucket, sphere index, plane index
-  uint32_t geom = 0;
-  bool operator==(const PrimRef&) const = default;
-};
-
-struct Hit {
-  float t = 0;
-  Vec3f p;       // the hit point, recomputed on the surface (not o + t d)
-  Vec3f p_err;   // conservative absolute error bound of p, per component
-  Vec3f n;       // unit geometric normal: outward for spheres, winding (CCW) for triangles
-  uint32_t material = 0;
-  PrimRef prim;
-  // Barycentrics of a triangle hit: p = (1-u-v) v0 + u v1 + v v2 (the values p was computed
-  // from); 0 for spheres and planes. Read by the ray service (lib/rays), not by shading.
-  float u = 0, v = 0;
-  float tex_u = 0, tex_v = 0;  // texture coordinates (triangles of textured materials only)
-  // Interpolated unit shading normal (render/shading_normal.h), on n's side; set only where
-  // `smooth` (triangles with vertex normals): read it only then.
-  Vec3f ns;
-  bool smooth = false;
-};
-
-// How rays meet triangles (docs/accuracy.md, case 4, has the leak counts and costs).
-enum class TriangleTest : uint8_t {
-  // Default. Woop, Benthin and Wald's watertight test with double edge functions
-  // (render/watertight_triangle.h), as Embree user geometry in clusters of 8 tested in SIMD
-  // (render/triangle_cluster.h): no ray passes between the triangles of a closed mesh, at edges
-  // or vertices.
-  kWatertight,
-  // Embree's RTC_SCENE_FLAG_ROBUST (Pluecker) test: closed along shared edges, but a ray aimed
-  // at a shared vertex can miss the whole fan. About 2x faster per triangle-bound ray.
-  kEmbreeRobust,
-  // Embree's default test: the fastest; leaks along edges and at vertices.
-  kEmbreeFast,
-};
-
-// "watertight", "embree-robust", "embree-fast" (benchmarks' --triangles).
-constexpr const char* triangle_test_name(TriangleTest t) {
-  return t == TriangleTest::kWatertight ? "watertight" : t == TriangleTest::kEmbreeRobust ? "embree-robust" : "embree-fast";
-}
-
-struct RenderOptions {
-  TriangleTest triangles = TriangleTest::kWatertight;
-};
 
 class RenderScene {
  public:
