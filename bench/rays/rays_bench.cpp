@@ -1,4 +1,4 @@
-// Rays as a service, measured (issue 18; results in docs/rays.md). For the bunny and a large
+// Rays as a service, measured (results in docs/rays.md). For the bunny and a large
 // mesh (the armadillo, 346k triangles), coherent (camera grid) and incoherent (random) rays:
 //   bare Embree  rtcIntersect1 on the same RTCScene, same user-geometry callbacks, render-space
 //                rays prepared beforehand: the traversal ceiling (the goal's denominator)
