@@ -29,6 +29,7 @@
 
 #include "render/embree_device.h"
 #include "render/ray_log.h"
+#include "render/render_scene_embree.h"
 #include "render/tile_renderer.h"
 #include "scene/scene_parser.h"
 #include "tile/tile_grid.h"

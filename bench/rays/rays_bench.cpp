@@ -34,6 +34,7 @@
 #include "large_buffers.h"
 #include "ray_service.h"
 #include "render/embree_device.h"
+#include "render/render_scene_embree.h"
 #include "scene/scene_parser.h"
 
 namespace fs = std::filesystem;

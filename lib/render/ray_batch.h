@@ -7,7 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "render/render_scene.h"
+#include "render/hit.h"
 
 namespace tessera {
 

@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "render/render_scene.h"
+#include "render/hit.h"
 
 namespace tessera {
 

@@ -1,6 +1,11 @@
 // One frame of a Scene, ready to trace: camera-relative float geometry in an Embree scene
 // (triangles + analytic spheres as user geometry), infinite planes beside it, lights and
 // materials. Immutable after construction, so any number of threads may trace it at once.
+//
+// This header is what the integrator, the tile renderer, the worker, the ray service and the
+// client use; it includes no Embree header. The Embree side (the intersect context our callbacks
+// read, their per-geometry data, the glass crossings a shadow ray collects) is declared here by
+// name only and defined in render/render_scene_embree.h, lib/render's own header.
 #pragma once
 
 #include <algorithm>
@@ -9,65 +14,23 @@
 #include <memory>
 #include <vector>
 
-#include "render/embree_device.h"
+#include "render/hit.h"
 #include "render/ray.h"
+#include "render/render_options.h"
 #include "render/triangle_cluster.h"
 #include "scene/scene.h"
+
+// Embree's scene object (RTCScene is a pointer to it): named, not defined, so that holding the
+// scene here needs no Embree header, and a query still reads the pointer straight from the
+// RenderScene.
+struct RTCSceneTy;
 
 namespace tessera {
 
 struct RayBatch;
 struct HitBatch;
-
-// Identifies the primitive a ray leaves from, so flat and convex primitives can exclude
-// themselves exactly instead of relying on an epsilon.
-struct PrimRef {
-  enum class Kind : uint8_t { kNone, kTriangle, kSphere, kPlane };
-  Kind kind = Kind::kNone;
-  uint32_t id = 0;  // triangle index within its geometry bucket, sphere index, plane index
-  uint32_t geom = 0;
-  bool operator==(const PrimRef&) const = default;
-};
-
-struct Hit {
-  float t = 0;
-  Vec3f p;       // the hit point, recomputed on the surface (not o + t d)
-  Vec3f p_err;   // conservative absolute error bound of p, per component
-  Vec3f n;       // unit geometric normal: outward for spheres, winding (CCW) for triangles
-  uint32_t material = 0;
-  PrimRef prim;
-  // Barycentrics of a triangle hit: p = (1-u-v) v0 + u v1 + v v2 (the values p was computed
-  // from); 0 for spheres and planes. Read by the ray service (lib/rays), not by shading.
-  float u = 0, v = 0;
-  float tex_u = 0, tex_v = 0;  // texture coordinates (triangles of textured materials only)
-  // Interpolated unit shading normal (render/shading_normal.h), on n's side; set only where
-  // `smooth` (triangles with vertex normals): read it only then.
-  Vec3f ns;
-  bool smooth = false;
-};
-
-// How rays meet triangles (docs/accuracy.md, case 4, has the leak counts and costs).
-enum class TriangleTest : uint8_t {
-  // Default. Woop, Benthin and Wald's watertight test with double edge functions
-  // (render/watertight_triangle.h), as Embree user geometry in clusters of 8 tested in SIMD
-  // (render/triangle_cluster.h): no ray passes between the triangles of a closed mesh, at edges
-  // or vertices.
-  kWatertight,
-  // Embree's RTC_SCENE_FLAG_ROBUST (Pluecker) test: closed along shared edges, but a ray aimed
-  // at a shared vertex can miss the whole fan. About 2x faster per triangle-bound ray.
-  kEmbreeRobust,
-  // Embree's default test: the fastest; leaks along edges and at vertices.
-  kEmbreeFast,
-};
-
-// "watertight", "embree-robust", "embree-fast" (benchmarks' --triangles).
-constexpr const char* triangle_test_name(TriangleTest t) {
-  return t == TriangleTest::kWatertight ? "watertight" : t == TriangleTest::kEmbreeRobust ? "embree-robust" : "embree-fast";
-}
-
-struct RenderOptions {
-  TriangleTest triangles = TriangleTest::kWatertight;
-};
+struct FrameState;
+class Transform;
 
 class RenderScene {
  public:
@@ -110,7 +73,7 @@ class RenderScene {
   };
   struct PointLight { Vec3f position; Rgb intensity; };
   struct DirectionalLight { Vec3f direction; Rgb irradiance; };  // direction the light travels
-  // A point light whose intensity falls off with the angle to its axis (see build()).
+  // A point light whose intensity falls off with the angle to its axis (see add_lights()).
   struct SpotLight {
     Vec3f position;
     Rgb intensity;
@@ -149,8 +112,38 @@ class RenderScene {
   // moves far ray origins to this cube's neighbourhood in double before rounding them to float.
   float bounds_radius() const { return bounds_radius_; }
 
+  // Its layout is read in place by the batch's SIMD finish (render/ray_batch_simd.h).
   struct Sphere { Vec3d center; double radius; uint32_t material; uint32_t object; };
+  const std::vector<Sphere>& spheres() const { return spheres_; }
+  // Half-width added to every user-geometry bounding box (see set_padded_bounds() in
+  // user_geometry.cpp): a bound on the rounding error of Embree's box test for rays starting
+  // within 32x the radius of the scene's triangles around the eye. Triangles only: one huge
+  // sphere (a 1e6 ground) would otherwise widen every triangle's box by ~R/2^16 and defeat the
+  // BVH (measured: 1000x slower); spheres need no such guarantee (a box-test error there is a
+  // tangent ray).
+  float box_padding(float box_magnitude) const { return 0x1p-16f * (box_magnitude + triangle_radius_); }
+
+  // The Embree side, defined in render/render_scene_embree.h: the intersect context our
+  // callbacks read, the glass crossings a shadow ray collects, and the callbacks' data per
+  // geometry.
+  struct TraceContext;
+  struct GlassHit;
+  struct GlassHits;
+  struct TriangleGeomData;
+  struct SphereGeomData;
+  // The Embree scene (benchmarks replay the renderer's rays on it; see render/ray_log.h).
+  RTCSceneTy* embree_scene() const { return rtc_scene_.get(); }
+  // Embree geometry masks of the two material classes.
+  static constexpr uint32_t kOpaqueMask = 1, kGlassMask = 2;
+
+ private:
   struct Plane { Vec3d point; Vec3d normal; Vec3f b1, b2; uint32_t material; uint32_t object; };
+  // The geometry id of a bucket not in the Embree scene: Embree's RTC_INVALID_GEOMETRY_ID
+  // (render_scene_embree.h checks that they agree).
+  static constexpr uint32_t kNoGeometry = UINT32_MAX;
+  // The triangles and spheres of one material class ([0] opaque, [1] glass), each one Embree
+  // geometry. Held by value, not behind a pointer: finish_hit() and the batch read them on every
+  // hit.
   struct TriangleBucket {
     std::vector<Vec3f> positions;      // +1 padding element: Embree reads 16 bytes per vertex
     std::vector<uint32_t> indices;
@@ -159,56 +152,31 @@ class RenderScene {
     std::vector<float> uvs;  // 6 per triangle (its vertices' uv) when any triangle is textured; else empty
     std::vector<float> normals;  // 9 per triangle (unit vertex normals, 0: flat) when any has them; else empty
     std::vector<TriangleCluster> clusters;  // the watertight test's Embree primitives (triangle_cluster.h)
-    uint32_t geom_id = RTC_INVALID_GEOMETRY_ID;
+    uint32_t geom_id = kNoGeometry;
   };
   struct SphereBucket {
     std::vector<uint32_t> ids;  // indices into spheres_
-    uint32_t geom_id = RTC_INVALID_GEOMETRY_ID;
+    uint32_t geom_id = kNoGeometry;
     uint32_t mask = 0;
   };
-  // Public for the Embree user-geometry callbacks.
-  struct SphereGeomData { const RenderScene* scene; const SphereBucket* bucket; };
-  struct TriangleGeomData {
-    const RenderScene* scene;
-    const TriangleBucket* bucket;
-    uint32_t bucket_index;  // 0 opaque, 1 glass: PrimRef::geom of its triangles
-    uint32_t mask;
+  // What Embree's user-geometry callbacks are given, per geometry (render_scene_embree.h). They
+  // reach it through Embree's geometry user pointer, never through this one, so holding it
+  // apart costs a query nothing.
+  struct UserGeometryData;
+  // Releases the Embree scene (rtcReleaseScene, in render_scene_embree.cpp).
+  struct ReleaseEmbreeScene {
+    void operator()(RTCSceneTy* scene) const;
   };
-  // Half-width added to every user-geometry bounding box (see set_padded_bounds() in the .cpp):
-  // a bound on the rounding error of Embree's box test for rays starting within 32x the radius
-  // of the scene's triangles around the eye. Triangles only: one huge sphere (a 1e6 ground)
-  // would otherwise widen every triangle's box by ~R/2^16 and defeat the BVH (measured: 1000x
-  // slower); spheres need no such guarantee (a box-test error there is a tangent ray).
-  float box_padding(float box_magnitude) const { return 0x1p-16f * (box_magnitude + triangle_radius_); }
-  const std::vector<Sphere>& spheres() const { return spheres_; }
 
-  // A glass surface met by a shadow ray (collected during one occlusion query).
-  struct GlassHit { float t; uint32_t material; };
-  static constexpr int kMaxGlassHits = 32;
-  struct GlassHits {
-    int count = 0;
-    bool overflow = false;
-    GlassHit hits[kMaxGlassHits];
-  };
-  // Embree's intersect context extended (as in Embree's tutorials) with what our callbacks need.
-  // `from` is the primitive the ray leaves; for packets, `from_by_id` (if set) gives it per lane,
-  // indexed by the ray's id, so a lane's result never depends on its packet. `glass` (if set)
-  // (indexed by ray id too) makes occlusion queries collect glass crossings instead of stopping
-  // at them.
-  struct TraceContext {
-    RTCIntersectContext rtc;
-    const RenderScene* scene = nullptr;
-    PrimRef from;
-    const PrimRef* from_by_id = nullptr;
-    GlassHits* glass = nullptr;
-  };
-  // The Embree scene (benchmarks replay the renderer's rays on it; see render/ray_log.h).
-  RTCScene embree_scene() const { return rtc_scene_.get(); }
-  // Embree geometry masks of the two material classes.
-  static constexpr uint32_t kOpaqueMask = 1, kGlassMask = 2;
-
- private:
+  // The steps of construction (render_scene_build.cpp), in order.
   void build(const Scene& scene, int frame);
+  void add_lights(const std::vector<Light>& lights);
+  void add_objects(const Scene& scene, const FrameState& state);
+  void add_mesh(const Mesh& mesh, uint32_t object, const Transform& xf);
+  void finish_tables();
+  void measure_bounds();
+  void build_embree_scene();  // render_scene_embree.cpp
+
   double nearest_plane(const Vec3d& o, const Vec3d& d, const PrimRef& from, double tmax, int* which) const;
   // The ray as Embree gets it. Embree's box test errs in proportion to the origin's magnitude,
   // and box_padding() covers origins within 16 R_tri (max norm) of the eye; a ray starting
@@ -253,11 +221,10 @@ class RenderScene {
   TriangleBucket triangles_[2];  // [0] opaque, [1] glass
   SphereBucket sphere_buckets_[2];
   bool has_glass_ = false;
-  SphereGeomData sphere_data_[2];
-  TriangleGeomData triangle_data_[2];
+  std::unique_ptr<UserGeometryData> user_geometry_;
   float bounds_radius_ = 0;    // max |coordinate| of bounded geometry (triangles, spheres), render space
   float triangle_radius_ = 0;  // max |coordinate| of triangle vertices, render space
-  SceneHandle rtc_scene_;
+  std::unique_ptr<RTCSceneTy, ReleaseEmbreeScene> rtc_scene_;
 };
 
 }  // namespace tessera

@@ -14,13 +14,13 @@
 
 #include "render/ray_batch.h"
 #include "render/ray_batch_simd.h"
-#include "render/render_scene.h"
+#include "render/render_scene_embree.h"
 
 namespace tessera {
 
 namespace {
 
-// Lane i of a batch as Embree's ray: make_rayhit(...).ray (render_scene.cpp) for a ray that
+// Lane i of a batch as Embree's ray: make_rayhit(...).ray (render_scene_embree.h) for a ray that
 // starts near, Embree looking only as far as `tfar` (closer than the nearest plane).
 [[gnu::always_inline]] inline void set_embree_ray(const RayBatch& r, size_t i, float tfar, uint32_t mask, RTCRay* q) {
   q->org_x = r.ox[i];

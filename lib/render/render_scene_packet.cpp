@@ -3,11 +3,9 @@
 // ISAs). The camera rays of one pixel's consecutive samples, and the shadow rays from their hit
 // points to one light, are coherent: one traversal serves them all. Everything around the
 // Embree call (planes, hit reconstruction, glass products) is the scalar code, per lane.
-#include <embree3/rtcore.h>
-
 #include "render/plane.h"
 #include "render/ray_log.h"
-#include "render/render_scene.h"
+#include "render/render_scene_embree.h"
 
 namespace tessera {
 

@@ -1,0 +1,107 @@
+// The watertight test's triangle clusters (render/triangle_cluster.h) as Embree user geometry:
+// one user primitive per cluster of up to 8 triangles, whose callbacks test all of them at once.
+#include <cstdint>
+#include <limits>
+#include <utility>
+
+#include "render/render_scene_embree.h"
+#include "render/triangle_cluster.h"
+#include "render/user_geometry.h"
+#include "render/watertight_triangle.h"
+
+namespace tessera {
+
+namespace {
+
+using TraceContext = RenderScene::TraceContext;
+using TriangleGeomData = RenderScene::TriangleGeomData;
+
+// Vertex j of the triangle in lane k: the cluster holds the bucket's vertices, the same floats,
+// already in cache during traversal (the bucket's positions array, on a large mesh, is not).
+Vec3f cluster_vertex(const TriangleCluster& c, int j, int k) { return {c.v[j][0][k], c.v[j][1][k], c.v[j][2][k]}; }
+
+// A user primitive is a cluster of up to 8 triangles (render/triangle_cluster.h).
+void cluster_bounds(const RTCBoundsFunctionArguments* args) {
+  const auto* data = static_cast<const TriangleGeomData*>(args->geometryUserPtr);
+  const TriangleCluster& c = data->bucket->clusters[args->primID];
+  set_padded_bounds(args->bounds_o, c.lower, c.upper, *data->scene);
+}
+
+// The watertight test of lane i against a cluster: the mask of its triangles hit, or 0 when the
+// lane is masked out. The triangle the ray leaves is left out (a flat primitive cannot be met
+// again: excluded exactly, like planes and spheres).
+uint32_t cluster_lane(const TriangleGeomData* data, const TriangleCluster& c, const TraceContext* ctx, RTCRayN* ray,
+                      unsigned N, unsigned i, TriangleHit th[TriangleCluster::kSize]) {
+  if (!(RTCRayN_mask(ray, N, i) & data->mask)) return 0;
+  const PrimRef& from = ctx->from_of(ray, N, i);
+  int skip = -1;
+  if (from.kind == PrimRef::Kind::kTriangle && from.geom == data->bucket_index) {
+    for (uint32_t k = 0; k < c.count; ++k) {
+      if (c.tri[k] == from.id) skip = int(k);
+    }
+  }
+  const Vec3f o(RTCRayN_org_x(ray, N, i), RTCRayN_org_y(ray, N, i), RTCRayN_org_z(ray, N, i));
+  const Vec3f d(RTCRayN_dir_x(ray, N, i), RTCRayN_dir_y(ray, N, i), RTCRayN_dir_z(ray, N, i));
+  return intersect_cluster(c, o, ray_shear(d), RTCRayN_tnear(ray, N, i), RTCRayN_tfar(ray, N, i), skip, th);
+}
+
+void cluster_intersect(const RTCIntersectFunctionNArguments* args) {
+  const auto* data = static_cast<const TriangleGeomData*>(args->geometryUserPtr);
+  const auto* ctx = reinterpret_cast<const TraceContext*>(args->context);
+  const TriangleCluster& c = data->bucket->clusters[args->primID];
+  const unsigned N = args->N;
+  RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, N);
+  RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, N);
+  for (unsigned i = 0; i < N; ++i) {
+    if (!args->valid[i]) continue;
+    TriangleHit th[TriangleCluster::kSize];
+    // The cluster's hits in lane order, each as if its triangle were tested alone after the
+    // ones before it: nearer than the nearest so far, and on an exact tie (a ray through a
+    // shared edge or vertex) to the lower (geometry, triangle) id, so the result depends neither
+    // on traversal order (packet or single ray, BVH layout) nor on how triangles are clustered.
+    for (uint32_t m = cluster_lane(data, c, ctx, ray, N, i, th); m != 0; m &= m - 1) {
+      const int k = __builtin_ctz(m);
+      const float tfar = RTCRayN_tfar(ray, N, i);
+      if (th[k].t > tfar) continue;
+      if (th[k].t == tfar && RTCHitN_geomID(hit, N, i) != RTC_INVALID_GEOMETRY_ID &&
+          std::pair(RTCHitN_geomID(hit, N, i), RTCHitN_primID(hit, N, i)) < std::pair(args->geomID, c.tri[k])) {
+        continue;
+      }
+      const Vec3f v0 = cluster_vertex(c, 0, k), v1 = cluster_vertex(c, 1, k), v2 = cluster_vertex(c, 2, k);
+      record_hit(args, i, th[k].t, cross(v1 - v0, v2 - v0), th[k].u, th[k].v, c.tri[k]);
+    }
+  }
+}
+
+void cluster_occluded(const RTCOccludedFunctionNArguments* args) {
+  const auto* data = static_cast<const TriangleGeomData*>(args->geometryUserPtr);
+  const auto* ctx = reinterpret_cast<const TraceContext*>(args->context);
+  const TriangleCluster& c = data->bucket->clusters[args->primID];
+  const unsigned N = args->N;
+  RTCRayN* ray = args->ray;
+  for (unsigned i = 0; i < N; ++i) {
+    if (!args->valid[i]) continue;
+    TriangleHit th[TriangleCluster::kSize];
+    const uint32_t m = cluster_lane(data, c, ctx, ray, N, i, th);
+    if (m == 0) continue;
+    if (ctx->glass && data->mask == RenderScene::kGlassMask) {
+      // A shadow ray collecting glass crossings (see sphere_occluded(), sphere_geometry.cpp):
+      // record, go on.
+      for (uint32_t r = m; r != 0; r &= r - 1) {
+        const int k = __builtin_ctz(r);
+        ctx->glass[RTCRayN_id(ray, N, i)].add(th[k].t, data->bucket->material_ids[c.tri[k]]);
+      }
+      continue;
+    }
+    RTCRayN_tfar(ray, N, i) = -std::numeric_limits<float>::infinity();
+  }
+}
+
+}  // namespace
+
+uint32_t attach_triangle_clusters(RTCScene scene, TriangleGeomData* data) {
+  return attach_user_geometry(scene, data->bucket->clusters.size(), data, cluster_bounds, cluster_intersect,
+                              cluster_occluded, data->mask);
+}
+
+}  // namespace tessera

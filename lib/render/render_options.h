@@ -1,0 +1,31 @@
+// How a RenderScene is built: which ray-triangle test it traces with.
+#pragma once
+
+#include <cstdint>
+
+namespace tessera {
+
+// How rays meet triangles (docs/accuracy.md, case 4, has the leak counts and costs).
+enum class TriangleTest : uint8_t {
+  // Default. Woop, Benthin and Wald's watertight test with double edge functions
+  // (render/watertight_triangle.h), as Embree user geometry in clusters of 8 tested in SIMD
+  // (render/triangle_cluster.h): no ray passes between the triangles of a closed mesh, at edges
+  // or vertices.
+  kWatertight,
+  // Embree's RTC_SCENE_FLAG_ROBUST (Pluecker) test: closed along shared edges, but a ray aimed
+  // at a shared vertex can miss the whole fan. About 2x faster per triangle-bound ray.
+  kEmbreeRobust,
+  // Embree's default test: the fastest; leaks along edges and at vertices.
+  kEmbreeFast,
+};
+
+// "watertight", "embree-robust", "embree-fast" (benchmarks' --triangles).
+constexpr const char* triangle_test_name(TriangleTest t) {
+  return t == TriangleTest::kWatertight ? "watertight" : t == TriangleTest::kEmbreeRobust ? "embree-robust" : "embree-fast";
+}
+
+struct RenderOptions {
+  TriangleTest triangles = TriangleTest::kWatertight;
+};
+
+}  // namespace tessera

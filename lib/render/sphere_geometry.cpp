@@ -1,0 +1,119 @@
+// Analytic spheres as Embree user geometry: the roots found in double (render/sphere.h), the
+// sphere a ray leaves excluded exactly.
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+#include "render/render_scene_embree.h"
+#include "render/sphere.h"
+#include "render/user_geometry.h"
+
+namespace tessera {
+
+namespace {
+
+using TraceContext = RenderScene::TraceContext;
+using SphereGeomData = RenderScene::SphereGeomData;
+
+Vec3f round_down(const Vec3d& v) {
+  Vec3f f(v);
+  for (int i = 0; i < 3; ++i) {
+    if (double(f[i]) > v[i]) f[i] = std::nextafter(f[i], -std::numeric_limits<float>::infinity());
+  }
+  return f;
+}
+Vec3f round_up(const Vec3d& v) {
+  Vec3f f(v);
+  for (int i = 0; i < 3; ++i) {
+    if (double(f[i]) < v[i]) f[i] = std::nextafter(f[i], std::numeric_limits<float>::infinity());
+  }
+  return f;
+}
+
+void sphere_bounds(const RTCBoundsFunctionArguments* args) {
+  const auto* data = static_cast<const SphereGeomData*>(args->geometryUserPtr);
+  const auto& s = data->scene->spheres()[data->bucket->ids[args->primID]];
+  set_padded_bounds(args->bounds_o, round_down(s.center - Vec3d(s.radius)), round_up(s.center + Vec3d(s.radius)),
+                    *data->scene);
+}
+
+// The nearest acceptable root of sphere `index` for a ray in (tnear, tfar), or -1.
+double sphere_root(const RenderScene::Sphere& s, uint32_t index, const PrimRef& from, const Vec3d& o,
+                   const Vec3d& d, float tnear, float tfar) {
+  double t[2];
+  if (intersect_sphere(o, d, s.center, s.radius, t) == 0) return -1;
+  int first = 0;
+  if (from.kind == PrimRef::Kind::kSphere && from.id == index) {
+    // Leaving this sphere's surface: outward it cannot be met again (convex); inward, only
+    // the far root is real. Exact, no epsilon.
+    if (dot(d, o - s.center) >= 0) return -1;
+    first = 1;
+  }
+  for (int i = first; i < 2; ++i) {
+    const float tf = float(t[i]);
+    if (tf > tnear && tf < tfar) return t[i];
+  }
+  return -1;
+}
+
+void sphere_intersect(const RTCIntersectFunctionNArguments* args) {
+  const auto* data = static_cast<const SphereGeomData*>(args->geometryUserPtr);
+  const auto* ctx = reinterpret_cast<const TraceContext*>(args->context);
+  RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, args->N);
+  const unsigned N = args->N;
+  const uint32_t index = data->bucket->ids[args->primID];
+  const auto& s = data->scene->spheres()[index];
+  for (unsigned i = 0; i < N; ++i) {
+    if (!args->valid[i] || !(RTCRayN_mask(ray, N, i) & data->bucket->mask)) continue;
+    const Vec3d o(RTCRayN_org_x(ray, N, i), RTCRayN_org_y(ray, N, i), RTCRayN_org_z(ray, N, i));
+    const Vec3d d(RTCRayN_dir_x(ray, N, i), RTCRayN_dir_y(ray, N, i), RTCRayN_dir_z(ray, N, i));
+    const double t = sphere_root(s, index, ctx->from_of(ray, N, i), o, d, RTCRayN_tnear(ray, N, i),
+                                 RTCRayN_tfar(ray, N, i));
+    if (t < 0) continue;
+    record_hit(args, i, float(t), Vec3f(o + d * t - s.center), 0.0f, 0.0f, args->primID);
+  }
+}
+
+void sphere_occluded(const RTCOccludedFunctionNArguments* args) {
+  const auto* data = static_cast<const SphereGeomData*>(args->geometryUserPtr);
+  const auto* ctx = reinterpret_cast<const TraceContext*>(args->context);
+  RTCRayN* ray = args->ray;
+  const unsigned N = args->N;
+  const uint32_t index = data->bucket->ids[args->primID];
+  const auto& s = data->scene->spheres()[index];
+  for (unsigned i = 0; i < N; ++i) {
+    if (!args->valid[i] || !(RTCRayN_mask(ray, N, i) & data->bucket->mask)) continue;
+    const Vec3d o(RTCRayN_org_x(ray, N, i), RTCRayN_org_y(ray, N, i), RTCRayN_org_z(ray, N, i));
+    const Vec3d d(RTCRayN_dir_x(ray, N, i), RTCRayN_dir_y(ray, N, i), RTCRayN_dir_z(ray, N, i));
+    const PrimRef& from = ctx->from_of(ray, N, i);
+    const float tnear = RTCRayN_tnear(ray, N, i), tfar = RTCRayN_tfar(ray, N, i);
+    if (ctx->glass && data->bucket->mask == RenderScene::kGlassMask) {
+      // A shadow ray collecting glass crossings: every root in (tnear, tfar), not just the first
+      // (the same roots the old crossing-by-crossing walk found, in one traversal).
+      double t[2];
+      if (intersect_sphere(o, d, s.center, s.radius, t) == 0) continue;
+      int first = 0;
+      if (from.kind == PrimRef::Kind::kSphere && from.id == index) {
+        if (dot(d, o - s.center) >= 0) continue;
+        first = 1;
+      }
+      for (int k = first; k < 2; ++k) {
+        const float tf = float(t[k]);
+        if (tf > tnear && tf < tfar) ctx->glass[RTCRayN_id(ray, N, i)].add(tf, s.material);
+      }
+      continue;
+    }
+    if (sphere_root(s, index, from, o, d, tnear, tfar) >= 0) {
+      RTCRayN_tfar(ray, N, i) = -std::numeric_limits<float>::infinity();
+    }
+  }
+}
+
+}  // namespace
+
+uint32_t attach_spheres(RTCScene scene, SphereGeomData* data) {
+  return attach_user_geometry(scene, data->bucket->ids.size(), data, sphere_bounds, sphere_intersect,
+                              sphere_occluded, data->bucket->mask);
+}
+
+}  // namespace tessera
