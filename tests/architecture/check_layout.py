@@ -38,15 +38,31 @@ INCLUDE_RULES = [
 # Only these files of lib/farm may include the renderer: the bundle cache of render scenes.
 FARM_RENDER_FILES = {"lib/farm/bundle_cache.h", "lib/farm/bundle_cache.cpp"}
 
-# (executable, link.txt path in the build folder, forbidden library regex)
+# (executable's path in the build folder, forbidden library regex)
 LINK_RULES = [
-    ("tessera-server", "server/CMakeFiles/tessera-server.dir/link.txt",
+    ("server/tessera-server",
      r'libtessera_render\.a|libtessera_bundle_cache\.a|libtessera_rays\.a|libembree|libtessera_worker_core\.a'),
-    ("tessera-rays", "rays/CMakeFiles/tessera-rays.dir/link.txt",
+    ("rays/tessera-rays",
      r'libtessera_coordinator\.a|libtessera_scheduler\.a|libtessera_job_store\.a|libtessera_worker_core\.a'),
-    ("tessera-worker", "worker/CMakeFiles/tessera-worker.dir/link.txt",
-     r'libtessera_coordinator\.a|libtessera_scheduler\.a|libtessera_job_store\.a'),
+    ("worker/tessera-worker", r'libtessera_coordinator\.a|libtessera_scheduler\.a|libtessera_job_store\.a'),
 ]
+
+
+def link_line(build, exe):
+    """The libraries `exe` links, from the generator's own files: link.txt (Makefiles) or the
+    executable's build statement in build.ninja (Ninja). None when neither is there."""
+    name = os.path.basename(exe)
+    txt = os.path.join(build, os.path.dirname(exe), "CMakeFiles", name + ".dir", "link.txt")
+    if os.path.exists(txt):
+        with open(txt) as f:
+            return f.read()
+    ninja = os.path.join(build, "build.ninja")
+    if not os.path.exists(ninja):
+        return None
+    with open(ninja) as f:
+        text = f.read()
+    m = re.search(r'^build ' + re.escape(exe) + r':.*?(?=\n\n)', text, flags=re.S | re.M)
+    return m.group(0) if m else None
 
 INCLUDE = re.compile(r'^\s*#\s*include\s*[<"]([^">]+)[">]')
 
@@ -190,13 +206,12 @@ def main():
             if chain:
                 breaches.append(f"{rel}: reaches the renderer through {' -> '.join(chain)}")
     if build:
-        for exe, link, pattern in LINK_RULES:
-            p = os.path.join(build, link)
-            if not os.path.exists(p):
-                breaches.append(f"{exe}: no link line at {p} (build it first)")
+        for exe, pattern in LINK_RULES:
+            line = link_line(build, exe)
+            if line is None:
+                breaches.append(f"{exe}: no link line in {build} (configure it first)")
                 continue
-            with open(p) as f:
-                bad = sorted(set(re.findall(pattern, f.read())))
+            bad = sorted(set(re.findall(pattern, line)))
             if bad:
                 breaches.append(f"{exe} links {', '.join(bad)}")
     for b in breaches:
