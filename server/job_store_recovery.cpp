@@ -54,16 +54,8 @@ JobStore::Loaded JobStore::load(const TileCheck& check) {
   load_lease_marks(out);
   segments_.clear();
   query(std::string("SELECT ") + kJobColumns + " FROM jobs WHERE resident=1 ORDER BY seq", [&](sqlite3_stmt* st) {
-    JobSnapshot s = read_job_row(st);
     JobRecord r;
-    r.id = s.id;
-    r.spec = s.spec;
-    r.state = s.state;
-    r.error = s.error;
-    r.seq = s.seq;
-    r.submitted = s.submitted;
-    r.ended = s.ended;
-    r.duplicates = s.duplicates_discarded;
+    r.header() = read_job_row(st).header();
     out.jobs.push_back(std::move(r));
   });
   std::vector<TileKey> missing;
