@@ -1,7 +1,12 @@
 #include "bundle_store.h"
 
+#include <fcntl.h>
+#include <stdlib.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 #include <fstream>
-#include <random>
 #include <sstream>
 #include <vector>
 
@@ -37,8 +42,12 @@ void BundleStore::put(const std::string& sha256, const std::string& bytes) {
   std::lock_guard lock(mu_);
   farm::extract_bundle(bytes, dir_ / sha256);  // validates structure and paths
   if (fs::exists(file_of(sha256))) return;
-  static thread_local std::mt19937_64 rng{std::random_device{}()};
-  const fs::path tmp = dir_ / (sha256 + ".tmp" + std::to_string(rng()));
+  // A temporary name of mkstemp's making (the bytes go to their final name by rename, atomically).
+  std::string name = (dir_ / (sha256 + ".tmpXXXXXX")).string();
+  const int fd = ::mkostemp(name.data(), O_CLOEXEC);
+  if (fd < 0) throw BundleError("cannot create " + name + ": " + std::strerror(errno));
+  ::close(fd);
+  const fs::path tmp = name;
   {
     std::ofstream out(tmp, std::ios::binary);
     out.write(bytes.data(), std::streamsize(bytes.size()));
