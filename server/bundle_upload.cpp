@@ -1,11 +1,11 @@
 #include "bundle_upload.h"
 
 #include <fcntl.h>
+#include <stdlib.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
-#include <random>
 #include <stdexcept>
 
 #include "farm/request_limits.h"
@@ -13,10 +13,12 @@
 namespace tessera::server {
 
 BundleUpload::BundleUpload(const std::filesystem::path& store_dir) {
-  static thread_local std::mt19937_64 rng{std::random_device{}()};
-  path_ = store_dir / (".upload-" + std::to_string(rng()));
-  fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-  if (fd_ < 0) throw std::runtime_error("cannot create " + path_.string() + ": " + std::strerror(errno));
+  // A name of mkstemp's making; the ".upload-" prefix is what BundleStore removes at start (an
+  // upload a crash cut short never finishes).
+  std::string name = (store_dir / ".upload-XXXXXX").string();
+  fd_ = ::mkostemp(name.data(), O_CLOEXEC);
+  if (fd_ < 0) throw std::runtime_error("cannot create " + name + ": " + std::strerror(errno));
+  path_ = name;
   md_ = EVP_MD_CTX_new();
   if (!md_ || EVP_DigestInit_ex(md_, EVP_sha256(), nullptr) != 1) throw std::runtime_error("SHA-256 failed (OpenSSL)");
 }

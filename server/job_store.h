@@ -14,28 +14,34 @@
 // the queue is always a consistent state. A failed batch (full disk, I/O error) is rolled back,
 // marks the store unhealthy (submit answers RESOURCE_EXHAUSTED) and is retried every second, in
 // order, until it succeeds. barrier() tells a caller when everything queued before it is durable.
+//
+// The class in files: job_store.cpp (opening the store, the queue's front), job_store_recovery.cpp
+// (reading the state back at start), job_store_writer.cpp (the group-commit writer). Its parts:
+// job_store_schema.h (the tables and versions), job_row.h (a jobs row), tile_store.h (segment
+// files), segment_ledger.h (which segments are still needed), disk_reserve.h (space for SQLite).
 #pragma once
 
 #include <sqlite3.h>
-#include <sys/types.h>
 
 #include <condition_variable>
 #include <deque>
 #include <filesystem>
 #include <functional>
 #include <future>
-#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <thread>
-#include <unordered_map>
 #include <variant>
 #include <vector>
 
+#include "disk_reserve.h"
+#include "job_store_schema.h"
 #include "scheduler.h"
+#include "segment_ledger.h"
 #include "tile_store.h"
 
 namespace tessera::server {
@@ -47,9 +53,7 @@ struct StoreError : std::runtime_error {
 
 class JobStore {
  public:
-  // 2: tiles live in segment files (tiles.segment/offset/length). Version 1 (a file per tile) is
-  // refused with a message, not migrated: no farm ran it in production.
-  static constexpr int kSchemaVersion = 3;  // 3: jobs.owner, blocklist (version 2 is migrated)
+  static constexpr int kSchemaVersion = kStoreSchemaVersion;  // job_store_schema.h: the versions
 
   // Opens or creates the store; checks the directory is writable, the database's integrity
   // (PRAGMA quick_check) and its schema version. Throws StoreError.
@@ -104,7 +108,7 @@ class JobStore {
   Stats stats() const;
   // Called by the writer thread after each batch it committed: how long the batch took (segment
   // write, fsyncs, SQLite commit) and the tile bytes it wrote. Set before the first write (the
-  // metrics' store latency and bytes, issue 16).
+  // metrics' store latency and bytes, server/metrics).
   using BatchObserver = std::function<void(double seconds, uint64_t tile_bytes)>;
   void set_batch_observer(BatchObserver observer);
 
@@ -118,40 +122,57 @@ class JobStore {
   struct Blocklisted { JobId job; std::string worker; };
   struct Barrier { std::shared_ptr<std::promise<std::string>> done; };
   using Op = std::variant<JobRow, TileDone, FrameAck, LeaseIssued, LeaseEnded, Evicted, Blocklisted, Barrier>;
+  using FrameKey = SegmentLedger::FrameKey;
+  struct BatchPlan;  // job_store_writer.cpp
 
+  // --- opening (job_store.cpp) ------------------------------------------------------------------
+  void check_writable();  // logs a full disk; throws StoreError for any other failure
+  void open_database();
+  void prepare_statements();
+  void exec(const char* sql);
+  sqlite3_stmt* prepare(const char* sql);
+  void close_handles();  // finalizes statements and closes both connections (idempotent)
+
+  // --- reading back at start (job_store_recovery.cpp) -------------------------------------------
+  // Throws when the database is missing or empty but the directory holds tiles it described.
+  void refuse_lost_database();
+  // Runs `sql` on the writer's connection, calling `row` for each row; throws StoreError.
+  void query(const std::string& sql, const std::function<void(sqlite3_stmt*)>& row);
+  void load_lease_marks(Loaded& out);
+  // The job's done tiles, with the pixels of those of unacknowledged frames; a tile whose
+  // record is unusable is left out and added to `missing`.
+  void load_done_tiles(JobRecord& r, const std::set<int>& acked, const TileCheck& check,
+                       std::vector<TileKey>& missing, Loaded& out);
+  // Deletes the rows of `missing` tiles and every lease row (best effort: see the .cpp).
+  void drop_stale_rows(const std::vector<TileKey>& missing);
+  // Deletes everything in tiles/ that no loaded tile needs; returns the number of files.
+  int64_t remove_orphans();
+
+  // --- writing (job_store_writer.cpp) -----------------------------------------------------------
   void push(Op op);
   void writer_loop();
+  // Applies `pending`, and on failure what of it needs no new segment (see apply()); returns
+  // the error ("" once everything is committed) and leaves in `deferred` the tiles still to write.
+  std::string apply_pending(std::vector<Op>& pending, const BatchObserver& observer, std::vector<Op>& deferred);
   // Applies the batch; throws on failure (the transaction is rolled back). With `new_segment`
   // false, tiles that would need one (tiles of frames not acknowledged in this batch) are left
   // out and returned, to be retried: the rest (acknowledgements, whose commit frees segments,
   // evictions, job and lease rows) must not wait behind writes a full disk cannot take.
   std::vector<Op> apply(std::vector<Op>& batch, bool new_segment = true);
-  void exec(const char* sql);
-  sqlite3_stmt* prepare(const char* sql);
-  void open_database();
-  // Throws when the database is missing or empty but the directory holds tiles it described.
-  void refuse_lost_database();
-  void close_handles();  // finalizes statements and closes both connections (idempotent)
-  // Segment bookkeeping (writer thread, and load() before it): which segment holds each tile of
-  // an unacknowledged frame of a resident job, and how many such tiles each segment holds. A
-  // segment whose count drops to zero is deleted; rows of acknowledged frames keep their (dead)
-  // location, which is never read.
-  using FrameKey = std::pair<JobId, int>;
-  void track_tile(const TileKey& key, int64_t segment);
-  void release_frame(const FrameKey& frame, std::vector<int64_t>& emptied);
-  void release_job(const JobId& job, std::vector<int64_t>& emptied);
+  BatchPlan plan_batch(const std::vector<Op>& batch, bool new_segment) const;
+  void write_pixels(const std::vector<Op>& batch, BatchPlan& plan);
+  void commit_rows(const std::vector<Op>& batch, const BatchPlan& plan);
+  void write_row(const Op& op, const BatchPlan& plan, size_t& next_at);
+  void step(sqlite3_stmt* st);
+  std::vector<Op> release_delivered(const std::vector<Op>& batch, const BatchPlan& plan);
   // Full disk, SQLite included: deletes now the segments the queued acknowledgements and
   // evictions will free once committed (see the .cpp for the crash trade-off).
   void reclaim_delivered(const std::vector<Op>& pending);
-  // <data-dir>/.reserve: space held back for SQLite on a full disk (see the .cpp).
-  static constexpr off_t kReserveBytes = 512 * 1024;
-  void make_reserve();
   void release_reserve();  // and checkpoint the WAL (TRUNCATE)
-  bool reserve_wanted_ = false;  // writer thread only (and the constructor)
-  std::map<FrameKey, std::map<int, int64_t>> frame_tiles_;
-  std::unordered_map<int64_t, int64_t> segment_live_;
 
   std::filesystem::path dir_, db_path_;
+  DiskReserve reserve_;       // writer thread only (and the constructor)
+  SegmentLedger segments_;    // writer thread only (and load(), before it runs)
   std::unique_ptr<TileStore> tiles_;
   sqlite3* db_ = nullptr;      // the writer's connection (and load()'s, before the writer runs)
   sqlite3* read_db_ = nullptr; // read_job()'s connection (WAL: readers do not block the writer)
@@ -172,9 +193,5 @@ class JobStore {
   LeaseId lease_hwm_ = 0;  // writer thread only
   std::thread writer_;
 };
-
-// Steady-clock time points <-> Unix seconds (what the database stores).
-double to_unix_seconds(TimePoint t);
-TimePoint from_unix_seconds(double unix_s);
 
 }  // namespace tessera::server

@@ -15,6 +15,8 @@
 #include <map>
 #include <set>
 
+#include "tessera/v1/common.pb.h"
+
 namespace tessera::server {
 namespace {
 
@@ -90,6 +92,11 @@ class JobStoreTest : public ::testing::Test {
     return {r[0][0], r[0][1]};
   }
   int64_t max_segment_ever() const { return rows("SELECT coalesce(max(segment), 0) FROM tiles")[0][0]; }
+  // `dir` becomes a copy of the data directory the previous release wrote (tests/data/datadir-previous).
+  void copy_previous_release() const {
+    fs::remove_all(dir);
+    fs::copy(fs::path(TESSERA_SOURCE_DIR) / "tests/data/datadir-previous/data", dir, fs::copy_options::recursive);
+  }
 };
 
 TEST_F(JobStoreTest, RoundTripsJobsTilesAcksAndLeases) {
@@ -258,6 +265,133 @@ TEST_F(JobStoreTest, OrphanSegmentsAreRemovedAndDamagedRecordsRerendered) {
   std::map<std::pair<int, int>, std::string> got;
   for (const auto& t : l.jobs[0].done) got[{t.frame, t.tile}] = t.output.payload ? *t.output.payload : "(none)";
   EXPECT_EQ(got, (std::map<std::pair<int, int>, std::string>{{{5, 0}, "(none)"}, {{6, 0}, "kept-tile"}}));
+}
+
+// A data directory written by tessera-server 1bf2db9 (tests/data/datadir-previous/README.md says
+// how) reads back whole with this release: the schema is taken as it is, the jobs come back with
+// their states and specs, and every stored tile passes its record's length and CRC-32 check, is
+// the tile its row names and has its rectangle's pixel count. A change that makes this release
+// misread what the previous one wrote (schema, rows, segment records, the checksum) fails here.
+TEST_F(JobStoreTest, ReadsADataDirWrittenByThePreviousRelease) {
+  copy_previous_release();
+  const std::string a = "274c9bcc6306", b = "3c6f8f7123b3", c = "c44b713d704a", d = "5f56229c862f";
+  const std::string bundle = "257a4b5bff42ac80cf2198d989833f92007f0c7e05398c7bd6d289bd83d75ae9";
+  JobStore store(dir);
+  // What the coordinator checks: the payload is the TileData of the tile its row names.
+  std::map<std::pair<int, int>, tessera::v1::TileData> tiles;
+  JobStore::Loaded l = store.load([&](const TileKey& row, const std::string& payload) -> std::string {
+    tessera::v1::TileData t;
+    if (!t.ParseFromString(payload)) return "it does not parse as a tile";
+    if (t.job_id() != row.job || t.frame() != row.frame || t.tile_index() != row.tile) return "another tile";
+    tiles[{row.frame, row.tile}] = t;
+    return {};
+  });
+  EXPECT_EQ(l.tiles_missing, 0) << "stored tiles failed their length, CRC-32 or identity check";
+  EXPECT_EQ(l.orphans_removed, 0);
+  EXPECT_EQ(l.leases_requeued, 0);
+  EXPECT_EQ(l.next_lease, 46u);  // 45 tiles were leased (jobs A and B)
+  // Job B was fetched and left memory: not loaded, but its row answers.
+  ASSERT_EQ(l.jobs.size(), 3u);
+  const JobRecord& ja = l.jobs[0];
+  const JobRecord& jc = l.jobs[1];
+  const JobRecord& jd = l.jobs[2];
+  EXPECT_EQ(ja.id, a);
+  EXPECT_EQ(jc.id, c);
+  EXPECT_EQ(jd.id, d);
+  EXPECT_EQ(ja.state, JobState::kDone);
+  EXPECT_EQ(jc.state, JobState::kQueued);
+  EXPECT_EQ(jd.state, JobState::kCancelled);
+  EXPECT_TRUE(ja.ended.has_value());
+  EXPECT_FALSE(jc.ended.has_value());
+  EXPECT_TRUE(jd.ended.has_value());
+  EXPECT_EQ(ja.seq, 1u);
+  EXPECT_EQ(jc.seq, 3u);
+  EXPECT_EQ(jd.seq, 4u);
+  EXPECT_LT(ja.submitted, jc.submitted);
+  for (const JobRecord* r : {&ja, &jc, &jd}) {
+    EXPECT_EQ(r->spec.bundle_sha256, bundle);
+    EXPECT_EQ(r->spec.width, 72);
+    EXPECT_EQ(r->spec.height, 40);
+    EXPECT_EQ(r->spec.spp, 2);
+    EXPECT_EQ(r->spec.tile_size, 16);
+    EXPECT_EQ(r->spec.owner, "ipv4:127.0.0.1");
+    EXPECT_FALSE(r->spec.overrides.empty());
+    EXPECT_EQ(r->error, "");
+    EXPECT_TRUE(r->acknowledged.empty());
+    EXPECT_TRUE(r->blocklisted.empty());
+  }
+  EXPECT_EQ(ja.spec.name, "job-a");
+  EXPECT_EQ(jc.spec.name, "job-c");
+  EXPECT_EQ(jd.spec.name, "job-d");
+  EXPECT_EQ(std::make_pair(ja.spec.first_frame, ja.spec.last_frame), std::make_pair(0, 1));
+  EXPECT_EQ(std::make_pair(jc.spec.first_frame, jc.spec.last_frame), std::make_pair(0, 2));
+  EXPECT_EQ(std::make_pair(jd.spec.first_frame, jd.spec.last_frame), std::make_pair(1, 1));
+  EXPECT_EQ(ja.spec.priority, 0);
+  EXPECT_EQ(jc.spec.priority, 3);
+  EXPECT_TRUE(jc.done.empty());
+  EXPECT_TRUE(jd.done.empty());
+  // Job A: both frames done, not fetched: 2 x 15 tiles with their pixels, 5 x 3 tiles a frame
+  // (72 x 40 in 16-pixel tiles: the last column 8 wide, the last row 8 high).
+  ASSERT_EQ(ja.done.size(), 30u);
+  ASSERT_EQ(tiles.size(), 30u);
+  for (const RestoredTile& t : ja.done) {
+    SCOPED_TRACE("frame " + std::to_string(t.frame) + " tile " + std::to_string(t.tile));
+    ASSERT_NE(t.output.payload, nullptr);
+    EXPECT_GT(t.output.rays, 0u);
+    const tessera::v1::TileData& data = tiles.at({t.frame, t.tile});
+    const int x0 = (t.tile % 5) * 16, y0 = (t.tile / 5) * 16;
+    const int w = std::min(16, 72 - x0), h = std::min(16, 40 - y0);
+    EXPECT_EQ(data.rect().x0(), x0);
+    EXPECT_EQ(data.rect().y0(), y0);
+    EXPECT_EQ(data.rect().width(), w);
+    EXPECT_EQ(data.rect().height(), h);
+    EXPECT_EQ(data.rgb().size(), size_t(3 * w * h) * sizeof(float));
+    EXPECT_EQ(data.variance().size(), size_t(w * h) * sizeof(float));
+    EXPECT_EQ(data.worker(), "w1");
+  }
+  const auto jb = store.read_job(b);
+  ASSERT_TRUE(jb.has_value());
+  EXPECT_EQ(jb->state, JobState::kDone);
+  EXPECT_EQ(jb->spec.name, "job-b");
+  EXPECT_EQ(jb->tiles_total, 15);
+  EXPECT_EQ(jb->tiles_done, 15);
+  EXPECT_EQ(jb->frames_done, std::vector<int>{2});
+  EXPECT_EQ(jb->frames_acknowledged, std::vector<int>{2});
+  EXPECT_GT(jb->rays, 0u);
+  // This release writes on into it: a new tile lands in a segment numbered above every one the
+  // previous release used (job B's were 3 to 5), and everything reads back after a restart.
+  store.tile_done({c, 0, 0}, out("new", 1));
+  ASSERT_EQ(store.barrier().get(), "");
+  EXPECT_EQ(segment_files(), (std::set<int64_t>{1, 2, 6}));
+}
+
+TEST_F(JobStoreTest, DataDirOfThePreviousReleaseReadsBackAfterThisOneWroteToIt) {
+  copy_previous_release();
+  {
+    JobStore store(dir);
+    store.load();
+    store.tile_done({"c44b713d704a", 0, 0}, out("new", 1));
+    store.frame_acknowledged("274c9bcc6306", 0, 15);
+    ASSERT_EQ(store.barrier().get(), "");
+  }
+  JobStore store(dir);
+  JobStore::Loaded l = store.load();
+  EXPECT_EQ(l.tiles_missing, 0);
+  ASSERT_EQ(l.jobs.size(), 3u);
+  EXPECT_EQ(l.jobs[0].acknowledged, std::vector<int>{0});
+  int with_pixels = 0;
+  for (const RestoredTile& t : l.jobs[0].done) with_pixels += t.output.payload != nullptr;
+  EXPECT_EQ(with_pixels, 15);  // frame 1's
+  ASSERT_EQ(l.jobs[1].done.size(), 1u);
+  EXPECT_EQ(*l.jobs[1].done[0].output.payload, "new");
+}
+
+// The tile records' checksum is the standard CRC-32 (IEEE 802.3, reflected, as zlib and PNG
+// compute it): its check value, and the empty input.
+TEST(TileStoreCrc, IsTheStandardCrc32) {
+  EXPECT_EQ(crc32_ieee("123456789", 9), 0xCBF43926u);
+  EXPECT_EQ(crc32_ieee("", 0), 0u);
+  EXPECT_EQ(crc32_ieee("The quick brown fox jumps over the lazy dog", 43), 0x414FA339u);
 }
 
 TEST_F(JobStoreTest, SchemaVersionOneIsRefusedWithTheReason) {

@@ -334,7 +334,7 @@ Scheduler::ResultOutcome Scheduler::complete(WorkerId worker, LeaseId lease_id, 
     wit->second.stats.seconds += output.seconds;
   }
   if (tile.state == TileState::kDone) {
-    ++job.duplicates;
+    ++job.duplicates_discarded;
     end_lease(lease_id, LeaseEnd::kLostRace, false);
     return ResultOutcome::kDuplicate;
   }
@@ -410,16 +410,9 @@ void Scheduler::fail_job(Job& job, const std::string& error) {
 void Scheduler::restore(JobRecord rec) {
   if (jobs_.count(rec.id)) return;
   Job& job = jobs_[rec.id];
-  job.id = rec.id;
-  job.spec = rec.spec;
+  job.header() = rec.header();
   job.spec.tile_size = std::max(1, rec.spec.tile_size);
-  job.seq = rec.seq;
   next_seq_ = std::max(next_seq_, rec.seq + 1);
-  job.state = rec.state;
-  job.error = rec.error;
-  job.submitted = rec.submitted;
-  job.ended = rec.ended;
-  job.duplicates = rec.duplicates;
   job.blocklisted.insert(rec.blocklisted.begin(), rec.blocklisted.end());
   job.grid = TileGrid(job.spec.width, job.spec.height, job.spec.tile_size);
   const int frames = job.spec.last_frame - job.spec.first_frame + 1;
@@ -508,18 +501,11 @@ std::vector<WorkerId> Scheduler::expire() {
 
 JobSnapshot Scheduler::snapshot(const Job& job) const {
   JobSnapshot s;
-  s.id = job.id;
-  s.spec = job.spec;
-  s.seq = job.seq;
-  s.state = job.state;
+  s.header() = job.header();
   s.tiles_per_frame = job.grid.count();
   s.tiles_total = int64_t(job.frames.size()) * s.tiles_per_frame;
   s.tiles_done = job.tiles_done;
-  s.duplicates_discarded = job.duplicates;
   s.rays = job.rays;
-  s.submitted = job.submitted;
-  s.ended = job.ended;
-  s.error = job.error;
   s.blocklisted.assign(job.blocklisted.begin(), job.blocklisted.end());
   for (size_t f = 0; f < job.frames.size(); ++f) {
     const Frame& fr = job.frames[f];

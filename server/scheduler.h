@@ -5,8 +5,8 @@
 // time, so tests drive it deterministically.
 //
 // Every state change goes through the few mutating methods below and is reported, in order, to
-// a SchedulerListener: the coordinator uses it to log and to wake streams; a persistent journal
-// (SQLite, issue 8) can write the same events down and replay them on restart.
+// a SchedulerListener: the coordinator uses it to log, to wake streams and to write the changes
+// down in its JobStore (job_store.h), from which restore() rebuilds the jobs at restart.
 #pragma once
 
 #include <chrono>
@@ -112,20 +112,30 @@ struct WorkerStats {
   double seconds = 0;
 };
 
-struct JobSnapshot {
+// What every view of a job holds: what it is (id, spec, submit order and time) and where it
+// stands (state, end, error, tiles rendered twice). The scheduler's Job, the JobSnapshot it
+// reports and the JobRecord the store reads back each start with it, so a field added here
+// reaches all three, and one assignment copies it between them (`record.header() = snapshot;`).
+struct JobHeader {
   JobId id;
   JobSpec spec;
   uint64_t seq = 0;                // submit order
   JobState state = JobState::kQueued;
+  TimePoint submitted;
+  std::optional<TimePoint> ended;  // done, cancelled or failed
+  std::string error;               // why the job failed
+  int64_t duplicates_discarded = 0;  // results for tiles another copy had finished first
+
+  JobHeader& header() { return *this; }
+  const JobHeader& header() const { return *this; }
+};
+
+struct JobSnapshot : JobHeader {
   int tiles_per_frame = 0;
   int64_t tiles_total = 0;
   int64_t tiles_done = 0;
   int64_t tiles_leased = 0;        // tiles with at least one active lease
-  int64_t duplicates_discarded = 0;
   uint64_t rays = 0;
-  TimePoint submitted;
-  std::optional<TimePoint> ended;  // done, cancelled or failed
-  std::string error;               // why the job failed
   std::vector<std::string> blocklisted;  // worker names refused for this job
   std::vector<int> frames_done;
   std::vector<int> frames_acknowledged;
@@ -155,15 +165,7 @@ struct RestoredTile {
   int tile = 0;
   TileOutput output;  // payload empty when its frame was acknowledged
 };
-struct JobRecord {
-  JobId id;
-  JobSpec spec;
-  JobState state = JobState::kQueued;
-  std::string error;
-  uint64_t seq = 0;
-  TimePoint submitted;
-  std::optional<TimePoint> ended;
-  int64_t duplicates = 0;
+struct JobRecord : JobHeader {
   std::vector<RestoredTile> done;
   std::vector<int> acknowledged;  // absolute frame numbers
   std::vector<std::string> blocklisted;  // worker names that get no more tiles of the job
@@ -277,20 +279,12 @@ class Scheduler {
     int done = 0;
     bool acknowledged = false;
   };
-  struct Job {
-    JobId id;
-    JobSpec spec;
-    uint64_t seq = 0;
-    JobState state = JobState::kQueued;
+  struct Job : JobHeader {
     TileGrid grid;  // how each frame is cut into tiles
     std::vector<Frame> frames;
     std::deque<std::pair<int, int>> queue;  // (frame index, tile) waiting for a worker
     int64_t tiles_done = 0;
-    int64_t duplicates = 0;
     uint64_t rays = 0;
-    TimePoint submitted;
-    std::optional<TimePoint> ended;
-    std::string error;
     std::map<std::string, int> faults;   // worker name -> faults for this job
     std::set<std::string> blocklisted;   // worker names that get no more tiles of this job
     bool held = false;                   // see hold()

@@ -66,7 +66,8 @@ class TileStore {
   int64_t next_segment_ = 1;
 };
 
-// CRC-32 (IEEE 802.3, the polynomial zlib and PNG use) of `data`.
+// CRC-32 (IEEE 802.3, the polynomial zlib and PNG use) of `data`, computed by zlib. Every tile
+// record on disk holds one: a different checksum would make every stored tile unreadable.
 uint32_t crc32_ieee(const void* data, size_t size);
 
 }  // namespace tessera::server

@@ -8,10 +8,12 @@
 
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <thread>
 
 #include "farm_harness.h"
+#include "image/exr_io.h"
 
 namespace tessera::farmtest {
 namespace {
@@ -173,6 +175,51 @@ TEST(FarmPersistence, FullDiskRefusesNewJobsAndRecovers) {
   CliResult w = farm.cli({"watch", job, "--coordinator", farm.address(), "-o", (out / "frame_####.exr").string()});
   ASSERT_EQ(w.code, 0) << w.output << farm.server_logs();
   expect_frames_identical(out);
+}
+
+// A data directory written by tessera-server 1bf2db9 (tests/data/datadir-previous/README.md says
+// how) serves on under this release: its jobs answer with their states, the done job's frames
+// are delivered from its stored tiles with no worker connected (a tile this release could not
+// read back would be rendered again, and nothing would render it: watch would not finish), and
+// its queued job renders from the stored bundle once a worker comes.
+TEST(FarmPersistence, ServesADataDirWrittenByThePreviousRelease) {
+  Farm farm;
+  fs::copy(source("tests/data/datadir-previous/data"), farm.data_dir(), fs::copy_options::recursive);
+  farm.start_server();
+  const std::string a = "274c9bcc6306", b = "3c6f8f7123b3", c = "c44b713d704a", d = "5f56229c862f";
+  CliResult list = farm.cli({"status", "--json", "--coordinator", farm.address()});
+  ASSERT_EQ(list.code, 0) << list.output;
+  std::map<std::string, std::pair<std::string, int>> jobs;  // id -> (state, tiles done)
+  for (const auto& j : nlohmann::json::parse(list.output)) jobs[j.at("job_id")] = {j.at("state"), j.at("tiles_done")};
+  using Jobs = decltype(jobs);
+  EXPECT_EQ(jobs, (Jobs{{a, {"done", 30}}, {c, {"queued", 0}}, {d, {"cancelled", 0}}})) << list.output;
+  std::string state;
+  EXPECT_EQ(farm.tiles_done(b, &state), 15);  // fetched and evicted: answered from the database
+  EXPECT_EQ(state, "done");
+  const fs::path out = farm.dir() / "out";
+  CliResult w = farm.cli({"watch", a, "--coordinator", farm.address(), "-o", (out / "a_####.exr").string()}, 60s);
+  ASSERT_EQ(w.code, 0) << w.output << farm.server_logs();
+  for (int f = 0; f < 2; ++f) {
+    const ImageRGB img = read_exr((out / ("a_000" + std::to_string(f) + ".exr")).string());
+    ASSERT_EQ(img.width, 72);
+    ASSERT_EQ(img.height, 40);
+    // Every 16-pixel tile holds rendered pixels (a tile left out would stay black).
+    for (int ty = 0; ty < 3; ++ty) {
+      for (int tx = 0; tx < 5; ++tx) {
+        float sum = 0;
+        for (int y = ty * 16; y < std::min(40, ty * 16 + 16); ++y) {
+          for (int x = tx * 16; x < std::min(72, tx * 16 + 16); ++x) {
+            for (int ch = 0; ch < 3; ++ch) sum += img.rgb[size_t(3 * (y * 72 + x) + ch)];
+          }
+        }
+        EXPECT_GT(sum, 0.f) << "frame " << f << " tile " << ty * 5 + tx;
+      }
+    }
+  }
+  farm.start_worker("w1");
+  CliResult wc = farm.cli({"watch", c, "--coordinator", farm.address(), "-o", (out / "c_####.exr").string()});
+  ASSERT_EQ(wc.code, 0) << wc.output << farm.server_logs();
+  for (int f = 0; f < 3; ++f) EXPECT_TRUE(fs::exists(out / ("c_000" + std::to_string(f) + ".exr"))) << f;
 }
 
 }  // namespace
