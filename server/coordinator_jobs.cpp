@@ -24,7 +24,7 @@ Status load_submitted_scene(BundleStore& store, const v1::SubmitJobRequest& req,
                             Scene* scene) {
   try {
     // Every file the scene reads must be in its bundle: a scene cannot make the coordinator (or
-    // a worker: worker/bundle_cache.cpp) read anything else.
+    // a worker: lib/farm/bundle_cache.cpp) read anything else.
     SceneLoadOptions options;
     options.confine_to = (store.dir() / req.bundle_sha256()).string();
     options.max_primitives = admission.max_primitives;
