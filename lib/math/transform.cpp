@@ -81,4 +81,40 @@ Vec3d Transform::normal(const Vec3d& n) const {
   return determinant() < 0 ? -r : r;
 }
 
+std::array<double, 12> Matrix4::affine() const {
+  std::array<double, 12> a{};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 4; ++j) a[size_t(4 * i + j)] = at(i, j);
+  }
+  return a;
+}
+
+Matrix4 operator*(const Matrix4& a, const Matrix4& b) {
+  Matrix4 r;
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j) {
+      r.at(i, j) = a.at(i, 0) * b.at(0, j) + a.at(i, 1) * b.at(1, j) + a.at(i, 2) * b.at(2, j) + a.at(i, 3) * b.at(3, j);
+    }
+  }
+  return r;
+}
+
+Matrix4 trs_matrix(const Trs& v) {
+  double x = v.q[0], y = v.q[1], z = v.q[2], w = v.q[3];
+  const double n = std::sqrt(x * x + y * y + z * z + w * w);
+  if (n > 0) { x /= n; y /= n; z /= n; w /= n; }  // animation outputs need not be unit
+  Matrix4 r;
+  const double R[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)},
+                          {2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)},
+                          {2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)}};
+  const double S[3] = {v.s.x, v.s.y, v.s.z};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) r.at(i, j) = R[i][j] * S[j];
+  }
+  r.at(0, 3) = v.t.x;
+  r.at(1, 3) = v.t.y;
+  r.at(2, 3) = v.t.z;
+  return r;
+}
+
 }  // namespace tessera

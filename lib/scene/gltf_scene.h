@@ -8,10 +8,9 @@
 
 #include "scene/scene.h"
 #include "scene/scene_error.h"
+#include "scene/scene_load_options.h"
 
 namespace tessera {
-
-struct SceneLoadOptions;
 
 // True for the file names load_scene() reads as glTF (.gltf, .glb; any case).
 bool is_gltf_path(const std::string& path);

@@ -230,10 +230,12 @@ uint64_t primitive_count(const Scene& scene) {
   return n;
 }
 
-Scene parse_scene(const std::string& text, const std::string& path, const SceneLoadOptions& options) {
-  nlohmann::json root;
+namespace {
+
+// The scene text as JSON; a syntax error names its line and column.
+nlohmann::json parse_json(const std::string& text, const std::string& path) {
   try {
-    root = nlohmann::json::parse(text);
+    return nlohmann::json::parse(text);
   } catch (const nlohmann::json::parse_error& e) {
     std::string what = e.what();
     // "[json.exception.parse_error.101] parse error at line 3, column 5: ..." -> keep the reason.
@@ -247,37 +249,235 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
     throw SceneError(path + ": invalid JSON: " + (bracket == std::string::npos ? what : what.substr(bracket + 2)) +
                      " (numbers must be finite)");
   }
+}
+
+// "include": a glTF file's whole scene (camera, lights, materials, objects, animation) as the
+// base that this file adds to (lights, materials, objects) or replaces (camera, image,
+// background): hand edits on top of an export, without touching the export. Returns whether
+// the file has one (*scene is then the glTF's).
+bool read_include(const JsonReader& r, const fs::path& dir, const std::string& path, const SceneLoadOptions& options,
+                  Scene* scene) {
+  auto inc = r.find("include");
+  if (!inc) return false;
+  const std::string file = inc->string();
+  if (!is_gltf_path(file)) inc->fail("must name a glTF file (.gltf or .glb)");
+  const fs::path gltf_path = dir / file;
+  if (!options.confine_to.empty()) {
+    const fs::path rel = gltf_path.lexically_normal().lexically_relative(fs::path(options.confine_to).lexically_normal());
+    if (rel.empty() || *rel.begin() == ".." || fs::path(file).is_absolute()) {
+      inc->fail("'" + file + "' is outside the scene bundle (absolute, or climbs out with '..')");
+    }
+  }
+  try {
+    *scene = load_gltf_scene(gltf_path.string(), options);
+  } catch (const SceneError& e) {
+    inc->fail(e.what());
+  }
+  scene->path = path;
+  const fs::path gltf_dir = fs::path(file).parent_path();
+  for (auto& d : scene->dependencies) d = (gltf_dir / d).generic_string();
+  scene->dependencies.push_back(file);
+  return true;
+}
+
+void read_image(const JsonReader& img, const std::string& path, ImageSettings* settings) {
+  ImageSettings& s = *settings;
+  if (auto v = img.find("width")) s.width = int(v->integer_in(1, SceneLimits::kMaxResolution));
+  if (auto v = img.find("height")) s.height = int(v->integer_in(1, SceneLimits::kMaxResolution));
+  if (auto v = img.find("spp")) s.spp = int(v->integer_in(1, SceneLimits::kMaxSpp));
+  if (auto v = img.find("max_depth")) s.max_depth = int(v->integer_in(0, SceneLimits::kMaxDepth));
+  if (auto v = img.find("seed")) s.seed = uint64_t(v->integer_in(0, int64_t(1) << 53));
+  if (auto v = img.find("sampler")) {
+    s.sampler = *sampler_from_name(v->one_of({"sobol", "stratified", "cmj", "independent", "center"}));
+  }
+  if (auto v = img.find("target_rmse")) {
+    s.target_rmse = v->number_in(0, 1e30, true);
+    if (img.find("spp")) v->fail("conflicts with image.spp: an adaptive render takes min_spp and max_spp instead");
+  }
+  if (auto v = img.find("min_spp")) s.min_spp = int(v->integer_in(2, SceneLimits::kMaxSpp));
+  if (auto v = img.find("max_spp")) s.max_spp = int(v->integer_in(2, SceneLimits::kMaxSpp));
+  try {
+    check_adaptive(s, [](const char* f) { return std::string("image.") + f; });
+  } catch (const SceneError& e) {
+    throw SceneError(path + ": " + e.what());
+  }
+  img.reject_unknown();
+}
+
+Light read_light(const JsonReader& l) {
+  Light light;
+  const std::string type = l.at("type").one_of({"point", "spot", "directional"});
+  if (type == "point" || type == "spot") {
+    light.type = type == "point" ? Light::Type::kPoint : Light::Type::kSpot;
+    light.position = read_point(l.at("position"));
+    light.intensity = l.at("intensity").rgb(kMaxRadiance);
+  }
+  if (type == "spot") {
+    light.direction = read_direction(l.at("direction"));
+    const double outer = l.at("outer_cone_deg").number_in(0.0, 90.0, true);
+    double inner = 0;
+    if (auto v = l.find("inner_cone_deg")) inner = v->number_in(0.0, outer);
+    if (inner >= outer) l.at("inner_cone_deg").fail("must be less than outer_cone_deg");
+    light.inner_cone_rad = inner * std::numbers::pi / 180;
+    light.outer_cone_rad = outer * std::numbers::pi / 180;
+  } else if (type == "directional") {
+    light.type = Light::Type::kDirectional;
+    light.direction = read_direction(l.at("direction"));
+    light.irradiance = l.at("irradiance").rgb(kMaxRadiance);
+  }
+  l.reject_unknown();
+  return light;
+}
+
+// The objects being read: names, the meshes loaded so far, and the primitives counted so far.
+struct ObjectTable {
+  std::map<std::string, int> material_index;  // name -> index into Scene::materials
+  std::map<std::string, int> object_index;    // name -> index into Scene::objects
+  std::map<std::string, int> mesh_cache;      // (file + exclusions) -> mesh index
+  uint64_t primitives = 0;
+};
+
+// Loads mesh file obj->file (less `exclude`) once per (file, exclusions) and points obj->mesh at
+// it; an explicit material makes it a copy with that material on every triangle.
+void load_object_mesh(const JsonReader& o, const std::vector<std::string>& exclude, const fs::path& dir,
+                      const std::string& path, const SceneLoadOptions& options, ObjectTable* table, SceneObject* obj,
+                      Scene* scene) {
+  std::string key = obj->file;
+  for (const auto& e : exclude) key += "\n" + e;
+  auto it = table->mesh_cache.find(key);
+  if (it != table->mesh_cache.end()) {
+    obj->mesh = it->second;
+  } else {
+    const fs::path mesh_path = dir / obj->file;
+    if (!options.confine_to.empty()) {
+      const fs::path rel = mesh_path.lexically_normal().lexically_relative(fs::path(options.confine_to).lexically_normal());
+      if (rel.empty() || *rel.begin() == ".." || fs::path(obj->file).is_absolute()) {
+        o.at("file").fail("'" + obj->file + "' is outside the scene bundle (absolute, or climbs out with '..')");
+      }
+    }
+    MeshLoadResult loaded;
+    try {
+      // The remaining budget: a file over it is refused before it is flattened.
+      const uint64_t budget =
+          options.max_primitives == 0
+              ? 0
+              : std::max<uint64_t>(1, options.max_primitives - std::min(options.max_primitives, table->primitives));
+      loaded = load_mesh(mesh_path.string(), exclude, options.confine_to, budget);
+    } catch (const SceneError& e) {
+      o.at("file").fail(e.what());
+    }
+    if (loaded.dropped_degenerate + loaded.dropped_nonfinite > 0) {
+      spdlog::warn("{}: {}: dropped {} zero-area and {} non-finite triangles", path, obj->file,
+                   loaded.dropped_degenerate, loaded.dropped_nonfinite);
+    }
+    // File materials join the scene's list; the mesh's ids are remapped to scene indices.
+    const uint32_t offset = uint32_t(scene->materials.size());
+    for (auto& m : loaded.materials) scene->materials.push_back(std::move(m));
+    for (auto& id : loaded.mesh.material_ids) id += offset;
+    obj->mesh = int(scene->meshes.size());
+    scene->meshes.push_back(std::move(loaded.mesh));
+    table->mesh_cache[key] = obj->mesh;
+    scene->dependencies.push_back(obj->file);
+    const fs::path mesh_dir = fs::path(obj->file).parent_path();
+    for (const auto& lib : loaded.side_files) scene->dependencies.push_back((mesh_dir / lib).string());
+  }
+  if (options.max_primitives > 0 &&
+      table->primitives + scene->meshes[size_t(obj->mesh)].triangle_count() > options.max_primitives) {
+    o.fail("the scene has more than " + std::to_string(options.max_primitives) +
+           " primitives (triangles of every mesh instance + spheres + planes): limit max_primitives");
+  }
+  if (obj->material >= 0) {
+    // An explicit material overrides the file's for every triangle.
+    Mesh copy = scene->meshes[size_t(obj->mesh)];
+    std::fill(copy.material_ids.begin(), copy.material_ids.end(), uint32_t(obj->material));
+    obj->mesh = int(scene->meshes.size());
+    scene->meshes.push_back(std::move(copy));
+  }
+}
+
+void read_objects(const std::vector<JsonReader>& objects, const fs::path& dir, const std::string& path,
+                  const SceneLoadOptions& options, ObjectTable* table, Scene* scene) {
+  for (const auto& o : objects) {
+    std::vector<std::string> exclude;
+    SceneObject obj = read_object(o, table->material_index, &exclude);
+    if (obj.type != SceneObject::Type::kMesh && obj.material >= 0 &&
+        scene->materials[size_t(obj.material)].is_emissive()) {
+      o.at("material").fail("emissive materials are area lights and are supported on meshes only");
+    }
+    if (obj.type == SceneObject::Type::kMesh) load_object_mesh(o, exclude, dir, path, options, table, &obj, scene);
+    table->primitives += obj.type == SceneObject::Type::kMesh ? scene->meshes[size_t(obj.mesh)].triangle_count() : 1;
+    if (options.max_primitives > 0 && table->primitives > options.max_primitives) {
+      o.fail("the scene has more than " + std::to_string(options.max_primitives) +
+             " primitives (triangles of every mesh instance + spheres + planes): limit max_primitives");
+    }
+    if (!obj.name.empty()) {
+      if (table->object_index.count(obj.name)) o.at("name").fail("duplicate object name '" + obj.name + "'");
+      table->object_index[obj.name] = int(scene->objects.size());
+    }
+    scene->objects.push_back(std::move(obj));
+  }
+}
+
+// Camera keyframes (they replace an included glTF's camera animation).
+void read_camera_keys(const JsonReader& cams, int last, const CameraDesc& camera, Animation* a) {
+  a->camera.clear();
+  for (const auto& k : cams.array()) {
+    CameraKey key;
+    key.frame = int(k.at("frame").integer_in(0, last));
+    key.camera = read_camera_fields(k, &camera);
+    k.reject_unknown();
+    if (!a->camera.empty() && key.frame <= a->camera.back().frame) {
+      k.at("frame").fail("keyframes must be in strictly increasing frame order");
+    }
+    a->camera.push_back(key);
+  }
+}
+
+// Keyframes of the named objects' transforms.
+void read_object_keys(const JsonReader& objs, int last, const std::map<std::string, int>& object_index,
+                      const std::vector<SceneObject>& objects, Animation* a) {
+  for (const auto& [name, keys] : objs.members()) {
+    auto it = object_index.find(name);
+    if (it == object_index.end()) keys.fail("no object is named '" + name + "'");
+    const SceneObject& obj = objects[size_t(it->second)];
+    std::vector<TransformKey>& list = a->objects[it->second];
+    for (const auto& k : keys.array()) {
+      TransformKey key;
+      key.frame = int(k.at("frame").integer_in(0, last));
+      key.transform = read_transform(k, &obj.transform);
+      k.reject_unknown();
+      if (obj.type == SceneObject::Type::kSphere &&
+          (key.transform.scale.x != key.transform.scale.y || key.transform.scale.y != key.transform.scale.z)) {
+        k.fail("a sphere takes a uniform scale only");
+      }
+      if (!list.empty() && key.frame <= list.back().frame) {
+        k.at("frame").fail("keyframes must be in strictly increasing frame order");
+      }
+      list.push_back(key);
+    }
+  }
+}
+
+void read_animation(const JsonReader& anim, const std::map<std::string, int>& object_index, Scene* scene) {
+  Animation& a = scene->animation;
+  a.frame_count = int(anim.at("frames").integer_in(1, SceneLimits::kMaxFrames));
+  const int last = a.frame_count - 1;
+  if (auto cams = anim.find("camera")) read_camera_keys(*cams, last, scene->camera, &a);
+  if (auto objs = anim.find("objects")) read_object_keys(*objs, last, object_index, scene->objects, &a);
+  anim.reject_unknown();
+}
+
+}  // namespace
+
+Scene parse_scene(const std::string& text, const std::string& path, const SceneLoadOptions& options) {
+  const nlohmann::json root = parse_json(text, path);
   const JsonReader r(root, path, "");
   if (!root.is_object()) r.fail("a scene file must be a JSON object");
   Scene scene;
   scene.path = path;
 
   const fs::path dir = fs::path(path).parent_path();
-  // "include": a glTF file's whole scene (camera, lights, materials, objects, animation) as the
-  // base that this file adds to (lights, materials, objects) or replaces (camera, image,
-  // background): hand edits on top of an export, without touching the export.
-  bool included = false;
-  if (auto inc = r.find("include")) {
-    const std::string file = inc->string();
-    if (!is_gltf_path(file)) inc->fail("must name a glTF file (.gltf or .glb)");
-    const fs::path gltf_path = dir / file;
-    if (!options.confine_to.empty()) {
-      const fs::path rel = gltf_path.lexically_normal().lexically_relative(fs::path(options.confine_to).lexically_normal());
-      if (rel.empty() || *rel.begin() == ".." || fs::path(file).is_absolute()) {
-        inc->fail("'" + file + "' is outside the scene bundle (absolute, or climbs out with '..')");
-      }
-    }
-    try {
-      scene = load_gltf_scene(gltf_path.string(), options);
-    } catch (const SceneError& e) {
-      inc->fail(e.what());
-    }
-    scene.path = path;
-    const fs::path gltf_dir = fs::path(file).parent_path();
-    for (auto& d : scene.dependencies) d = (gltf_dir / d).generic_string();
-    scene.dependencies.push_back(file);
-    included = true;
-  }
+  const bool included = read_include(r, dir, path, options, &scene);
 
   if (auto camera = r.find("camera")) {
     scene.camera = read_camera_fields(*camera, nullptr);
@@ -287,189 +487,29 @@ Scene parse_scene(const std::string& text, const std::string& path, const SceneL
   } else if (!included) {
     r.at("camera");
   }
-
-  if (auto img = r.find("image")) {
-    ImageSettings& s = scene.image;
-    if (auto v = img->find("width")) s.width = int(v->integer_in(1, SceneLimits::kMaxResolution));
-    if (auto v = img->find("height")) s.height = int(v->integer_in(1, SceneLimits::kMaxResolution));
-    if (auto v = img->find("spp")) s.spp = int(v->integer_in(1, SceneLimits::kMaxSpp));
-    if (auto v = img->find("max_depth")) s.max_depth = int(v->integer_in(0, SceneLimits::kMaxDepth));
-    if (auto v = img->find("seed")) s.seed = uint64_t(v->integer_in(0, int64_t(1) << 53));
-    if (auto v = img->find("sampler")) {
-      s.sampler = *sampler_from_name(v->one_of({"sobol", "stratified", "cmj", "independent", "center"}));
-    }
-    if (auto v = img->find("target_rmse")) {
-      s.target_rmse = v->number_in(0, 1e30, true);
-      if (img->find("spp")) v->fail("conflicts with image.spp: an adaptive render takes min_spp and max_spp instead");
-    }
-    if (auto v = img->find("min_spp")) s.min_spp = int(v->integer_in(2, SceneLimits::kMaxSpp));
-    if (auto v = img->find("max_spp")) s.max_spp = int(v->integer_in(2, SceneLimits::kMaxSpp));
-    try {
-      check_adaptive(s, [](const char* f) { return std::string("image.") + f; });
-    } catch (const SceneError& e) {
-      throw SceneError(path + ": " + e.what());
-    }
-    img->reject_unknown();
-  }
+  if (auto img = r.find("image")) read_image(*img, path, &scene.image);
   if (auto v = r.find("background")) scene.background = v->rgb(kMaxRadiance);
-
   if (auto lights = r.find("lights")) {
-    for (const auto& l : lights->array()) {
-      Light light;
-      const std::string type = l.at("type").one_of({"point", "spot", "directional"});
-      if (type == "point" || type == "spot") {
-        light.type = type == "point" ? Light::Type::kPoint : Light::Type::kSpot;
-        light.position = read_point(l.at("position"));
-        light.intensity = l.at("intensity").rgb(kMaxRadiance);
-      }
-      if (type == "spot") {
-        light.direction = read_direction(l.at("direction"));
-        const double outer = l.at("outer_cone_deg").number_in(0.0, 90.0, true);
-        double inner = 0;
-        if (auto v = l.find("inner_cone_deg")) inner = v->number_in(0.0, outer);
-        if (inner >= outer) l.at("inner_cone_deg").fail("must be less than outer_cone_deg");
-        light.inner_cone_rad = inner * std::numbers::pi / 180;
-        light.outer_cone_rad = outer * std::numbers::pi / 180;
-      } else if (type == "directional") {
-        light.type = Light::Type::kDirectional;
-        light.direction = read_direction(l.at("direction"));
-        light.irradiance = l.at("irradiance").rgb(kMaxRadiance);
-      }
-      l.reject_unknown();
-      scene.lights.push_back(light);
-    }
+    for (const auto& l : lights->array()) scene.lights.push_back(read_light(l));
   }
 
-  std::map<std::string, int> material_index;
+  ObjectTable table;
   if (auto mats = r.find("materials")) {
     for (const auto& [name, m] : mats->members()) {
-      material_index[name] = int(scene.materials.size());
+      table.material_index[name] = int(scene.materials.size());
       scene.materials.push_back(read_material(m, name));
     }
   }
-
-  std::map<std::string, int> object_index;
-  std::map<std::string, int> mesh_cache;  // (file + exclusions) -> mesh index
-  uint64_t primitives = primitive_count(scene);  // an include's objects count too
+  table.primitives = primitive_count(scene);  // an include's objects count too
   std::vector<JsonReader> objects;
   if (auto v = r.find("objects")) objects = v->array();
   else if (!included) r.at("objects");
-  for (const auto& o : objects) {
-    std::vector<std::string> exclude;
-    SceneObject obj = read_object(o, material_index, &exclude);
-    if (obj.type != SceneObject::Type::kMesh && obj.material >= 0 &&
-        scene.materials[size_t(obj.material)].is_emissive()) {
-      o.at("material").fail("emissive materials are area lights and are supported on meshes only");
-    }
-    if (obj.type == SceneObject::Type::kMesh) {
-      std::string key = obj.file;
-      for (const auto& e : exclude) key += "\n" + e;
-      auto it = mesh_cache.find(key);
-      if (it != mesh_cache.end()) {
-        obj.mesh = it->second;
-      } else {
-        const fs::path mesh_path = dir / obj.file;
-        if (!options.confine_to.empty()) {
-          const fs::path rel = mesh_path.lexically_normal().lexically_relative(fs::path(options.confine_to).lexically_normal());
-          if (rel.empty() || *rel.begin() == ".." || fs::path(obj.file).is_absolute()) {
-            o.at("file").fail("'" + obj.file + "' is outside the scene bundle (absolute, or climbs out with '..')");
-          }
-        }
-        MeshLoadResult loaded;
-        try {
-          // The remaining budget: a file over it is refused before it is flattened.
-          const uint64_t budget =
-              options.max_primitives == 0
-                  ? 0
-                  : std::max<uint64_t>(1, options.max_primitives - std::min(options.max_primitives, primitives));
-          loaded = load_mesh(mesh_path.string(), exclude, options.confine_to, budget);
-        } catch (const SceneError& e) {
-          o.at("file").fail(e.what());
-        }
-        if (loaded.dropped_degenerate + loaded.dropped_nonfinite > 0) {
-          spdlog::warn("{}: {}: dropped {} zero-area and {} non-finite triangles", path, obj.file,
-                       loaded.dropped_degenerate, loaded.dropped_nonfinite);
-        }
-        // File materials join the scene's list; the mesh's ids are remapped to scene indices.
-        const uint32_t offset = uint32_t(scene.materials.size());
-        for (auto& m : loaded.materials) scene.materials.push_back(std::move(m));
-        for (auto& id : loaded.mesh.material_ids) id += offset;
-        obj.mesh = int(scene.meshes.size());
-        scene.meshes.push_back(std::move(loaded.mesh));
-        mesh_cache[key] = obj.mesh;
-        scene.dependencies.push_back(obj.file);
-        const fs::path mesh_dir = fs::path(obj.file).parent_path();
-        for (const auto& lib : loaded.side_files) scene.dependencies.push_back((mesh_dir / lib).string());
-      }
-      if (options.max_primitives > 0 &&
-          primitives + scene.meshes[size_t(obj.mesh)].triangle_count() > options.max_primitives) {
-        o.fail("the scene has more than " + std::to_string(options.max_primitives) +
-               " primitives (triangles of every mesh instance + spheres + planes): limit max_primitives");
-      }
-      if (obj.material >= 0) {
-        // An explicit material overrides the file's for every triangle.
-        Mesh copy = scene.meshes[size_t(obj.mesh)];
-        std::fill(copy.material_ids.begin(), copy.material_ids.end(), uint32_t(obj.material));
-        obj.mesh = int(scene.meshes.size());
-        scene.meshes.push_back(std::move(copy));
-      }
-    }
-    primitives += obj.type == SceneObject::Type::kMesh ? scene.meshes[size_t(obj.mesh)].triangle_count() : 1;
-    if (options.max_primitives > 0 && primitives > options.max_primitives) {
-      o.fail("the scene has more than " + std::to_string(options.max_primitives) +
-             " primitives (triangles of every mesh instance + spheres + planes): limit max_primitives");
-    }
-    if (!obj.name.empty()) {
-      if (object_index.count(obj.name)) o.at("name").fail("duplicate object name '" + obj.name + "'");
-      object_index[obj.name] = int(scene.objects.size());
-    }
-    scene.objects.push_back(std::move(obj));
-  }
+  read_objects(objects, dir, path, options, &table, &scene);
   std::sort(scene.dependencies.begin(), scene.dependencies.end());
   scene.dependencies.erase(std::unique(scene.dependencies.begin(), scene.dependencies.end()),
                            scene.dependencies.end());
 
-  if (auto anim = r.find("animation")) {
-    Animation& a = scene.animation;
-    a.frame_count = int(anim->at("frames").integer_in(1, SceneLimits::kMaxFrames));
-    const int last = a.frame_count - 1;
-    if (auto cams = anim->find("camera")) {
-      a.camera.clear();  // replaces an included glTF's camera animation
-      for (const auto& k : cams->array()) {
-        CameraKey key;
-        key.frame = int(k.at("frame").integer_in(0, last));
-        key.camera = read_camera_fields(k, &scene.camera);
-        k.reject_unknown();
-        if (!a.camera.empty() && key.frame <= a.camera.back().frame) {
-          k.at("frame").fail("keyframes must be in strictly increasing frame order");
-        }
-        a.camera.push_back(key);
-      }
-    }
-    if (auto objs = anim->find("objects")) {
-      for (const auto& [name, keys] : objs->members()) {
-        auto it = object_index.find(name);
-        if (it == object_index.end()) keys.fail("no object is named '" + name + "'");
-        const SceneObject& obj = scene.objects[size_t(it->second)];
-        std::vector<TransformKey>& list = a.objects[it->second];
-        for (const auto& k : keys.array()) {
-          TransformKey key;
-          key.frame = int(k.at("frame").integer_in(0, last));
-          key.transform = read_transform(k, &obj.transform);
-          k.reject_unknown();
-          if (obj.type == SceneObject::Type::kSphere &&
-              (key.transform.scale.x != key.transform.scale.y || key.transform.scale.y != key.transform.scale.z)) {
-            k.fail("a sphere takes a uniform scale only");
-          }
-          if (!list.empty() && key.frame <= list.back().frame) {
-            k.at("frame").fail("keyframes must be in strictly increasing frame order");
-          }
-          list.push_back(key);
-        }
-      }
-    }
-    anim->reject_unknown();
-  }
+  if (auto anim = r.find("animation")) read_animation(*anim, table.object_index, &scene);
   r.reject_unknown();
   return scene;
 }
