@@ -87,7 +87,8 @@ struct Light {
   Vec3d direction{0, -1, 0}; // directional, spot: the direction the light travels (unit)
   Rgb irradiance{1, 1, 1};   // directional: irradiance E cos(theta)
   // spot (glTF KHR_lights_punctual): full intensity within inner_cone_rad of the axis, none
-  // beyond outer_cone_rad, and between them the extension's smooth falloff (render_scene.cpp).
+  // beyond outer_cone_rad, and between them the extension's smooth falloff (SpotLight::falloff in
+  // render/render_scene.h).
   double inner_cone_rad = 0;
   double outer_cone_rad = 0.7853981633974483;
 };
