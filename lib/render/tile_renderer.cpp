@@ -8,6 +8,8 @@
 #include <chrono>
 #include <cmath>
 #include <mutex>
+#include <stdexcept>
+#include <string>
 
 #include "render/integrator.h"
 #include "render/pixel_estimate.h"
@@ -171,7 +173,8 @@ FrameResult render_frame(const RenderScene& scene, int tile_size, int threads,
     tbb::parallel_for(0, grid.count(), [&](int i) {
       const TileResult t = render_tile(scene, grid.rect(i));
       std::lock_guard lock(mutex);
-      frame.place(i, t);  // cannot fail: the tile is the grid's own
+      // Cannot fail (the tile is the grid's own); if it ever did, no frame is better than a wrong one.
+      if (std::string why = frame.place(i, t); !why.empty()) throw std::logic_error("render_frame: " + why);
       out.rays += t.rays;
       if (progress) progress(++done, grid.count());
     });
