@@ -6,6 +6,7 @@
 #include <iterator>
 
 #include "color/color_error.h"
+#include "color/little_endian.h"
 
 namespace tessera::color {
 
@@ -15,17 +16,6 @@ constexpr uint32_t kBiBitfields = 3;
 constexpr uint32_t kLcsSrgb = 0x73524742;  // 'sRGB'
 constexpr uint32_t kFileHeaderBytes = 14, kV4HeaderBytes = 108;
 constexpr uint32_t kRedMask = 0xF800, kGreenMask = 0x07E0, kBlueMask = 0x001F;
-
-void put16(std::vector<uint8_t>& o, uint32_t v) {
-  o.push_back(uint8_t(v));
-  o.push_back(uint8_t(v >> 8));
-}
-void put32(std::vector<uint8_t>& o, uint32_t v) {
-  put16(o, v & 0xffff);
-  put16(o, v >> 16);
-}
-uint32_t get16(const uint8_t* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8; }
-uint32_t get32(const uint8_t* p) { return get16(p) | get16(p + 2) << 16; }
 
 uint32_t quantize(float v, int levels, float threshold) {
   if (!(v > 0.0f)) return 0;  // NaN too
@@ -74,30 +64,30 @@ void write_bmp565(const std::string& path, int width, int height,
   // BITMAPFILEHEADER
   o.push_back('B');
   o.push_back('M');
-  put32(o, offset + image_bytes);
-  put32(o, 0);  // reserved
-  put32(o, offset);
+  put_le32(o, offset + image_bytes);
+  put_le32(o, 0);  // reserved
+  put_le32(o, offset);
   // BITMAPV4HEADER
-  put32(o, kV4HeaderBytes);
-  put32(o, uint32_t(width));
-  put32(o, uint32_t(height));  // positive: bottom-up rows, the most widely supported order
-  put16(o, 1);                 // planes
-  put16(o, 16);                // bits per pixel
-  put32(o, kBiBitfields);
-  put32(o, image_bytes);
-  put32(o, 2835);  // 72 dpi in pixels per meter
-  put32(o, 2835);
-  put32(o, 0);  // colors used
-  put32(o, 0);  // important colors
-  put32(o, kRedMask);
-  put32(o, kGreenMask);
-  put32(o, kBlueMask);
-  put32(o, 0);  // alpha mask: none
-  put32(o, kLcsSrgb);
-  for (int i = 0; i < 9 + 3; ++i) put32(o, 0);  // CIEXYZTRIPLE endpoints, gamma: unused for sRGB
+  put_le32(o, kV4HeaderBytes);
+  put_le32(o, uint32_t(width));
+  put_le32(o, uint32_t(height));  // positive: bottom-up rows, the most widely supported order
+  put_le16(o, 1);                 // planes
+  put_le16(o, 16);                // bits per pixel
+  put_le32(o, kBiBitfields);
+  put_le32(o, image_bytes);
+  put_le32(o, 2835);  // 72 dpi in pixels per meter
+  put_le32(o, 2835);
+  put_le32(o, 0);  // colors used
+  put_le32(o, 0);  // important colors
+  put_le32(o, kRedMask);
+  put_le32(o, kGreenMask);
+  put_le32(o, kBlueMask);
+  put_le32(o, 0);  // alpha mask: none
+  put_le32(o, kLcsSrgb);
+  for (int i = 0; i < 9 + 3; ++i) put_le32(o, 0);  // CIEXYZTRIPLE endpoints, gamma: unused for sRGB
   for (int y = height - 1; y >= 0; --y) {
     const uint16_t* row = &pixels[size_t(y) * size_t(width)];
-    for (int x = 0; x < width; ++x) put16(o, row[x]);
+    for (int x = 0; x < width; ++x) put_le16(o, row[x]);
     for (size_t pad = size_t(width) * 2; pad < stride; ++pad) o.push_back(0);
   }
   std::ofstream f(path, std::ios::binary);
@@ -112,10 +102,10 @@ std::vector<uint16_t> read_bmp565(const std::string& path, int* width, int* heig
   if (d.size() < kFileHeaderBytes + 40 + 12 || d[0] != 'B' || d[1] != 'M') {
     throw ColorError(path + ": not a BMP file");
   }
-  const uint32_t offset = get32(&d[10]), header = get32(&d[14]);
-  const int32_t w = int32_t(get32(&d[18])), h = int32_t(get32(&d[22]));
-  if (get16(&d[28]) != 16 || get32(&d[30]) != kBiBitfields || get32(&d[54]) != kRedMask ||
-      get32(&d[58]) != kGreenMask || get32(&d[62]) != kBlueMask || header < 40) {
+  const uint32_t offset = get_le32(&d[10]), header = get_le32(&d[14]);
+  const int32_t w = int32_t(get_le32(&d[18])), h = int32_t(get_le32(&d[22]));
+  if (get_le16(&d[28]) != 16 || get_le32(&d[30]) != kBiBitfields || get_le32(&d[54]) != kRedMask ||
+      get_le32(&d[58]) != kGreenMask || get_le32(&d[62]) != kBlueMask || header < 40) {
     throw ColorError(path + ": not a 16-bit 5/6/5 BI_BITFIELDS BMP");
   }
   const int abs_h = h < 0 ? -h : h;
@@ -126,7 +116,7 @@ std::vector<uint16_t> read_bmp565(const std::string& path, int* width, int* heig
   for (int row = 0; row < abs_h; ++row) {
     const int y = h > 0 ? abs_h - 1 - row : row;
     const uint8_t* src = &d[offset + size_t(row) * stride];
-    for (int x = 0; x < w; ++x) pixels[size_t(y) * size_t(w) + size_t(x)] = uint16_t(get16(src + 2 * x));
+    for (int x = 0; x < w; ++x) pixels[size_t(y) * size_t(w) + size_t(x)] = uint16_t(get_le16(src + 2 * x));
   }
   *width = w;
   *height = abs_h;

@@ -3,15 +3,11 @@
 #include <algorithm>
 #include <cmath>
 
+#include "color/shared_exponent_clamp.h"
+
 namespace tessera::color {
 
 namespace {
-
-double clamp_channel(float v) {
-  // The comparison form sends NaN to 0 as well as negatives.
-  if (!(v > 0.0f)) return 0.0;
-  return std::min(double(v), double(kRgb9e5Max));
-}
 
 // floor(log2(x)) for x > 0, exactly (no rounding of a floating-point log2).
 int floor_log2(double x) {
@@ -24,7 +20,9 @@ int floor_log2(double x) {
 
 uint32_t encode_rgb9e5(const Rgb& c) {
   constexpr int N = kRgb9e5MantissaBits, B = kRgb9e5ExponentBias;
-  const double rc = clamp_channel(c.r), gc = clamp_channel(c.g), bc = clamp_channel(c.b);
+  const double rc = clamp_shared_exponent_channel(c.r, kRgb9e5Max),
+               gc = clamp_shared_exponent_channel(c.g, kRgb9e5Max),
+               bc = clamp_shared_exponent_channel(c.b, kRgb9e5Max);
   const double max_c = std::max({rc, gc, bc});
   // log2(0) = -inf, so max(-B-1, ...) picks -B-1 and the exponent is 0 for black.
   const int floor_l2 = max_c > 0.0 ? std::max(-B - 1, floor_log2(max_c)) : -B - 1;

@@ -9,15 +9,11 @@
 #include <string_view>
 
 #include "color/color_error.h"
+#include "color/shared_exponent_clamp.h"
 
 namespace tessera::color {
 
 namespace {
-
-double clamp_channel(float v) {
-  if (!(v > 0.0f)) return 0.0;  // NaN, negatives
-  return std::min(double(v), kRgbeMax);
-}
 
 // Radiance's scanline run-length encoding for one component: runs of >= 4 equal bytes as
 // (128 + count, value), everything else as literal dumps (count, bytes...), count <= 127/128.
@@ -56,7 +52,8 @@ void encode_component_rle(const uint8_t* data, int n, std::vector<uint8_t>& out)
 }  // namespace
 
 Rgbe encode_rgbe(const Rgb& c) {
-  const double r = clamp_channel(c.r), g = clamp_channel(c.g), b = clamp_channel(c.b);
+  const double r = clamp_shared_exponent_channel(c.r, kRgbeMax), g = clamp_shared_exponent_channel(c.g, kRgbeMax),
+               b = clamp_shared_exponent_channel(c.b, kRgbeMax);
   const double v = std::max({r, g, b});
   if (v == 0.0) return {0, 0, 0, 0};
   int e = 0;
