@@ -3,9 +3,9 @@
 #include <grpcpp/support/client_interceptor.h>
 
 #include <cstdlib>
-#include <fstream>
-#include <sstream>
 #include <stdexcept>
+
+#include "farm/text_file.h"
 
 namespace tessera::farm {
 
@@ -37,28 +37,13 @@ class BearerFactory : public grpc::experimental::ClientInterceptorFactoryInterfa
   std::string value_;  // outlives the channel's calls: the channel owns the factory
 };
 
-std::string trim(std::string s) {
-  const auto b = s.find_first_not_of(" \t\r\n");
-  if (b == std::string::npos) return {};
-  const auto e = s.find_last_not_of(" \t\r\n");
-  return s.substr(b, e - b + 1);
-}
-
-std::string slurp(const std::string& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot read " + file);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 }  // namespace
 
 std::string read_token(const std::string& file, const char* env) {
   if (!file.empty()) {
     std::string t;
     try {
-      t = trim(slurp(file));
+      t = trim_blanks(read_text_file(file));
     } catch (const std::exception&) {
       throw std::runtime_error("cannot read token file " + file);
     }
@@ -66,12 +51,12 @@ std::string read_token(const std::string& file, const char* env) {
     return t;
   }
   const char* v = env ? std::getenv(env) : nullptr;
-  return v ? trim(v) : std::string();
+  return v ? trim_blanks(v) : std::string();
 }
 
 std::string read_pem(const std::string& file, const std::string& what) {
   try {
-    std::string pem = slurp(file);
+    std::string pem = read_text_file(file);
     if (pem.find("-----BEGIN") == std::string::npos) throw std::runtime_error("");
     return pem;
   } catch (const std::exception&) {

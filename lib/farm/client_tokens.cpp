@@ -2,30 +2,17 @@
 
 #include <cctype>
 #include <filesystem>
-#include <fstream>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+
+#include "farm/text_file.h"
 
 namespace tessera::farm {
 
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t\r\n");
-  if (b == std::string::npos) return {};
-  return s.substr(b, s.find_last_not_of(" \t\r\n") - b + 1);
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot read the client token file " + p.string());
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 // Names end up in logs and in the database as "token:NAME": keep them printable and short.
 void check_name(const std::string& name, const std::string& where) {
@@ -55,19 +42,19 @@ std::map<std::string, std::string> read_client_tokens(const std::string& path) {
     for (const auto& e : fs::directory_iterator(path, ec)) {
       const std::string name = e.path().filename().string();
       if (name.empty() || name[0] == '.' || !e.is_regular_file()) continue;
-      add(name, trim(slurp(e.path())), e.path().string());
+      add(name, trim_blanks(read_text_file(e.path(), "the client token file")), e.path().string());
     }
     if (ec) throw std::runtime_error("cannot list the client token directory " + path + ": " + ec.message());
   } else {
-    std::istringstream in(slurp(path));
+    std::istringstream in(read_text_file(path, "the client token file"));
     std::string line;
     for (int n = 1; std::getline(in, line); ++n) {
-      const std::string t = trim(line);
+      const std::string t = trim_blanks(line);
       if (t.empty() || t[0] == '#') continue;
       const std::string where = path + " line " + std::to_string(n);
       const auto colon = t.find(':');
       if (colon == std::string::npos) throw std::runtime_error(where + ": expected name:token");
-      add(trim(t.substr(0, colon)), trim(t.substr(colon + 1)), where);
+      add(trim_blanks(t.substr(0, colon)), trim_blanks(t.substr(colon + 1)), where);
     }
   }
   if (out.empty()) throw std::runtime_error("the client tokens " + path + " name no client");

@@ -1,0 +1,26 @@
+#include "farm/text_file.h"
+
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace tessera::farm {
+
+std::string read_text_file(const std::filesystem::path& path, std::string_view what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    throw std::runtime_error("cannot read " + (what.empty() ? std::string() : std::string(what) + " ") +
+                             path.string());
+  }
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::string trim_blanks(std::string_view s) {
+  const auto b = s.find_first_not_of(" \t\r\n");
+  if (b == std::string_view::npos) return {};
+  return std::string(s.substr(b, s.find_last_not_of(" \t\r\n") - b + 1));
+}
+
+}  // namespace tessera::farm
