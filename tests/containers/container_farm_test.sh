@@ -6,7 +6,16 @@
 # `tessera render`. Containers, networks and volumes are removed on every exit; the images stay
 # (tagged :ctest) so a second run reuses the build cache.
 #
-#   container_farm_test.sh SOURCE_DIR TESSERA_CLI
+#   container_farm_test.sh SOURCE_DIR TESSERA_CLI TESSERA_SERVER TESSERA_WORKER
+#
+# Which programs go into the images (TESSERA_CONTAINER_BINARIES):
+#   host    (the default on a Debian bookworm host) the programs given above, built on this host:
+#           the Dockerfile's build stage is swapped for a copy of them, every other stage (runtime
+#           packages, user, health checks, entry points) is the file's own. Minutes, not the half
+#           hour of compiling inside the image on a 2-core machine: what CI runs.
+#   source  the Dockerfile as it is, compiling the project inside the image (what users build):
+#           bench/containers/image_build.sh runs this variant.
+# TESSERA_CONTAINER_NO_CACHE=1 builds without Docker's layer cache.
 #
 # Needs a Docker engine. As root with apt, installs docker.io, docker-compose and debootstrap when
 # missing and starts dockerd; otherwise, or when no engine can be started, exits 77 (CTest: skipped).
@@ -15,8 +24,11 @@
 set -euo pipefail
 
 SKIP=77
-src=$(cd "${1:?usage: container_farm_test.sh SOURCE_DIR TESSERA_CLI}" && pwd)
-cli=${2:?usage: container_farm_test.sh SOURCE_DIR TESSERA_CLI}
+usage="usage: container_farm_test.sh SOURCE_DIR TESSERA_CLI TESSERA_SERVER TESSERA_WORKER"
+src=$(cd "${1:?$usage}" && pwd)
+cli=${2:?$usage}
+server=${3:?$usage}
+worker=${4:?$usage}
 here="$src/tests/containers"
 scene="$here/orbit4.json"
 frames=4
@@ -25,6 +37,17 @@ t0=$SECONDS
 log() { echo "[container test $(date +%T), +$((SECONDS - t0)) s] $*"; }
 skip() { echo "SKIPPED: $*"; exit "$SKIP"; }
 fail() { echo "FAILED: $*" >&2; exit 1; }
+
+binaries=${TESSERA_CONTAINER_BINARIES:-host}
+case "$binaries" in
+  host)
+    if ! grep -qx 'VERSION_CODENAME=bookworm' /etc/os-release 2>/dev/null; then
+      log "this host is not Debian bookworm: its programs may not run in the bookworm image, compiling inside it"
+      binaries=source
+    fi ;;
+  source) ;;
+  *) fail "TESSERA_CONTAINER_BINARIES must be host or source, not '$binaries'" ;;
+esac
 
 # ---- tools and engine -----------------------------------------------------------------------
 can_install() { [ "$(id -u)" -eq 0 ] && command -v apt-get >/dev/null; }
@@ -84,7 +107,8 @@ export TESSERA_TAG=ctest TESSERA_PUBLISH="127.0.0.1:" TESSERA_HEARTBEAT_MS=500 T
 snap="$tmp/src"
 mkdir -p "$snap"
 tar -C "$src" --exclude='./build*' --exclude=./.git --exclude=./out -cf - . | tar -C "$snap" -xf -
-dc() { "${compose[@]}" -p "$project" -f "$snap/compose.yaml" -f "$snap/tests/containers/compose.test.yaml" "$@"; }
+compose_files=(-f "$snap/compose.yaml" -f "$snap/tests/containers/compose.test.yaml")
+dc() { "${compose[@]}" -p "$project" "${compose_files[@]}" "$@"; }
 cleanup() {
   local rc=$?
   if [ "$rc" -ne 0 ] && [ "$rc" -ne "$SKIP" ]; then
@@ -99,6 +123,30 @@ cleanup() {
 trap cleanup EXIT
 trap 'exit 130' INT
 trap 'exit 143' TERM
+if [ "$binaries" = host ]; then
+  # The host's programs, stripped as the build stage strips them, with the packages that own the
+  # libraries they load (the same script the build stage runs), in place of the build stage.
+  mkdir -p "$snap/host-binaries/bin"
+  cp "$cli" "$server" "$worker" "$snap/host-binaries/bin/"
+  strip --strip-unneeded "$snap/host-binaries/bin/"*
+  sh "$src/docker/runtime-packages.sh" "$snap/host-binaries/bin/"* >"$snap/host-binaries/runtime-packages" ||
+    fail "cannot name the packages the host's programs need (docker/runtime-packages.sh)"
+  awk '/^FROM .* AS build$/ { print; print "COPY host-binaries/ /out/"; skipping = 1; swapped = 1; next }
+       skipping && /^# ----/ { skipping = 0 }
+       !skipping { print }
+       END { exit !swapped }' "$snap/docker/Dockerfile" >"$snap/docker/Dockerfile.host-binaries" ||
+    fail "docker/Dockerfile has no 'FROM ... AS build' stage to swap for the host's programs"
+  cat >"$tmp/compose.host-binaries.yaml" <<'YAML'
+services:
+  coordinator:
+    build:
+      dockerfile: docker/Dockerfile.host-binaries
+  worker:
+    build:
+      dockerfile: docker/Dockerfile.host-binaries
+YAML
+  compose_files+=(-f "$tmp/compose.host-binaries.yaml")
+fi
 # Projects of earlier runs that were killed before their trap ran (CTest timeout): remove them.
 for p in $(docker ps -a --format '{{.Label "com.docker.compose.project"}}' | grep -E '^tesseract[0-9]+$' | sort -u); do
   kill -0 "${p#tesseract}" 2>/dev/null && continue
@@ -107,9 +155,15 @@ for p in $(docker ps -a --format '{{.Label "com.docker.compose.project"}}' | gre
 done
 
 # ---- build ----------------------------------------------------------------------------------
-log "building the images (docker/Dockerfile; the first build compiles the project)"
+if [ "$binaries" = host ]; then
+  log "building the images (docker/Dockerfile with this host's programs in place of its build stage)"
+else
+  log "building the images (docker/Dockerfile; the first build compiles the project)"
+fi
 build_start=$SECONDS
-dc build >"$tmp/build.log" 2>&1 || { tail -40 "$tmp/build.log"; fail "image build failed (log above)"; }
+build_flags=()
+[ "${TESSERA_CONTAINER_NO_CACHE:-0}" = 1 ] && build_flags=(--no-cache)  # a cold build, for timing it
+dc build "${build_flags[@]}" >"$tmp/build.log" 2>&1 || { tail -40 "$tmp/build.log"; fail "image build failed (log above)"; }
 log "images built in $((SECONDS - build_start)) s: $(docker image ls --format '{{.Repository}}:{{.Tag}} {{.Size}}' | grep ':ctest' | tr '\n' ' ')"
 
 # ---- the reference: the same frames rendered in-process on the host -------------------------
