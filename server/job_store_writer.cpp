@@ -1,5 +1,5 @@
-// The group-commit writer: one thread takes everything queued so far as a batch and applies it
-// in three steps (the segment, the rows, the deletions), retrying a failed batch every second;
+// The group-commit writer: one thread takes everything queued in a commit window as a batch and
+// applies it in three steps (the segment, the rows, the deletions), retrying a failed batch every second;
 // on a full disk it lets through what needs no new segment and makes room (job_store.h).
 #include <spdlog/spdlog.h>
 
@@ -21,6 +21,12 @@ void JobStore::writer_loop() {
       std::unique_lock lock(mu_);
       cv_.wait(lock, [&] { return stopping_ || !queue_.empty() || !pending.empty(); });
       if (pending.empty() && queue_.empty() && stopping_) break;
+      // The commit window (job_store.h): let the tiles finishing meanwhile join this batch.
+      if (pending.empty() && commit_window_.count() > 0) {
+        cv_.wait_for(lock, commit_window_,
+                     [&] { return stopping_ || barrier_queued_ || queue_.size() >= kMaxBatchOps; });
+      }
+      barrier_queued_ = false;
       // Everything queued so far is one batch: under load batches grow and commits stay few.
       for (auto& op : queue_) pending.push_back(std::move(op));
       queue_.clear();
