@@ -34,27 +34,36 @@ void JobStore::writer_loop() {
     }
     std::vector<Op> deferred;
     const std::string error = apply_pending(pending, observer, deferred);
+    std::vector<std::shared_ptr<std::promise<std::string>>> barriers;
     for (auto it = pending.begin(); it != pending.end();) {
       if (auto* b = std::get_if<Barrier>(&*it)) {
-        b->done->set_value(error);
+        barriers.push_back(b->done);
         it = pending.erase(it);
       } else {
         ++it;
       }
     }
+    // Answered after the bookkeeping below: whoever waited on a barrier sees its batch counted.
+    auto answer_barriers = [&] {
+      for (auto& done : barriers) done->set_value(error);
+    };
     if (error.empty() && reserve_.wanted()) reserve_.make();  // writer thread: no lock needed
     if (error.empty()) {
-      std::lock_guard lock(mu_);
-      if (!healthy_) {
-        spdlog::info("storage recovered: {} writes committed", pending.size());
-        reserve_.want();
+      {
+        std::lock_guard lock(mu_);
+        if (!healthy_) {
+          spdlog::info("storage recovered: {} writes committed", pending.size());
+          reserve_.want();
+        }
+        healthy_ = true;
+        ++stats_.batches;
+        stats_.ops += int64_t(pending.size());
       }
-      healthy_ = true;
-      ++stats_.batches;
-      stats_.ops += int64_t(pending.size());
       pending.clear();
+      answer_barriers();
       continue;
     }
+    answer_barriers();
     if (!deferred.empty()) {
       // Everything else was committed: only the deferred tiles are left (barriers were answered
       // with the error above: the tiles before them are not durable yet).
