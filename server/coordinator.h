@@ -159,6 +159,9 @@ class Coordinator : private SchedulerListener {
   void expiry_loop();
   void restore_locked();
   void evict_locked(const JobId& id, const char* why);
+  // `s`, once everything the call queued in the job store is committed; UNAVAILABLE saying
+  // "<what> but cannot be stored right now" when that fails. Called without mu_ held.
+  grpc::Status durable(grpc::Status s, const std::string& what);
   void evict_expired_locked();
   std::optional<JobSnapshot> evicted_job(const std::string& id);  // without mu_
   grpc::Status attach_resident(const std::string& id, const std::shared_ptr<WatchSink>& sink);

@@ -178,8 +178,19 @@ void Coordinator::list_jobs(v1::ListJobsResponse* out) {
   });
 }
 
+// A change a client was told about is durable first (as a submit is): after a crash the job is
+// not found running again, or at its old priority. The store's commit window ends at a barrier.
+Status Coordinator::durable(Status s, const std::string& what) {
+  if (!s.ok() || !jobs_store_) return s;
+  if (const std::string err = jobs_store_->barrier().get(); !err.empty()) {
+    return Status(StatusCode::UNAVAILABLE, what + " but cannot be stored right now (" + err +
+                                               "): it is lost if the coordinator restarts; try again later");
+  }
+  return s;
+}
+
 Status Coordinator::cancel(const std::string& id, v1::JobStatus* out) {
-  return locked([&] {
+  return durable(locked([&] {
     switch (scheduler_.cancel(id)) {
       case Scheduler::CancelResult::kUnknownJob:
         return Status(StatusCode::NOT_FOUND, "no job '" + id + "' on this coordinator");
@@ -189,11 +200,11 @@ Status Coordinator::cancel(const std::string& id, v1::JobStatus* out) {
     }
     job_status_proto(*scheduler_.job(id), out);
     return Status::OK;
-  });
+  }), "job " + id + " is cancelled");
 }
 
 Status Coordinator::set_priority(const std::string& id, int priority, v1::JobStatus* out) {
-  return locked([&] {
+  return durable(locked([&] {
     switch (scheduler_.set_priority(id, priority)) {
       case Scheduler::PriorityResult::kUnknownJob:
         return Status(StatusCode::NOT_FOUND, "no job '" + id + "' in this coordinator's queue");
@@ -207,7 +218,7 @@ Status Coordinator::set_priority(const std::string& id, int priority, v1::JobSta
     job_status_proto(*scheduler_.job(id), out);
     dispatch_locked();
     return Status::OK;
-  });
+  }), "job " + id + " has its new priority");
 }
 
 Status Coordinator::ack_frame(const std::string& id, int frame) {

@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 
@@ -14,8 +15,9 @@ namespace tessera::server {
 
 namespace fs = std::filesystem;
 
-JobStore::JobStore(const fs::path& data_dir)
-    : dir_(data_dir), db_path_(data_dir / "tessera.db"), reserve_(data_dir / ".reserve") {
+JobStore::JobStore(const fs::path& data_dir, std::chrono::milliseconds commit_window)
+    : dir_(data_dir), db_path_(data_dir / "tessera.db"), reserve_(data_dir / ".reserve"),
+      commit_window_(std::max(commit_window, std::chrono::milliseconds(0))) {
   std::error_code ec;
   fs::create_directories(dir_, ec);
   if (ec || !fs::is_directory(dir_)) {
@@ -177,11 +179,17 @@ std::optional<JobSnapshot> JobStore::read_job(const JobId& id) {
 // The queue's front: the coordinator's calls, under its mutex; the writer thread does the rest.
 
 void JobStore::push(Op op) {
+  bool wake;
   {
     std::lock_guard lock(mu_);
+    const bool barrier = std::holds_alternative<Barrier>(op);
+    // The first write of a window wakes the writer; the rest join its batch without a wake-up
+    // (a writer busy applying the previous batch sees them when it next looks at the queue).
+    wake = queue_.empty() || barrier || queue_.size() + 1 >= kMaxBatchOps;
+    barrier_queued_ = barrier_queued_ || barrier;
     queue_.push_back(std::move(op));
   }
-  cv_.notify_one();
+  if (wake) cv_.notify_one();
 }
 
 void JobStore::job_submitted(const JobSnapshot& s) { push(JobRow{s, true}); }

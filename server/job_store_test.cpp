@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <future>
 #include <map>
 #include <set>
 
@@ -570,6 +571,53 @@ TEST_F(JobStoreTest, ReadOnlyDataDirIsRefused) {
 // Not a test of time (nothing is asserted about it): prints how many tiles/s the writer makes
 // durable, the number docs/reliability.md quotes. Each tile is a lease issued + ended + a 4 KiB
 // tile done, as the coordinator queues them. TESSERA_STORE_BENCH_TILES overrides the count.
+// The commit window: every write queued while the writer waits joins one batch (one segment, one
+// fdatasync, one commit), and a barrier ends the window at once. The window here is an hour: a
+// barrier that waited it out would fail the wait_for below instead of passing after an hour.
+TEST_F(JobStoreTest, CommitWindowGathersWritesIntoOneBatchAndABarrierEndsIt) {
+  JobStore store(dir, std::chrono::hours(1));
+  store.load();
+  store.job_submitted(job("j1", 1));
+  auto first = store.barrier();
+  ASSERT_EQ(first.wait_for(std::chrono::seconds(120)), std::future_status::ready);
+  ASSERT_EQ(first.get(), "");
+  const JobStore::Stats before = store.stats();
+  EXPECT_EQ(before.batches, 1);
+  for (int t = 0; t < 6; ++t) {
+    Lease l;
+    l.id = LeaseId(t + 1);
+    l.tile = {"j1", 5, t};
+    l.issued = Clock::now();
+    store.lease_issued(l, "w1");
+    store.lease_ended(l.id);
+    store.tile_done(l.tile, out("f5t" + std::to_string(t), 10));
+  }
+  auto second = store.barrier();
+  ASSERT_EQ(second.wait_for(std::chrono::seconds(120)), std::future_status::ready);
+  ASSERT_EQ(second.get(), "");
+  const JobStore::Stats after = store.stats();
+  EXPECT_EQ(after.batches, before.batches + 1);
+  EXPECT_EQ(after.ops - before.ops, 6 * 3);       // the writes (a barrier is not counted)
+  EXPECT_EQ(segment_files().size(), 1u);          // all six tiles in one segment
+}
+
+// Closing the store does not wait out the window: what is queued is written at once, and reads
+// back. (An hour's window that the destructor waited for would time the test out.)
+TEST_F(JobStoreTest, ClosingWritesWhatItsWindowHoldsAtOnce) {
+  {
+    JobStore store(dir, std::chrono::hours(1));
+    store.load();
+    store.job_submitted(job("j1", 1));
+    store.tile_done({"j1", 6, 4}, out("f6t4", 7));
+  }
+  JobStore store(dir);
+  JobStore::Loaded l = store.load();
+  ASSERT_EQ(l.jobs.size(), 1u);
+  ASSERT_EQ(l.jobs[0].done.size(), 1u);
+  ASSERT_NE(l.jobs[0].done[0].output.payload, nullptr);
+  EXPECT_EQ(*l.jobs[0].done[0].output.payload, "f6t4");
+}
+
 TEST_F(JobStoreTest, ThroughputMicroBenchmark) {
   int n = 2000;  // small for CI; TESSERA_STORE_BENCH_TILES=20032 for the documented numbers
   if (const char* e = std::getenv("TESSERA_STORE_BENCH_TILES")) n = std::max(1, std::atoi(e));

@@ -1,5 +1,5 @@
-// The group-commit writer: one thread takes everything queued so far as a batch and applies it
-// in three steps (the segment, the rows, the deletions), retrying a failed batch every second;
+// The group-commit writer: one thread takes everything queued in a commit window as a batch and
+// applies it in three steps (the segment, the rows, the deletions), retrying a failed batch every second;
 // on a full disk it lets through what needs no new segment and makes room (job_store.h).
 #include <spdlog/spdlog.h>
 
@@ -21,6 +21,12 @@ void JobStore::writer_loop() {
       std::unique_lock lock(mu_);
       cv_.wait(lock, [&] { return stopping_ || !queue_.empty() || !pending.empty(); });
       if (pending.empty() && queue_.empty() && stopping_) break;
+      // The commit window (job_store.h): let the tiles finishing meanwhile join this batch.
+      if (pending.empty() && commit_window_.count() > 0) {
+        cv_.wait_for(lock, commit_window_,
+                     [&] { return stopping_ || barrier_queued_ || queue_.size() >= kMaxBatchOps; });
+      }
+      barrier_queued_ = false;
       // Everything queued so far is one batch: under load batches grow and commits stay few.
       for (auto& op : queue_) pending.push_back(std::move(op));
       queue_.clear();
@@ -28,27 +34,36 @@ void JobStore::writer_loop() {
     }
     std::vector<Op> deferred;
     const std::string error = apply_pending(pending, observer, deferred);
+    std::vector<std::shared_ptr<std::promise<std::string>>> barriers;
     for (auto it = pending.begin(); it != pending.end();) {
       if (auto* b = std::get_if<Barrier>(&*it)) {
-        b->done->set_value(error);
+        barriers.push_back(b->done);
         it = pending.erase(it);
       } else {
         ++it;
       }
     }
+    // Answered after the bookkeeping below: whoever waited on a barrier sees its batch counted.
+    auto answer_barriers = [&] {
+      for (auto& done : barriers) done->set_value(error);
+    };
     if (error.empty() && reserve_.wanted()) reserve_.make();  // writer thread: no lock needed
     if (error.empty()) {
-      std::lock_guard lock(mu_);
-      if (!healthy_) {
-        spdlog::info("storage recovered: {} writes committed", pending.size());
-        reserve_.want();
+      {
+        std::lock_guard lock(mu_);
+        if (!healthy_) {
+          spdlog::info("storage recovered: {} writes committed", pending.size());
+          reserve_.want();
+        }
+        healthy_ = true;
+        ++stats_.batches;
+        stats_.ops += int64_t(pending.size());
       }
-      healthy_ = true;
-      ++stats_.batches;
-      stats_.ops += int64_t(pending.size());
       pending.clear();
+      answer_barriers();
       continue;
     }
+    answer_barriers();
     if (!deferred.empty()) {
       // Everything else was committed: only the deferred tiles are left (barriers were answered
       // with the error above: the tiles before them are not durable yet).

@@ -40,6 +40,7 @@ struct ServerFlags {
   int max_faults = 3;
   double retention_hours = 24;
   size_t watch_backlog_tiles = CoordinatorOptions{}.watch_backlog_tiles;
+  int commit_window_ms = int(tessera::server::JobStore::kDefaultCommitWindow.count());
   std::string http_listen;
   farm::ServerSecurity security;
   std::vector<std::string> admins;
@@ -69,6 +70,10 @@ std::optional<int> parse_flags(int argc, char** argv, ServerFlags& f) {
                  "Hold a job (no new leases) while one of its watch streams has this many tiles unsent; "
                  "bounds the coordinator's memory for slow clients (0: no bound)")
       ->check(CLI::Range(size_t(0), size_t(1) << 24))->capture_default_str();
+  app.add_option("--commit-window-ms", f.commit_window_ms,
+                 "How long finished tiles gather before one durable write takes them all (0: a write as "
+                 "soon as one is queued; longer: fewer syncs per tile, more tiles rendered again after a crash)")
+      ->check(CLI::Range(0, 10000))->capture_default_str();
   app.add_option("--http-listen", f.http_listen,
                  "HOST:PORT for the web monitor, its JSON API and Prometheus /metrics (off unless given; "
                  "HTTPS with the --tls-cert certificate when TLS is on; port 0 picks a free one)");
@@ -240,7 +245,7 @@ int main(int argc, char** argv) {
   try {
     store = std::make_unique<BundleStore>(flags.data_dir);
     // The database is the source of truth: a corrupt or unwritable store stops us here, loudly.
-    jobs = std::make_unique<JobStore>(flags.data_dir);
+    jobs = std::make_unique<JobStore>(flags.data_dir, std::chrono::milliseconds(flags.commit_window_ms));
   } catch (const std::exception& e) {
     std::cerr << "tessera-server: " << e.what() << "\n";
     return 1;
