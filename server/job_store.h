@@ -1,11 +1,13 @@
 // The coordinator's durable state: jobs, tile states, acknowledged frames and leases in SQLite
 // (<data-dir>/tessera.db, WAL mode, synchronous=FULL), finished tile pixels in a TileStore
-// (<data-dir>/tiles/<n>.seg, one segment file per batch). The database is the source of truth at restart.
+// (<data-dir>/tiles/<n>.seg, batches appended to one open segment of up to 64 MiB). The database
+// is the source of truth at restart.
 //
 // Writes are asynchronous and batched (group commit): the coordinator queues operations under
 // its mutex (cheap: a shared_ptr to the tile bytes), and one writer thread applies everything
 // queued so far as a single batch:
-//   1. append the batch's tiles to one new segment file, fdatasync it, fsync the directory;
+//   1. append the batch's tiles to the open segment (one write), fdatasync it (and fsync the
+//      directory when the segment is new);
 //   2. one SQLite transaction for every row of the batch (a tile row holds its segment, offset
 //      and length), in queue order;
 //   3. after the commit, delete every segment whose records all belong to acknowledged frames or
