@@ -1,5 +1,7 @@
 #include "farm/tile_codec.h"
 
+#include "tile/bfloat16.h"
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -70,20 +72,10 @@ int64_t first_nonfinite(const std::string& bytes) {
   return -1;
 }
 
-// float32 -> bfloat16, rounded to nearest even. A finite value that would round up to infinity
-// is truncated instead (the largest finite bfloat16): a variance never turns infinite on the
-// wire. NaN stays NaN (quiet), for validate_tile to refuse.
-uint16_t to_bf16(float f) {
-  const uint32_t u = std::bit_cast<uint32_t>(f);
-  if ((u & 0x7f800000u) == 0x7f800000u) return uint16_t((u >> 16) | ((u & 0xffffu) ? 0x40u : 0u));
-  const uint32_t rounded = (u + 0x7fffu + ((u >> 16) & 1u)) >> 16;
-  return (rounded & 0x7f80u) == 0x7f80u ? uint16_t(u >> 16) : uint16_t(rounded);
-}
-
 void floats_to_bf16_le(const std::vector<float>& v, std::string* out) {
   out->resize(v.size() * 2);
   for (size_t i = 0; i < v.size(); ++i) {
-    const uint16_t h = to_bf16(v[i]);
+    const uint16_t h = to_bfloat16(v[i]);
     (*out)[2 * i] = char(h & 0xff);
     (*out)[2 * i + 1] = char(h >> 8);
   }
@@ -93,7 +85,7 @@ void bf16_le_to_floats(const std::string& s, std::vector<float>* v) {
   v->resize(s.size() / 2);
   const auto* p = reinterpret_cast<const unsigned char*>(s.data());
   for (size_t i = 0; i < v->size(); ++i) {
-    (*v)[i] = std::bit_cast<float>((uint32_t(p[2 * i]) | uint32_t(p[2 * i + 1]) << 8) << 16);
+    (*v)[i] = from_bfloat16(uint16_t(p[2 * i] | p[2 * i + 1] << 8));
   }
 }
 
