@@ -8,7 +8,7 @@ BUILD_PKGS=(
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   libembree-dev libtbb-dev libopenexr-dev libspdlog-dev libcli11-dev
   nlohmann-json3-dev libassimp-dev libsqlite3-dev libpng-dev libssl-dev
-  zlib1g-dev  # the coordinator's tile records carry zlib's CRC-32 (server/tile_store.cpp)
+  libxxhash-dev zlib1g-dev  # the coordinator's tile records: XXH3-64 (older ones: zlib's CRC-32; server/tile_store.cpp)
   libgtest-dev libgmock-dev libbenchmark-dev
   libhwy-dev  # Google Highway: SIMD (render/triangle_cluster_simd.cpp)
   libtinygltf-dev libjpeg-dev  # glTF scenes (lib/scene/gltf_*): tinygltf parses (header only, compiled in), libpng/libjpeg decode textures

@@ -19,6 +19,7 @@ WorkerId Coordinator::register_worker(const WorkerInfo& info, std::shared_ptr<Wo
     m.mutable_welcome()->set_worker_id(std::to_string(id));
     m.mutable_welcome()->set_heartbeat_interval_ms(int(options_.heartbeat_interval.count()));
     m.mutable_welcome()->set_lease_timeout_ms(int(options_.scheduler.lease_timeout.count()));
+    m.mutable_welcome()->set_reads_request_more(true);
     sink->push(m);
     touched_workers_.push_back(sink);
     return id;
@@ -42,6 +43,7 @@ void Coordinator::worker_message(WorkerId id, const v1::WorkerMessage& msg) {
         break;
       case v1::WorkerMessage::kResult:
         tile_result_locked(id, msg.result());
+        if (msg.result().request_more() > 0) scheduler_.request_tiles(id, msg.result().request_more());
         break;
       case v1::WorkerMessage::kReturned:
         scheduler_.return_leases(id, {msg.returned().lease_ids().begin(), msg.returned().lease_ids().end()});

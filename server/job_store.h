@@ -1,11 +1,13 @@
 // The coordinator's durable state: jobs, tile states, acknowledged frames and leases in SQLite
 // (<data-dir>/tessera.db, WAL mode, synchronous=FULL), finished tile pixels in a TileStore
-// (<data-dir>/tiles/<n>.seg, one segment file per batch). The database is the source of truth at restart.
+// (<data-dir>/tiles/<n>.seg, batches appended to one open segment of up to 64 MiB). The database
+// is the source of truth at restart.
 //
 // Writes are asynchronous and batched (group commit): the coordinator queues operations under
 // its mutex (cheap: a shared_ptr to the tile bytes), and one writer thread applies everything
 // queued so far as a single batch:
-//   1. append the batch's tiles to one new segment file, fdatasync it, fsync the directory;
+//   1. append the batch's tiles to the open segment (one write), fdatasync it (and fsync the
+//      directory when the segment is new);
 //   2. one SQLite transaction for every row of the batch (a tile row holds its segment, offset
 //      and length), in queue order;
 //   3. after the commit, delete every segment whose records all belong to acknowledged frames or
@@ -15,13 +17,14 @@
 // marks the store unhealthy (submit answers RESOURCE_EXHAUSTED) and is retried every second, in
 // order, until it succeeds. barrier() tells a caller when everything queued before it is durable.
 //
-// The writer waits a commit window (default 20 ms) after the first write of a batch before it
+// The writer waits a commit window (default 1 s) after the first write of a batch before it
 // applies it, so that one fdatasync and one commit serve every tile finished meanwhile rather
 // than each tile paying for its own (with one worker a tile took two syncs, a SQLite commit and a
-// writer wake-up: most of the coordinator's CPU per tile). Only the first write of a window wakes
-// the writer. A barrier ends the window at once (a client waiting on a submit is not made to
-// wait), as does a full batch. The window is how much longer a finished tile may stay only in
-// memory; a crash in it loses nothing a client was promised: the tile is rendered again.
+// writer wake-up: most of the coordinator's CPU per tile; at 20 ms the syncs alone still took a
+// third of it). Only the first write of a window wakes the writer. A barrier ends the window at
+// once (a client waiting on a submit is not made to wait), as does a full batch. The window is
+// how much longer a finished tile may stay only in memory; a crash in it loses nothing a client
+// was promised: the tile is rendered again.
 //
 // The class in files: job_store.cpp (opening the store, the queue's front), job_store_recovery.cpp
 // (reading the state back at start), job_store_writer.cpp (the group-commit writer). Its parts:
@@ -66,7 +69,7 @@ class JobStore {
 
   // Opens or creates the store; checks the directory is writable, the database's integrity
   // (PRAGMA quick_check) and its schema version. Throws StoreError.
-  static constexpr std::chrono::milliseconds kDefaultCommitWindow{20};
+  static constexpr std::chrono::milliseconds kDefaultCommitWindow{1000};
   static constexpr size_t kMaxBatchOps = 4096;  // a batch this full is applied without waiting out its window
   explicit JobStore(const std::filesystem::path& data_dir,
                     std::chrono::milliseconds commit_window = kDefaultCommitWindow);

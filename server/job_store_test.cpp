@@ -395,6 +395,40 @@ TEST(TileStoreCrc, IsTheStandardCrc32) {
   EXPECT_EQ(crc32_ieee("The quick brown fox jumps over the lazy dog", 43), 0x414FA339u);
 }
 
+// Records written now carry XXH3-64 (libxxhash, seed 0): its documented value for the empty
+// input, and a record written by the store is read back, and refused naming the hash once a bit
+// of it flips.
+TEST(TileStoreHash, RecordsCarryXxh3AndADamagedOneIsNamed) {
+  EXPECT_EQ(xxh3_64("", 0), 0x2D06800538D394C2ull);
+  const fs::path root = fs::temp_directory_path() / ("tessera-tilestore-" + std::to_string(::getpid()));
+  fs::remove_all(root);
+  {
+    TileStore store(root);
+    const std::string a(20000, 'a'), b = "second tile";
+    const auto at = store.append({&a, &b});
+    ASSERT_EQ(at.size(), 2u);
+    EXPECT_EQ(at[1].offset, at[0].offset + 16 + int64_t(a.size()));  // 16-byte header
+    EXPECT_EQ(store.read(at[1]).bytes.value_or("?"), b);
+    // The next batch appends to the same segment.
+    const auto more = store.append({&b});
+    EXPECT_EQ(more[0].segment, at[0].segment);
+    EXPECT_EQ(more[0].offset, at[1].offset + 16 + int64_t(b.size()));
+    {
+      std::fstream f(store.segment_path(at[1].segment), std::ios::in | std::ios::out | std::ios::binary);
+      f.seekp(at[1].offset + 16 + 3);
+      f.put('X');
+    }
+    const auto got = store.read(at[1]);
+    EXPECT_FALSE(got.bytes);
+    EXPECT_NE(got.error.find("checksum error (XXH3-64 mismatch)"), std::string::npos) << got.error;
+    EXPECT_EQ(store.read(at[0]).bytes.value_or("?"), a);
+    // A batch whose rows were not committed is taken back: the segment is cut to where it was.
+    store.undo_last_append();
+    EXPECT_EQ(int64_t(fs::file_size(store.segment_path(at[0].segment))), more[0].offset);
+  }
+  fs::remove_all(root);
+}
+
 TEST_F(JobStoreTest, SchemaVersionOneIsRefusedWithTheReason) {
   { JobStore store(dir); }
   sqlite3* db = nullptr;

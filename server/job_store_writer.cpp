@@ -189,7 +189,7 @@ void JobStore::write_pixels(const std::vector<Op>& batch, BatchPlan& plan) {
     const auto* t = std::get_if<TileDone>(&batch[i]);
     if (t && !plan.skip[i] && plan.needs_pixels(*t)) payloads.push_back(t->payload.get());
   }
-  if (!payloads.empty()) plan.at = tiles_->write_segment(payloads);
+  if (!payloads.empty()) plan.at = tiles_->append(payloads);
 }
 
 void JobStore::commit_rows(const std::vector<Op>& batch, const BatchPlan& plan) {
@@ -206,9 +206,10 @@ void JobStore::commit_rows(const std::vector<Op>& batch, const BatchPlan& plan) 
     exec("COMMIT");
   } catch (...) {
     sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
-    // No row points into this batch's segment; the retry writes a new one. (Were this unlink
-    // lost in a crash, the next start would delete the segment as an orphan.)
-    if (!plan.at.empty()) tiles_->remove_segment(plan.at.front().segment);
+    // No row points at this batch's records: they are taken back, and the retry appends them
+    // again. (Were this lost in a crash, they would be dead bytes, or an orphan segment deleted
+    // at the next start.)
+    if (!plan.at.empty()) tiles_->undo_last_append();
     throw;
   }
 }

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <unistd.h>
+#include <xxhash.h>
 #include <zlib.h>
 
 #include <cerrno>
@@ -14,9 +15,15 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// Record header, little-endian u32s: magic, payload length, CRC-32 of the payload.
-constexpr uint32_t kRecordMagic = 0x54524543;  // "TREC"
-constexpr size_t kHeaderSize = 12;
+// Record headers, little-endian. Written: magic "TRX3", payload length (u32), XXH3-64 of the
+// payload (u64): 16 bytes. Read as well: the first format, magic "TREC", length, CRC-32 of the
+// payload (12 bytes), so segments written before the change stay readable. XXH3 checks a 20 KiB
+// tile in about a microsecond; zlib's CRC-32 took several, a tenth of the coordinator's own work
+// per tile (docs/performance.md).
+constexpr uint32_t kRecordMagic = 0x33585254;     // "TRX3"
+constexpr size_t kHeaderSize = 16;
+constexpr uint32_t kCrcRecordMagic = 0x54524543;  // "TREC"
+constexpr size_t kCrcHeaderSize = 12;
 
 [[noreturn]] void fail(const std::string& what, const fs::path& p, int err) {
   throw std::runtime_error(what + " " + p.string() + ": " + std::strerror(err));
@@ -32,7 +39,11 @@ uint32_t get_u32(const char* p) {
   return v;
 }
 
+uint64_t get_u64(const char* p) { return uint64_t(get_u32(p)) | uint64_t(get_u32(p + 4)) << 32; }
+
 }  // namespace
+
+uint64_t xxh3_64(const void* data, size_t size) { return XXH3_64bits(data, size); }
 
 uint32_t crc32_ieee(const void* data, size_t size) {
   // crc32_z: a size_t length (crc32() takes 32 bits).
@@ -51,6 +62,7 @@ TileStore::TileStore(fs::path root) : root_(std::move(root)) {
 }
 
 TileStore::~TileStore() {
+  close_open();
   if (root_fd_ >= 0) ::close(root_fd_);
 }
 
@@ -68,54 +80,72 @@ std::optional<int64_t> TileStore::parse_segment_name(const std::string& name) {
 
 void TileStore::reserve_above(int64_t n) { next_segment_ = std::max(next_segment_, n + 1); }
 
-std::vector<TileStore::Location> TileStore::write_segment(const std::vector<const std::string*>& payloads) {
-  const int64_t segment = next_segment_++;  // never reused, even when this write fails
-  const fs::path file = segment_path(segment);
-  std::vector<Location> at;
-  at.reserve(payloads.size());
+std::vector<TileStore::Location> TileStore::append(const std::vector<const std::string*>& payloads) {
   size_t total = 0;
   for (const std::string* p : payloads) total += kHeaderSize + p->size();
+  if (open_.fd >= 0 && open_.size > 0 && open_.size + int64_t(total) > kSegmentBytes) close_open();
+  const bool created = open_.fd < 0;
+  if (created) {
+    const int64_t segment = next_segment_++;  // never reused, even when this write fails
+    const fs::path file = segment_path(segment);
+    // O_EXCL: a number is never reused, so the file cannot exist unless something else wrote it.
+    const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_APPEND | O_CLOEXEC, 0644);
+    if (fd < 0) fail("cannot create", file, errno);
+    open_ = {segment, fd, 0};
+  }
+  last_ = {open_.segment, open_.size, created};
+  std::vector<Location> at;
+  at.reserve(payloads.size());
   std::string buf;
   buf.reserve(total);
   for (const std::string* p : payloads) {
-    at.push_back({segment, int64_t(buf.size()), int64_t(p->size())});
+    at.push_back({open_.segment, open_.size + int64_t(buf.size()), int64_t(p->size())});
+    const uint64_t hash = xxh3_64(p->data(), p->size());
     put_u32(buf, kRecordMagic);
     put_u32(buf, uint32_t(p->size()));
-    put_u32(buf, crc32_ieee(p->data(), p->size()));
+    put_u32(buf, uint32_t(hash));
+    put_u32(buf, uint32_t(hash >> 32));
     buf += *p;
   }
-  // A new file each batch, no temp file + rename: a segment is only ever *trusted* once it was
-  // synced and then the rows pointing into it were committed; a segment without such rows is
-  // an orphan that JobStore::load() deletes (see docs/reliability.md, crash windows).
-  const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) fail("cannot create", file, errno);
+  const fs::path file = segment_path(open_.segment);
   auto bail = [&](const char* what, int err) {
-    ::close(fd);
-    ::unlink(file.c_str());
+    undo_last_append();
     fail(what, file, err);
   };
   size_t off = 0;
   while (off < buf.size()) {
-    const ssize_t n = ::write(fd, buf.data() + off, buf.size() - off);
+    const ssize_t n = ::write(open_.fd, buf.data() + off, buf.size() - off);
     if (n < 0) {
       if (errno == EINTR) continue;
       bail("cannot write", errno);
     }
     off += size_t(n);
   }
-  // The file's data (and its size), then its directory entry: both before any row points here.
-  if (::fdatasync(fd) != 0) bail("cannot sync", errno);
-  if (::close(fd) != 0) {
-    const int err = errno;
-    ::unlink(file.c_str());
-    fail("cannot write", file, err);
-  }
-  if (::fsync(root_fd_) != 0) {
-    const int err = errno;
-    ::unlink(file.c_str());
-    fail("cannot sync the directory of", file, err);
-  }
+  open_.size += int64_t(buf.size());
+  // The file's data (and its size), then, for a new file, its directory entry: both before any
+  // row points here.
+  if (::fdatasync(open_.fd) != 0) bail("cannot sync", errno);
+  if (created && ::fsync(root_fd_) != 0) bail("cannot sync the directory of", errno);
   return at;
+}
+
+void TileStore::undo_last_append() {
+  if (last_.segment == 0) return;
+  if (last_.created) {
+    remove_segment(last_.segment);  // closes it
+  } else if (open_.segment == last_.segment) {
+    if (::ftruncate(open_.fd, off_t(last_.size_before)) == 0) {
+      open_.size = last_.size_before;
+    } else {
+      close_open();  // the tail stays, dead; nothing is appended after it
+    }
+  }
+  last_ = {};
+}
+
+void TileStore::close_open() {
+  if (open_.fd >= 0) ::close(open_.fd);
+  open_ = {};
 }
 
 TileStore::ReadResult TileStore::read(const Location& at) const {
@@ -135,19 +165,26 @@ TileStore::ReadResult TileStore::read(const Location& at) const {
   };
   char header[kHeaderSize];
   ReadResult out;
-  if (at.offset < 0 || at.length < 0 || !read_exact(header, kHeaderSize, at.offset)) {
+  // The shorter header first: a record of either format starts with it.
+  const bool have_header = at.offset >= 0 && at.length >= 0 && read_exact(header, kCrcHeaderSize, at.offset);
+  const uint32_t magic = have_header ? get_u32(header) : 0;
+  const size_t header_size = magic == kCrcRecordMagic ? kCrcHeaderSize : kHeaderSize;
+  if (!have_header || (magic == kRecordMagic && !read_exact(header + kCrcHeaderSize, kHeaderSize - kCrcHeaderSize,
+                                                            at.offset + int64_t(kCrcHeaderSize)))) {
     out.error = where + ": the record header is missing (file too short)";
-  } else if (get_u32(header) != kRecordMagic) {
+  } else if (magic != kRecordMagic && magic != kCrcRecordMagic) {
     out.error = where + ": no tile record starts here (bad magic)";
   } else if (int64_t(get_u32(header + 4)) != at.length) {
     out.error = where + ": the record holds " + std::to_string(get_u32(header + 4)) + " bytes, the database says " +
                 std::to_string(at.length);
   } else {
     std::string bytes(size_t(at.length), '\0');
-    if (!read_exact(bytes.data(), bytes.size(), at.offset + int64_t(kHeaderSize))) {
+    if (!read_exact(bytes.data(), bytes.size(), at.offset + int64_t(header_size))) {
       out.error = where + ": the record is cut short (file too short)";
-    } else if (crc32_ieee(bytes.data(), bytes.size()) != get_u32(header + 8)) {
-      out.error = where + ": checksum error (CRC-32 mismatch): the tile's bytes are damaged";
+    } else if (magic == kRecordMagic ? xxh3_64(bytes.data(), bytes.size()) != get_u64(header + 8)
+                                     : crc32_ieee(bytes.data(), bytes.size()) != get_u32(header + 8)) {
+      out.error = where + ": checksum error (" + (magic == kRecordMagic ? "XXH3-64" : "CRC-32") +
+                  " mismatch): the tile's bytes are damaged";
     } else {
       out.bytes = std::move(bytes);
     }
@@ -156,6 +193,9 @@ TileStore::ReadResult TileStore::read(const Location& at) const {
   return out;
 }
 
-void TileStore::remove_segment(int64_t segment) { ::unlink(segment_path(segment).c_str()); }
+void TileStore::remove_segment(int64_t segment) {
+  if (segment == open_.segment) close_open();
+  ::unlink(segment_path(segment).c_str());
+}
 
 }  // namespace tessera::server

@@ -28,6 +28,7 @@ struct WorkerConnection::Session {
   std::set<uint64_t> revoked;           // leases revoked while their tile was rendering
   int outstanding = 0;                  // tiles requested or assigned and not yet finished
   std::chrono::milliseconds heartbeat{1000};
+  bool result_requests = false;         // the coordinator reads TileResult.request_more
 
   bool write(const v1::WorkerMessage& m) {
     std::lock_guard lock(write_mu);
@@ -128,6 +129,7 @@ bool WorkerConnection::run_session() {
         case v1::CoordinatorMessage::kWelcome: {
           accepted = true;
           s->heartbeat = std::chrono::milliseconds(std::max(50, msg.welcome().heartbeat_interval_ms()));
+          s->result_requests = msg.welcome().reads_request_more();
           spdlog::info("connected to {} as worker {} ({} threads, Embree {})", options_.coordinator,
                        msg.welcome().worker_id(), pool_.threads(), embree_isa());
           heartbeat = std::thread([&, s] {
@@ -269,6 +271,11 @@ void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assig
     std::lock_guard lock(s->write_mu);
     if (s->revoked.erase(a.lease_id())) out.Clear();  // another copy won, or the job was cancelled
     if (!s->draining) req.mutable_request()->set_count(1);
+  }
+  // The next tile's request rides on the result where the coordinator reads it there.
+  if (out.has_result() && req.has_request() && s->result_requests) {
+    out.mutable_result()->set_request_more(req.request().count());
+    req.Clear();
   }
   if (out.msg_case() != v1::WorkerMessage::MSG_NOT_SET) s->write(out);
   if (req.has_request()) s->write(req);

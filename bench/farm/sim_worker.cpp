@@ -1,5 +1,7 @@
 #include "sim_worker.h"
 
+#include "farm/tile_codec.h"
+
 #include <cstring>
 
 namespace tessera::bench {
@@ -55,15 +57,6 @@ void SimTimer::loop() {
 // ------------------------------------------------------------------------------------------
 // SimWorker
 
-namespace {
-// The tile a worker would return: 3 x w x h float32 RGB, then w x h float32 variance. The values
-// do not matter to the coordinator (it checks only sizes and position), so they are constant.
-std::string constant_floats(size_t count, float value) {
-  std::string s(count * sizeof(float), '\0');
-  for (size_t i = 0; i < count; ++i) std::memcpy(s.data() + i * sizeof(float), &value, sizeof(float));
-  return s;
-}
-}  // namespace
 
 SimWorker::SimWorker(v1::WorkerService::Stub* stub, std::string name, SimOptions options, SimTimer& timer,
                      SimCounters& counters)
@@ -155,6 +148,7 @@ void SimWorker::OnReadDone(bool ok) {
   switch (in_.msg_case()) {
     case v1::CoordinatorMessage::kWelcome:
       heartbeat_interval_ = std::chrono::milliseconds(std::max(50, in_.welcome().heartbeat_interval_ms()));
+      result_requests_ = in_.welcome().reads_request_more();
       timer_.at(SteadyClock::now() + heartbeat_interval_, [this] { heartbeat(); });
       welcomed_ = true;
       break;
@@ -195,7 +189,17 @@ void SimWorker::finish_tile(const v1::Assignment& a) {
     revoked = revoked_.erase(a.lease_id()) > 0;
   }
   if (!revoked) {  // like tessera-worker: a revoked tile's result is discarded, the slot refilled
-    const size_t pixels = size_t(std::max(0, a.rect().width())) * size_t(std::max(0, a.rect().height()));
+    // The tile a worker would return, encoded as tessera-worker encodes it (farm/tile_codec.h).
+    // The values do not matter to the coordinator (it checks only sizes, position and that
+    // they are finite), so they are constant.
+    TileResult tile;
+    tile.rect = farm::from_proto(a.rect());
+    const size_t pixels = size_t(std::max(0, tile.rect.width)) * size_t(std::max(0, tile.rect.height));
+    tile.rgb.assign(3 * pixels, 0.5f);
+    tile.variance.assign(pixels, 0.0f);
+    tile.spp.assign(pixels, 1);
+    tile.rays.camera = pixels;
+    tile.seconds = std::chrono::duration<double>(options_.delay).count();
     v1::WorkerMessage out;
     auto* r = out.mutable_result();
     r->set_lease_id(a.lease_id());
@@ -203,14 +207,14 @@ void SimWorker::finish_tile(const v1::Assignment& a) {
     t->set_job_id(a.job_id());
     t->set_frame(a.frame());
     t->set_tile_index(a.tile_index());
-    *t->mutable_rect() = a.rect();
-    t->set_rgb(constant_floats(3 * pixels, 0.5f));
-    t->set_variance(constant_floats(pixels, 0.0f));
-    t->mutable_rays()->set_camera(pixels);
-    t->set_seconds(std::chrono::duration<double>(options_.delay).count());
     t->set_worker(name_);
+    farm::encode_tile(tile, t);
+    // Like tessera-worker: the next tile's request rides on the result when the coordinator
+    // reads it there.
+    if (result_requests_) r->set_request_more(1);
     send(std::move(out));
     counters_.results++;
+    if (result_requests_) return;
   }
   request(1);
 }

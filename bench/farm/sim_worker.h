@@ -1,6 +1,6 @@
 // A simulated tessera-worker for the coordinator load generator: it speaks worker_service.proto
 // as worker/connection.cpp does (register; pull 2 x threads tiles, then one more per finished
-// tile; a heartbeat every interval the welcome names; revoked leases are not returned) but,
+// tile, asked for on the result itself; a heartbeat every interval the welcome names; revoked leases are not returned) but,
 // instead of rendering, returns a constant tile of the leased size after a fixed delay. It runs
 // on the gRPC callback API, so a thousand of them share gRPC's few threads and one timer thread
 // instead of a thousand OS threads.
@@ -114,6 +114,7 @@ class SimWorker : public grpc::ClientBidiReactor<tessera::v1::WorkerMessage, tes
   std::set<uint64_t> revoked_;
 
   std::atomic<bool> welcomed_{false};
+  std::atomic<bool> result_requests_{false};  // the welcome said TileResult.request_more is read
   std::atomic<bool> ended_early_{false};
   std::mutex done_mu_;
   std::condition_variable done_cv_;

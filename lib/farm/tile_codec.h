@@ -14,8 +14,11 @@ namespace tessera::farm {
 void to_proto(const TileRect& r, tessera::v1::TileRect* out);
 TileRect from_proto(const tessera::v1::TileRect& r);
 
+// Pixels as float32, bit for bit; the variance as bfloat16 (variance_bf16); per-pixel sample
+// counts only when they differ (else uniform_spp).
 void encode_tile(const TileResult& tile, tessera::v1::TileData* out);
-// Checks sizes (rgb = 3*w*h floats, variance = w*h floats) and decodes. Returns an empty string
+// Checks sizes (rgb = 3*w*h floats; variance = w*h float32 or, in variance_bf16, w*h bfloat16;
+// spp = w*h uint32 or none) and decodes (a uniform_spp fills spp). Returns an empty string
 // on success, else what is wrong (the caller turns it into INVALID_ARGUMENT or a log line).
 std::string decode_tile(const tessera::v1::TileData& in, TileResult* out);
 // Only the size checks of decode_tile, without copying the pixels (the coordinator forwards the

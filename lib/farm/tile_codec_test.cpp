@@ -7,6 +7,8 @@
 
 #include <climits>
 #include <cmath>
+#include <cstring>
+#include <limits>
 
 namespace tessera::farm {
 namespace {
@@ -80,6 +82,82 @@ TEST(Codec, GltfOptionsRoundTripAndBadValuesNameTheField) {
   bad = o;
   bad.set_gltf_fps(1000);
   EXPECT_EQ(error(bad), "accepted");
+}
+
+TileResult rendered_tile(int w, int h, bool uniform_spp) {
+  TileResult t;
+  t.rect = {8, 4, w, h};
+  const size_t px = size_t(w) * size_t(h);
+  for (size_t i = 0; i < 3 * px; ++i) t.rgb.push_back(std::ldexp(float(i % 97) + 0.123456789f, int(i % 40) - 20));
+  for (size_t i = 0; i < px; ++i) {
+    t.variance.push_back(std::ldexp(1.0f + float(i) / float(px), int(i % 200) - 100));  // 2^-100 .. 2^100
+    t.spp.push_back(uniform_spp ? 16u : uint32_t(4 + i % 61));
+  }
+  return t;
+}
+
+// Pixels cross the wire bit for bit; the variance as bfloat16 keeps float32's range and is
+// within half a unit in the 8th significant bit (relative 2^-8) of the worker's value; sample
+// counts come back exactly, whether sent per pixel or once for the tile.
+TEST(Codec, EncodeDecodeKeepsPixelsExactAndTheVarianceWithinBfloat16Rounding) {
+  for (bool uniform : {true, false}) {
+    const TileResult in = rendered_tile(32, 17, uniform);
+    tessera::v1::TileData d;
+    encode_tile(in, &d);
+    EXPECT_TRUE(d.variance().empty());
+    EXPECT_EQ(d.variance_bf16().size(), in.variance.size() * 2);
+    EXPECT_EQ(d.spp().size(), uniform ? 0u : in.spp.size() * 4);
+    EXPECT_EQ(d.uniform_spp(), uniform ? 16u : 0u);
+    EXPECT_EQ(validate_tile(d, in.rect), "");
+    TileResult out;
+    ASSERT_EQ(decode_tile(d, &out), "");
+    ASSERT_EQ(out.rgb.size(), in.rgb.size());
+    EXPECT_EQ(std::memcmp(out.rgb.data(), in.rgb.data(), in.rgb.size() * 4), 0);
+    EXPECT_EQ(out.spp, in.spp);
+    ASSERT_EQ(out.variance.size(), in.variance.size());
+    for (size_t i = 0; i < in.variance.size(); ++i) {
+      ASSERT_LE(std::abs(out.variance[i] - in.variance[i]), std::ldexp(in.variance[i], -8)) << i;
+    }
+  }
+}
+
+TEST(Codec, Bfloat16VarianceNeverTurnsInfiniteAndNaNIsRefused) {
+  TileResult t = rendered_tile(4, 4, true);
+  t.variance[0] = std::numeric_limits<float>::max();  // rounds up past bfloat16's largest: truncated
+  t.variance[1] = 0.0f;
+  t.variance[2] = std::numeric_limits<float>::denorm_min();
+  tessera::v1::TileData d;
+  encode_tile(t, &d);
+  EXPECT_EQ(validate_tile(d, t.rect), "");
+  TileResult out;
+  ASSERT_EQ(decode_tile(d, &out), "");
+  EXPECT_TRUE(std::isfinite(out.variance[0]));
+  EXPECT_GE(out.variance[0], std::ldexp(1.0f, 127));
+  EXPECT_EQ(out.variance[1], 0.0f);
+  t.variance[5] = std::nanf("");
+  encode_tile(t, &d);
+  EXPECT_EQ(validate_tile(d, t.rect), "variance of pixel (9, 5) is not finite");
+  t.variance[5] = std::numeric_limits<float>::infinity();
+  encode_tile(t, &d);
+  EXPECT_EQ(validate_tile(d, t.rect), "variance of pixel (9, 5) is not finite");
+}
+
+// A peer that sends the variance as float32 (older workers, other implementations) is still
+// read; one that sends both, or a wrong size, is refused naming the field.
+TEST(Codec, Float32VarianceIsStillReadAndBadSizesAreNamed) {
+  TileResult r;
+  auto t = tile(0, 0, 4, 4);
+  ASSERT_EQ(decode_tile(t, &r), "");
+  EXPECT_EQ(r.variance.size(), 16u);
+  EXPECT_TRUE(r.spp.empty());  // no counts said: the client assumes the job's spp
+  t.set_variance_bf16(std::string(32, '\0'));
+  EXPECT_EQ(decode_tile(t, &r), "tile has both variance and variance_bf16");
+  t.clear_variance();
+  EXPECT_EQ(decode_tile(t, &r), "");
+  t.mutable_variance_bf16()->pop_back();
+  EXPECT_EQ(decode_tile(t, &r), "tile variance_bf16 has 31 bytes, expected 32");
+  t.clear_variance_bf16();
+  EXPECT_EQ(decode_tile(t, &r), "tile has no variance (variance_bf16: 32 bytes, or variance: 64)");
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 
 #include "render/integrator.h"
 #include "render/pixel_estimate.h"
+#include "tile/bfloat16.h"
 #include "tile/frame_assembly.h"
 #include "tile/tile_grid.h"
 
@@ -73,7 +74,9 @@ void render_samples(const RenderScene& scene, int x, int y, uint32_t from, uint3
 
 void store_pixel(const PixelEstimate& est, SamplerKind kind, size_t i, TileResult* out) {
   for (int c = 0; c < 3; ++c) out->rgb[3 * i + size_t(c)] = est.mean(c);
-  out->variance[i] = float(est.variance(kind));
+  // Kept at the precision tiles carry it at (tile/bfloat16.h): a farm's frames and their error
+  // report are then bit-identical to an in-process render's.
+  out->variance[i] = round_to_bfloat16(float(est.variance(kind)));
   out->spp[i] = est.samples();
 }
 
@@ -98,14 +101,14 @@ void render_tile_adaptive(const RenderScene& scene, const TileRect& rect, TileRe
         }
         done = n;
         if (n >= max_spp) break;
-        // The block's estimated variance: per pixel the estimate as stored (float), or for
+        // The block's estimated variance: per pixel the estimate as stored (tile/bfloat16.h), or for
         // stratified samplers the floor below which an edge pixel's estimate is not trusted
         // (PixelEstimate::stratified_floor), whichever is larger; summed in row order.
         double sum = 0;
         for (int y = 0; y < h; ++y) {
           for (int x = 0; x < w; ++x) {
             const PixelEstimate& e = block[size_t(y * B + x)];
-            const double v = double(float(e.variance(img.sampler)));
+            const double v = double(round_to_bfloat16(float(e.variance(img.sampler))));
             sum += img.sampler == SamplerKind::kSobol ? std::max(v, e.stratified_floor()) : v;
           }
         }

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <thread>
 
@@ -77,26 +78,58 @@ TEST(FarmDamage, TruncatedTileOfADoneJobIsRenderedAgainAndEveryFrameWritten) {
   EXPECT_NE(log.find(newest.string()), std::string::npos) << "the error names the damaged file\n" << log;
 }
 
-TEST(FarmDamage, SwappedSegmentsAreNotServedAsTheWrongFrame) {
+// The records of a segment: offset -> total size (header and payload). A record is a 16-byte
+// header (magic "TRX3", payload length, XXH3-64; little-endian) then the payload
+// (server/tile_store.cpp).
+std::map<int64_t, int64_t> records(const fs::path& segment) {
+  std::ifstream f(segment, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  std::map<int64_t, int64_t> out;
+  for (size_t off = 0; off + 16 <= bytes.size();) {
+    uint32_t len = 0;
+    for (int i = 0; i < 4; ++i) len |= uint32_t(uint8_t(bytes[off + 4 + size_t(i)])) << (8 * i);
+    out[int64_t(off)] = 16 + int64_t(len);
+    off += 16 + len;
+  }
+  return out;
+}
+
+TEST(FarmDamage, SwappedRecordsAreNotServedAsTheWrongFrame) {
   Farm farm;
-  // One tile per frame, a slow worker: each batch (segment) holds one tile, so the three
-  // segments have the same length and a swap keeps every record readable (length and CRC).
-  const std::string job = render_and_stop(farm, "96", 300);
+  // One tile per frame: the three records have the same length, so a swap keeps every record
+  // readable (length and checksum); only its identity betrays it.
+  const std::string job = render_and_stop(farm, "96", 0);
   const auto segs = segments(farm);
-  fs::path a, b;
-  for (auto i = segs.begin(); i != segs.end() && a.empty(); ++i) {
-    for (auto j = std::next(i); j != segs.end(); ++j) {
-      if (fs::file_size(i->second) == fs::file_size(j->second)) {
-        a = i->second;
-        b = j->second;
-        break;
+  fs::path seg;
+  int64_t a = -1, b = -1, size = 0;
+  for (const auto& [n, path] : segs) {
+    const auto recs = records(path);
+    for (auto i = recs.begin(); i != recs.end() && a < 0; ++i) {
+      for (auto j = std::next(i); j != recs.end(); ++j) {
+        if (i->second == j->second) {
+          seg = path;
+          a = i->first;
+          b = j->first;
+          size = i->second;
+          break;
+        }
       }
     }
+    if (a >= 0) break;
   }
-  ASSERT_FALSE(a.empty()) << "no two segments of equal length among " << segs.size();
-  fs::rename(a, farm.dir() / "swap");
-  fs::rename(b, a);
-  fs::rename(farm.dir() / "swap", b);
+  ASSERT_GE(a, 0) << "no two records of equal length in " << segs.size() << " segments";
+  {
+    std::fstream f(seg, std::ios::in | std::ios::out | std::ios::binary);
+    std::string ra(size_t(size), '\0'), rb(size_t(size), '\0');
+    f.seekg(a);
+    f.read(ra.data(), size);
+    f.seekg(b);
+    f.read(rb.data(), size);
+    f.seekp(a);
+    f.write(rb.data(), size);
+    f.seekp(b);
+    f.write(ra.data(), size);
+  }
   expect_watch_writes_every_frame(farm, job);
   const std::string log = farm.server_logs();
   EXPECT_NE(log.find("the record is not this tile: it is job " + job + " frame"), std::string::npos) << log;
@@ -109,7 +142,7 @@ TEST(FarmDamage, CorruptRecordIsReportedAsAChecksumError) {
   ASSERT_FALSE(segs.empty());
   const fs::path seg = segs.begin()->second;
   {
-    // Flip a byte inside the first record's pixels (past its 12-byte header).
+    // Flip a byte inside the first record's pixels (past its 16-byte header).
     std::fstream f(seg, std::ios::in | std::ios::out | std::ios::binary);
     f.seekg(200);
     char c = 0;

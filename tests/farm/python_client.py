@@ -59,7 +59,11 @@ def main():
         if kind == "tile":
             t = ev.tile
             n = t.rect.width * t.rect.height
-            assert len(t.rgb) == 12 * n and len(t.variance) == 4 * n
+            # float32 pixels; the variance as bfloat16; a fixed-spp job's counts said once a tile.
+            assert len(t.rgb) == 12 * n and len(t.variance_bf16) == 2 * n and not t.variance, (len(t.variance_bf16), len(t.variance))
+            assert not t.spp and t.uniform_spp == 2, (len(t.spp), t.uniform_spp)
+            var = struct.unpack("<%dH" % n, t.variance_bf16)
+            assert all((v & 0x7f80) != 0x7f80 for v in var), "a variance is not finite"
             rgb = struct.unpack("<%df" % (3 * n), t.rgb)  # little-endian float32, as documented
             assert all(v == v for v in rgb), "NaN in a tile"
             tiles += 1
