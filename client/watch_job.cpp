@@ -108,13 +108,23 @@ grpc::Status JobWatch::read_stream(bool* ended) {
   auto ctx = FarmClient::context(std::chrono::hours(24 * 30));
   v1::WatchJobRequest req;
   req.set_job_id(job_id_);
+  req.set_tile_batches(true);
   auto stream = client_.stub().WatchJob(ctx.get(), req);
   v1::WatchJobEvent ev;
+  v1::TileData tile;
   while (stream->Read(&ev)) {
     if (ev.has_status()) {
       on_status(ev.status(), ended);
     } else if (ev.has_tile()) {
       on_tile(ev.tile());
+    } else if (ev.has_tiles()) {
+      for (const std::string& bytes : ev.tiles().tiles()) {
+        if (!tile.ParseFromString(bytes)) {
+          spdlog::warn("ignored a tile: not a TileData message ({} bytes)", bytes.size());
+          continue;
+        }
+        on_tile(tile);
+      }
     } else if (ev.event_case() == v1::WatchJobEvent::kFrameDone) {
       on_frame_done(ev.frame_done());
     }

@@ -97,10 +97,15 @@ class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk> {
 // The watch stream: the coordinator pushes events into the outbox; this reactor writes them.
 class WatchReactor : public grpc::ServerWriteReactor<v1::WatchJobEvent> {
  public:
+  static constexpr size_t kMaxTilesPerMessage = 64;
+  static constexpr size_t kMaxBatchBytes = size_t(8) << 20;
   using Sink = OutboxSink<WatchReactor, v1::WatchJobEvent>;
 
-  WatchReactor(Coordinator& c, const std::string& job) : coord_(c), sink_(std::make_shared<Sink>(this)) {
-    Status s = coord_.attach_watcher(job, sink_);
+  WatchReactor(Coordinator& c, const v1::WatchJobRequest& req) : coord_(c), sink_(std::make_shared<Sink>(this)) {
+    // Tiles queued back to back go out together to a client that reads `tiles` events; one a
+    // message to any other. The bounds keep a message far below what a client accepts (64 MiB).
+    sink_->box.set_batching(build_tiles, req.tile_batches() ? kMaxTilesPerMessage : 1, kMaxBatchBytes);
+    Status s = coord_.attach_watcher(req.job_id(), sink_);
     if (!s.ok()) {
       sink_->finish(s);
       sink_->pump();
@@ -124,6 +129,18 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::WatchJobEvent> {
   }
 
  private:
+  // One tile: a `tile` event (parsed, as every client reads it); more: a `tiles` event holding the
+  // stored bytes as they are.
+  static void build_tiles(v1::WatchJobEvent* ev, const std::shared_ptr<const std::string>* tiles, size_t n) {
+    if (n == 1) {
+      ev->mutable_tile()->ParseFromString(*tiles[0]);
+      return;
+    }
+    auto* batch = ev->mutable_tiles();
+    batch->mutable_tiles()->Reserve(int(n));
+    for (size_t i = 0; i < n; ++i) batch->add_tiles(*tiles[i]);
+  }
+
   Coordinator& coord_;
   std::shared_ptr<Sink> sink_;
 };
@@ -196,7 +213,7 @@ grpc::ServerWriteReactor<v1::WatchJobEvent>* ClientServiceImpl::WatchJob(grpc::C
   Status s = authenticate(*ctx, &caller);
   if (s.ok()) s = authorize(req->job_id(), caller, "watch");
   if (!s.ok()) return new farm::Refused<grpc::ServerWriteReactor<v1::WatchJobEvent>>(std::move(s));
-  return new WatchReactor(coord_, req->job_id());
+  return new WatchReactor(coord_, *req);
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::AckFrame(grpc::CallbackServerContext* ctx, const v1::AckFrameRequest* req,

@@ -122,7 +122,8 @@ class Coordinator : private SchedulerListener {
   // --- worker service -----------------------------------------------------------------------
   WorkerId register_worker(const WorkerInfo& info, std::shared_ptr<WorkerSink> sink);
   void worker_gone(WorkerId id, std::string_view reason);
-  void worker_message(WorkerId id, const tessera::v1::WorkerMessage& msg);
+  // Takes the pixel bytes out of `msg` (no copy): the caller reads the next message into it.
+  void worker_message(WorkerId id, tessera::v1::WorkerMessage& msg);
 
   // --- observers (the Prometheus metrics, the web monitor) ---------------------------------
   // `observer` receives every scheduler event after the coordinator handled it, under the
@@ -155,7 +156,7 @@ class Coordinator : private SchedulerListener {
   template <class F>
   auto locked(F&& f);
   void dispatch_locked();
-  void tile_result_locked(WorkerId id, const tessera::v1::TileResult& r);
+  void tile_result_locked(WorkerId id, tessera::v1::TileResult& r);
   void expiry_loop();
   void restore_locked();
   void evict_locked(const JobId& id, const char* why);

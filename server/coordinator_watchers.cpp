@@ -94,8 +94,8 @@ void Coordinator::watcher_drained(const std::shared_ptr<WatchSink>& sink) {
 void Coordinator::push_tile_locked(const JobId& job, const std::shared_ptr<WatchSink>& sink,
                                    const std::shared_ptr<const std::string>& payload) {
   // The scheduler keeps the encoded tile until its frame is acknowledged; the stream only refers
-  // to it and parses it when the tile's turn to be written comes.
-  sink->push_deferred([payload](v1::WatchJobEvent* ev) { ev->mutable_tile()->ParseFromString(*payload); });
+  // to it, and its batch builder (client_service.cpp) puts it in a message when its turn comes.
+  sink->push_shared(payload);
   touched_watchers_.push_back(sink);
   const size_t bound = options_.watch_backlog_tiles;
   if (bound == 0 || sink->throttled.load() || sink->queued() < bound) return;

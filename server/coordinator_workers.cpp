@@ -34,7 +34,7 @@ void Coordinator::worker_gone(WorkerId id, std::string_view reason) {
   });
 }
 
-void Coordinator::worker_message(WorkerId id, const v1::WorkerMessage& msg) {
+void Coordinator::worker_message(WorkerId id, v1::WorkerMessage& msg) {
   locked([&] {
     scheduler_.heartbeat(id);  // any message is a sign of life
     switch (msg.msg_case()) {
@@ -42,7 +42,7 @@ void Coordinator::worker_message(WorkerId id, const v1::WorkerMessage& msg) {
         scheduler_.request_tiles(id, msg.request().count());
         break;
       case v1::WorkerMessage::kResult:
-        tile_result_locked(id, msg.result());
+        tile_result_locked(id, *msg.mutable_result());
         if (msg.result().request_more() > 0) scheduler_.request_tiles(id, msg.result().request_more());
         break;
       case v1::WorkerMessage::kReturned:
@@ -63,7 +63,7 @@ void Coordinator::worker_message(WorkerId id, const v1::WorkerMessage& msg) {
   });
 }
 
-void Coordinator::tile_result_locked(WorkerId id, const v1::TileResult& r) {
+void Coordinator::tile_result_locked(WorkerId id, v1::TileResult& r) {
   auto lease = scheduler_.lease(r.lease_id());
   if (!lease || lease->worker != id) {
     // A lease this worker held and lost (revoked, expired, from before a restart) is normal
@@ -90,8 +90,11 @@ void Coordinator::tile_result_locked(WorkerId id, const v1::TileResult& r) {
                      fmt::format("frame {} tile {}: {}", lease->tile.frame, lease->tile.tile, err));
     return;
   }
-  // The coordinator is the authority on what the tile is: overwrite the identifying fields.
-  v1::TileData tile = r.tile();
+  // What is stored and forwarded is rebuilt from the fields a tile has, the pixel bytes moved, not
+  // copied: unknown fields (a worker's padding) go no further, so a stored tile is never larger
+  // than its pixels and what identifies it. The coordinator is the authority on what the tile
+  // is: it sets the identifying fields.
+  v1::TileData tile = farm::known_fields_only(std::move(*r.mutable_tile()));
   tile.set_job_id(lease->tile.job);
   tile.set_frame(lease->tile.frame);
   tile.set_tile_index(lease->tile.tile);

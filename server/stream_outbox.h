@@ -9,16 +9,26 @@
 // A message can also be queued deferred: a function that builds it when its turn to be written
 // comes. A finished tile then waits in the queue as a reference to the coordinator's one encoded
 // copy (a few dozen bytes) rather than as a parsed copy per stream (its full size).
+//
+// Shared payloads (push_shared: a tile's encoded bytes) are built into messages by the stream's
+// batch builder (set_batching), several at a time: every shared payload queued back to back,
+// up to a count and a byte bound, goes into one message when its turn comes. A stream whose
+// writes keep up sends one a message; one that falls behind catches up in fewer, fuller
+// messages, and each message costs the coordinator a hand-off between gRPC's threads and a
+// system call or two, whatever its size.
 #pragma once
 
 #include <grpcpp/grpcpp.h>
 
+#include <algorithm>
 #include <atomic>
 #include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <string>
 #include <variant>
+#include <vector>
 
 namespace tessera::server {
 
@@ -26,12 +36,25 @@ template <class Reactor, class Msg>
 class Outbox {
  public:
   using Deferred = std::function<void(Msg*)>;  // fills a cleared message
+  using Shared = std::shared_ptr<const std::string>;
+  // Fills a cleared message with `n` shared payloads (n >= 1, as many as the bounds allowed).
+  using BatchBuilder = std::function<void(Msg*, const Shared* payloads, size_t n)>;
 
   explicit Outbox(Reactor* reactor) : reactor_(reactor) {}
 
   // Queues a message; call pump() afterwards (outside other locks) to get it moving.
   void push(Msg msg) { enqueue(Item(std::in_place_index<0>, std::move(msg))); }
   void push_deferred(Deferred make) { enqueue(Item(std::in_place_index<1>, std::move(make))); }
+  // Queues a shared payload for the batch builder; set_batching must have been called.
+  void push_shared(Shared payload) { enqueue(Item(std::in_place_index<2>, std::move(payload))); }
+  // How shared payloads become messages: at most `max_items` and, past the first, `max_bytes`
+  // of payload a message. Call before anything is queued.
+  void set_batching(BatchBuilder build, size_t max_items, size_t max_bytes) {
+    std::lock_guard lock(mu_);
+    build_ = std::move(build);
+    max_items_ = std::max<size_t>(1, max_items);
+    max_bytes_ = max_bytes;
+  }
   // Messages queued and not yet handed to gRPC (the flow-control measure; no lock needed).
   size_t queued() const { return queued_.load(std::memory_order_relaxed); }
   // Finishes the stream with `status` once the queued messages are written (the first status
@@ -49,11 +72,26 @@ class Outbox {
       Item& front = queue_.front();
       if (front.index() == 0) {
         current_ = std::move(std::get<0>(front));
-      } else {
+        queue_.pop_front();
+      } else if (front.index() == 1) {
         current_.Clear();
         std::get<1>(front)(&current_);
+        queue_.pop_front();
+      } else {
+        // The run of shared payloads at the front, within the bounds.
+        batch_.clear();
+        size_t bytes = 0;
+        while (!queue_.empty() && queue_.front().index() == 2 && batch_.size() < max_items_) {
+          const Shared& p = std::get<2>(queue_.front());
+          if (!batch_.empty() && bytes + p->size() > max_bytes_) break;
+          bytes += p->size();
+          batch_.push_back(p);
+          queue_.pop_front();
+        }
+        current_.Clear();
+        build_(&current_, batch_.data(), batch_.size());
+        batch_.clear();
       }
-      queue_.pop_front();
       queued_.store(queue_.size(), std::memory_order_relaxed);
       writing_ = true;
       Reactor* r = reactor_;
@@ -98,7 +136,7 @@ class Outbox {
   }
 
  private:
-  using Item = std::variant<Msg, Deferred>;
+  using Item = std::variant<Msg, Deferred, Shared>;
   void enqueue(Item item) {
     std::lock_guard lock(mu_);
     if (finish_requested_ || !reactor_) return;
@@ -111,6 +149,10 @@ class Outbox {
   std::deque<Item> queue_;
   std::atomic<size_t> queued_{0};
   Msg current_;
+  BatchBuilder build_;
+  size_t max_items_ = 1;
+  size_t max_bytes_ = 0;
+  std::vector<Shared> batch_;
   bool writing_ = false;
   bool finish_requested_ = false;
   bool finish_called_ = false;

@@ -8,6 +8,8 @@
 #include <atomic>
 #include <cstddef>
 #include <functional>
+#include <memory>
+#include <string>
 
 #include "stream_outbox.h"
 
@@ -21,6 +23,9 @@ class StreamSink {
   virtual void push(Msg m) = 0;
   // Queues a message built only when it is written (see stream_outbox.h).
   virtual void push_deferred(std::function<void(Msg*)> make) = 0;
+  // Queues a shared payload (a tile's encoded bytes), built into messages by the stream's batch
+  // builder (see stream_outbox.h); only streams that set one take these.
+  virtual void push_shared(std::shared_ptr<const std::string> payload) = 0;
   virtual void finish(grpc::Status s) = 0;
   virtual void pump() = 0;
   virtual size_t queued() const = 0;  // messages not yet handed to gRPC
@@ -36,6 +41,7 @@ struct OutboxSink : StreamSink<Msg> {
   explicit OutboxSink(Reactor* r) : box(r) {}
   void push(Msg m) override { box.push(std::move(m)); }
   void push_deferred(std::function<void(Msg*)> make) override { box.push_deferred(std::move(make)); }
+  void push_shared(std::shared_ptr<const std::string> payload) override { box.push_shared(std::move(payload)); }
   void finish(grpc::Status s) override { box.finish(std::move(s)); }
   void pump() override { box.pump(); }
   size_t queued() const override { return box.queued(); }

@@ -17,6 +17,30 @@ namespace {
 
 constexpr size_t kChunkBytes = size_t(1) << 20;
 
+// What a worker may say of itself. Its name goes into every tile it renders (stored, streamed to
+// clients, shown by the monitor), so it is bounded like the tile's pixels are.
+constexpr size_t kMaxWorkerNameBytes = 256;
+constexpr size_t kMaxIsaBytes = 64;
+constexpr size_t kMaxVersionBytes = 256;
+constexpr int kMaxWorkerThreads = 4096;
+
+// "" or what is wrong with a registration, naming the field, its value's size and the bound.
+std::string check_register(const v1::Register& r) {
+  const auto too_long = [](const char* field, const std::string& v, size_t max) -> std::string {
+    if (v.size() <= max) return {};
+    return fmt::format("register.{} is {} bytes, at most {}", field, v.size(), max);
+  };
+  for (std::string e : {too_long("name", r.name(), kMaxWorkerNameBytes),
+                        too_long("embree_isa", r.embree_isa(), kMaxIsaBytes),
+                        too_long("version", r.version(), kMaxVersionBytes)}) {
+    if (!e.empty()) return e;
+  }
+  if (r.threads() > kMaxWorkerThreads) {
+    return fmt::format("register.threads is {}, at most {}", r.threads(), kMaxWorkerThreads);
+  }
+  return {};
+}
+
 // One worker's session. Reads drive the scheduler through the coordinator; writes (welcome,
 // assignments, revocations) come from the coordinator through the outbox.
 class WorkerSession : public grpc::ServerBidiReactor<v1::WorkerMessage, v1::CoordinatorMessage> {
@@ -40,6 +64,11 @@ class WorkerSession : public grpc::ServerBidiReactor<v1::WorkerMessage, v1::Coor
         return;
       }
       const auto& r = in_.register_();
+      if (std::string e = check_register(r); !e.empty()) {
+        spdlog::warn("worker registration from {} refused: {}", peer_, e);
+        finish(Status(StatusCode::INVALID_ARGUMENT, e));
+        return;
+      }
       WorkerInfo info{r.name().empty() ? peer_ : r.name(), peer_, std::max(1, r.threads()), r.embree_isa()};
       id_ = coord_.register_worker(info, sink_);
     } else if (in_.msg_case() == v1::WorkerMessage::kRegister) {

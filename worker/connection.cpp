@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <limits>
 #include <random>
 #include <thread>
 
@@ -239,6 +240,19 @@ void WorkerConnection::inject_test_fault(v1::TileResult* r) const {
     r->set_lease_id(r->lease_id() + (uint64_t(1) << 40));
   } else if (f == "no-scene") {
     throw std::runtime_error("cannot load the scene (--test-fault=no-scene)");
+  } else if (f == "negative-variance") {
+    std::string v = r->tile().variance_bf16();
+    if (v.size() >= 2) {
+      v[0] = char(0x80);  // bfloat16 -1.0 (0xbf80), little-endian
+      v[1] = char(0xbf);
+    }
+    r->mutable_tile()->set_variance_bf16(v);
+  } else if (f == "nan-seconds") {
+    r->mutable_tile()->set_seconds(std::numeric_limits<double>::quiet_NaN());
+  } else if (f == "padded") {  // honest pixels, plus fields no version of the protocol defines
+    const auto unknown = [](google::protobuf::Message* m) { return m->GetReflection()->MutableUnknownFields(m); };
+    unknown(r->mutable_tile())->AddLengthDelimited(999, std::string(size_t(1) << 20, 'x'));
+    unknown(r->mutable_tile()->mutable_rays())->AddLengthDelimited(998, std::string(4096, 'y'));
   }
 }
 

@@ -38,9 +38,10 @@ int main(int argc, char** argv) {
   app.add_option("--test-delay-ms", o.extra_delay_ms, "Testing only: sleep this long after each tile")
       ->check(CLI::Range(0, 60000));
   app.add_option("--test-fault", o.test_fault,
-                 "Testing only: send bad results (nan, wrong-size, stale lease, no-scene) to exercise the "
-                 "coordinator's refusal and per-job blocklist")
-      ->check(CLI::IsMember({"nan", "wrong-size", "stale", "no-scene"}));
+                 "Testing only: send bad results (nan, wrong-size, stale lease, no-scene, negative-variance, "
+                 "nan-seconds) to exercise the coordinator's refusal and per-job blocklist, or honest results "
+                 "padded with 1 MiB of unknown fields (padded)")
+      ->check(CLI::IsMember({"nan", "wrong-size", "stale", "no-scene", "negative-variance", "nan-seconds", "padded"}));
   std::string token_file;
   app.add_option("--token-file", token_file, "File holding the worker token (else env TESSERA_WORKER_TOKEN)")
       ->group("Security");

@@ -159,6 +159,7 @@ class Watcher {
   int64_t received() const { return received_.load(); }
 
   int64_t duplicates = 0, out_of_range = 0, acks_failed = 0;
+  int64_t tile_messages = 0;  // watch events that carried tiles (one, or a batch)
   double t_first = 0, t_10 = 0, t_90 = 0, t_last = 0;
   v1::JobStatus final_status;
   grpc::Status stream_status;
@@ -175,31 +176,46 @@ class Watcher {
   }
 
  private:
+  void count_tile(const v1::TileData& t) {
+    const int64_t total = job_.tiles_total();
+    const int tpf = job_.tiles_per_frame();
+    const int64_t idx = int64_t(t.frame() - job_.first_frame()) * tpf + t.tile_index();
+    if (idx < 0 || idx >= total || t.tile_index() >= tpf) {
+      ++out_of_range;
+      return;
+    }
+    if (seen_[size_t(idx)]++) {
+      ++duplicates;
+      return;
+    }
+    const int64_t n = ++received_;
+    const double t_now = now_s();
+    if (n == 1) t_first = t_now;
+    if (n == std::max<int64_t>(1, total / 10)) t_10 = t_now;
+    if (n == std::max<int64_t>(1, total * 9 / 10)) t_90 = t_now;
+    t_last = t_now;
+  }
+
   void run() {
     v1::WatchJobRequest req;
     req.set_job_id(job_.job_id());
+    req.set_tile_batches(true);  // as tessera watch does
     auto reader = stub_.WatchJob(&ctx_, req);
-    const int64_t total = job_.tiles_total();
-    const int tpf = job_.tiles_per_frame();
     v1::WatchJobEvent ev;
+    v1::TileData batched;
     while (reader->Read(&ev)) {
       if (ev.has_tile()) {
-        const auto& t = ev.tile();
-        const int64_t idx = int64_t(t.frame() - job_.first_frame()) * tpf + t.tile_index();
-        if (idx < 0 || idx >= total || t.tile_index() >= tpf) {
-          ++out_of_range;
-          continue;
+        ++tile_messages;
+        count_tile(ev.tile());
+      } else if (ev.has_tiles()) {
+        ++tile_messages;
+        for (const std::string& bytes : ev.tiles().tiles()) {
+          if (batched.ParseFromString(bytes)) {
+            count_tile(batched);
+          } else {
+            ++out_of_range;
+          }
         }
-        if (seen_[size_t(idx)]++) {
-          ++duplicates;
-          continue;
-        }
-        const int64_t n = ++received_;
-        const double t_now = now_s();
-        if (n == 1) t_first = t_now;
-        if (n == std::max<int64_t>(1, total / 10)) t_10 = t_now;
-        if (n == std::max<int64_t>(1, total * 9 / 10)) t_90 = t_now;
-        t_last = t_now;
       } else if (ev.event_case() == v1::WatchJobEvent::kFrameDone) {
         const int f = ev.frame_done() - job_.first_frame();
         if (f >= 0 && size_t(f) < frame_done_.size()) frame_done_[size_t(f)] = 1;
@@ -398,6 +414,7 @@ json run_one(const Config& cfg, int n_workers, int run_index) {
   r["tiles_received"] = received;
   r["tiles_missing"] = watcher.missing();
   r["tiles_delivered_twice"] = watcher.duplicates;
+  r["watch_tiles_per_message"] = watcher.tile_messages > 0 ? double(received) / double(watcher.tile_messages) : 0.0;
   r["frames_without_frame_done"] = watcher.frames_without_done();
   r["ack_failures"] = watcher.acks_failed;
   r["job_state"] = v1::JobState_Name(final_job.state());

@@ -4,6 +4,7 @@
 // Python or big-endian client reads them the same way.
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 #include "tessera/v1/common.pb.h"
@@ -29,10 +30,21 @@ std::string check_tile(const tessera::v1::TileData& in, int expected_width, int 
 // overflow: the client must not trust a rectangle it received over the network).
 std::string decode_tile_in_image(const tessera::v1::TileData& in, int width, int height, TileResult* out);
 
+// The most rays of one kind a tile may report: far above any render (2^40 is a million samples
+// a pixel of a 1024x1024 tile), far below what would overflow the farm's 64-bit sums.
+inline constexpr uint64_t kMaxRaysPerTile = uint64_t(1) << 40;
+
 // What the coordinator checks of a worker's result before it accepts it, without decoding: the
-// sizes and position are those of the tile it leased (`expected`), and every colour and variance
-// value is finite (a NaN would poison every later average of the frame). "" or what is wrong,
+// sizes and position are those of the tile it leased (`expected`), every colour value is finite
+// and every variance finite and >= 0 (a NaN would poison every later average of the frame, a
+// negative variance the error report), the render time is finite and >= 0 and the ray counts
+// are at most kMaxRaysPerTile (nonfinite_samples at most the camera rays). "" or what is wrong,
 // naming the pixel in image coordinates.
 std::string validate_tile(const tessera::v1::TileData& in, const TileRect& expected);
+
+// The tile as the coordinator stores and forwards it: only the fields TileData defines, the bytes
+// moved out of `in`. Unknown fields (in it and in its rectangle and ray counts) are dropped, so a
+// peer cannot make a stored or forwarded tile larger than its pixels and identity.
+tessera::v1::TileData known_fields_only(tessera::v1::TileData&& in);
 
 }  // namespace tessera::farm

@@ -8,6 +8,7 @@
 #include <climits>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 
 namespace tessera::farm {
@@ -136,10 +137,82 @@ TEST(Codec, Bfloat16VarianceNeverTurnsInfiniteAndNaNIsRefused) {
   EXPECT_EQ(out.variance[1], 0.0f);
   t.variance[5] = std::nanf("");
   encode_tile(t, &d);
-  EXPECT_EQ(validate_tile(d, t.rect), "variance of pixel (9, 5) is not finite");
+  EXPECT_EQ(validate_tile(d, t.rect), "variance of pixel (9, 5) is NaN");
   t.variance[5] = std::numeric_limits<float>::infinity();
   encode_tile(t, &d);
-  EXPECT_EQ(validate_tile(d, t.rect), "variance of pixel (9, 5) is not finite");
+  EXPECT_EQ(validate_tile(d, t.rect), "variance of pixel (9, 5) is infinite");
+}
+
+// Statistics a hostile or broken worker could send are refused naming the value: a negative
+// variance (in either encoding; -0 is zero and fine), a render time that is NaN or negative, ray
+// counts past any render, more nonfinite samples than samples.
+TEST(Codec, ValidateRefusesStatisticsNoRenderProduces) {
+  TileResult t = rendered_tile(4, 4, true);
+  t.variance[0] = -0.0f;
+  tessera::v1::TileData d;
+  encode_tile(t, &d);
+  EXPECT_EQ(validate_tile(d, t.rect), "");
+  t.variance[6] = -0.25f;
+  encode_tile(t, &d);
+  EXPECT_EQ(validate_tile(d, t.rect), "variance of pixel (10, 5) is negative (-0.250000)");
+  auto f32 = tile(8, 4, 4, 4);
+  const float minus = -1.0f;
+  std::memcpy(f32.mutable_variance()->data() + 4 * 3, &minus, 4);
+  EXPECT_EQ(validate_tile(f32, t.rect), "variance of pixel (11, 4) is negative (-1.000000)");
+
+  t = rendered_tile(4, 4, true);
+  encode_tile(t, &d);
+  auto bad = d;
+  bad.set_seconds(std::nan(""));
+  EXPECT_EQ(validate_tile(bad, t.rect), "render time nan s is not a finite duration >= 0");
+  bad.set_seconds(-1);
+  EXPECT_EQ(validate_tile(bad, t.rect), "render time -1.000000 s is not a finite duration >= 0");
+  bad = d;
+  bad.mutable_rays()->set_shadow(kMaxRaysPerTile + 1);
+  EXPECT_EQ(validate_tile(bad, t.rect), "shadow ray count 1099511627777 is above 1099511627776 per tile");
+  bad = d;
+  bad.mutable_rays()->set_camera(16);
+  bad.mutable_rays()->set_nonfinite_samples(17);
+  EXPECT_EQ(validate_tile(bad, t.rect), "nonfinite_samples 17 is above the camera ray count 16");
+  bad.mutable_rays()->set_camera(kMaxRaysPerTile);  // at the bound: accepted
+  EXPECT_EQ(validate_tile(bad, t.rect), "");
+}
+
+// Every field TileData defines survives known_fields_only (set through reflection, so a field
+// added to the message and not to the function fails here); unknown fields, at the top and in
+// the nested messages, do not; the bytes are moved, not copied.
+TEST(Codec, KnownFieldsOnlyKeepsEveryFieldTileDataDefines) {
+  tessera::v1::TileData in;
+  std::function<void(google::protobuf::Message*, int)> fill = [&](google::protobuf::Message* m, int seed) {
+    const auto* desc = m->GetDescriptor();
+    const auto* r = m->GetReflection();
+    for (int i = 0; i < desc->field_count(); ++i) {
+      const auto* f = desc->field(i);
+      ASSERT_FALSE(f->is_repeated()) << f->full_name() << ": extend this test and known_fields_only";
+      const int v = seed + i + 1;
+      using FD = google::protobuf::FieldDescriptor;
+      switch (f->cpp_type()) {
+        case FD::CPPTYPE_INT32: r->SetInt32(m, f, v); break;
+        case FD::CPPTYPE_UINT32: r->SetUInt32(m, f, uint32_t(v)); break;
+        case FD::CPPTYPE_INT64: r->SetInt64(m, f, v); break;
+        case FD::CPPTYPE_UINT64: r->SetUInt64(m, f, uint64_t(v)); break;
+        case FD::CPPTYPE_DOUBLE: r->SetDouble(m, f, v + 0.5); break;
+        case FD::CPPTYPE_STRING: r->SetString(m, f, std::string(size_t(v) + 32, char('a' + v % 26))); break;
+        case FD::CPPTYPE_MESSAGE: fill(r->MutableMessage(m, f), 100 * v); break;
+        default: FAIL() << f->full_name() << ": a field type this test does not set";
+      }
+    }
+  };
+  fill(&in, 0);
+  const std::string known = in.SerializeAsString();
+  const auto unknown = [](google::protobuf::Message* m) { return m->GetReflection()->MutableUnknownFields(m); };
+  unknown(&in)->AddLengthDelimited(999, std::string(1 << 20, 'x'));
+  unknown(in.mutable_rect())->AddVarint(77, 5);
+  unknown(in.mutable_rays())->AddLengthDelimited(78, "padding");
+  const char* rgb = in.rgb().data();
+  const tessera::v1::TileData out = known_fields_only(std::move(in));
+  EXPECT_EQ(out.SerializeAsString(), known);
+  EXPECT_EQ(out.rgb().data(), rgb) << "the pixel bytes were copied, not moved";
 }
 
 // A peer that sends the variance as float32 (older workers, other implementations) is still

@@ -34,7 +34,9 @@ TEST(FarmFaults, BadResultsAreRefusedAndTheirWorkersBlocklisted) {
       {"nan", "is NaN"},
       {"wrong-size", "tile rgb has"},
       {"stale", "never issued by this coordinator"},
-      {"no-scene", "worker cannot render: cannot load the scene"}};
+      {"no-scene", "worker cannot render: cannot load the scene"},
+      {"negative-variance", "is negative (-1.000000)"},
+      {"nan-seconds", "render time nan s is not a finite duration >= 0"}};
   for (const auto& [mode, reason] : faults) farm.start_worker("bad-" + mode, 1, 0, {"--test-fault", mode});
   farm.start_worker("good", 1, 20);
   wait_for_workers(farm, faults.size() + 1);  // the liars alone would fail the job
@@ -73,6 +75,58 @@ TEST(FarmFaults, BadResultsAreRefusedAndTheirWorkersBlocklisted) {
       EXPECT_EQ(x.at("tiles_done").get<int>(), 0) << x.dump();
     }
   }
+}
+
+// Sum of the sizes of the coordinator's tile segments.
+uintmax_t tile_bytes_on_disk(const Farm& farm) {
+  uintmax_t bytes = 0;
+  for (const auto& e : fs::directory_iterator(farm.data_dir() / "tiles")) bytes += e.file_size();
+  return bytes;
+}
+
+// A worker that pads its (honest) results with unknown fields, 1 MiB a tile: the coordinator
+// stores and forwards only the fields a tile has, so the padding costs neither disk nor memory
+// nor a client that cannot receive it, and the frames are right.
+TEST(FarmFaults, PaddedResultsAreStoredAndSentWithoutThePadding) {
+  Farm farm;
+  farm.start_server();
+  farm.start_worker("padded", 1, 0, {"--test-fault", "padded"});
+  CliResult s = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--tile", "16", "--detach"});
+  ASSERT_EQ(s.code, 0) << s.output;
+  const std::string job = job_id_from(s.output);
+  ASSERT_TRUE(farm.wait_tiles_done(job, 72)) << farm.server_logs();
+  // A barrier (another submit answers once everything before it is stored): every tile is on disk.
+  ASSERT_EQ(farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--detach"}).code, 0);
+  // 72 tiles of 16x16 px: 14 bytes a pixel of pixel data and ~100 of identity each, ~270 KB. With
+  // the padding it would be over 72 MiB.
+  EXPECT_LT(tile_bytes_on_disk(farm), uintmax_t(1) << 20) << "the padding was stored";
+  const fs::path out = farm.dir() / "out";
+  CliResult w = farm.cli({"watch", job, "--coordinator", farm.address(), "-o", (out / "frame_####.exr").string()});
+  ASSERT_EQ(w.code, 0) << w.output << farm.server_logs();
+  for (int f = 0; f < 3; ++f) {
+    EXPECT_EQ(compare_exr(out / ("frame_000" + std::to_string(f) + ".exr"), reference_frame(kScene, f, {})), "")
+        << "frame " << f;
+  }
+}
+
+// A worker's description of itself is bounded (its name goes into every tile it renders): one
+// over the bound is refused at registration, naming the field and the bound, and never joins.
+TEST(FarmFaults, OversizedRegistrationIsRefusedNamingTheField) {
+  Farm farm;
+  farm.start_server();
+  Process long_named({bin("tessera-worker").string(), "--coordinator", farm.address(), "--name", std::string(1000, 'n'),
+                      "--cache-dir", (farm.dir() / "cache-long").string()},
+                     farm.dir() / "worker-long.log");
+  farm.start_worker("fine");
+  wait_for_workers(farm, 1);
+  std::this_thread::sleep_for(500ms);  // time for the long-named one to have tried, and retried
+  CliResult w = farm.cli({"workers", "--json", "--coordinator", farm.address()});
+  ASSERT_EQ(w.code, 0) << w.output;
+  const auto listed = nlohmann::json::parse(w.output);
+  ASSERT_EQ(listed.size(), 1u) << w.output;
+  EXPECT_EQ(listed[0].at("name"), "fine");
+  const std::string log = farm.server_logs();
+  EXPECT_NE(log.find("refused: register.name is 1000 bytes, at most 256"), std::string::npos) << log;
 }
 
 // Whether the coordinator's database holds (job, worker) in its blocklist within 10 s, read with
