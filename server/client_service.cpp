@@ -102,9 +102,14 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::WatchJobEvent> {
   using Sink = OutboxSink<WatchReactor, v1::WatchJobEvent>;
 
   WatchReactor(Coordinator& c, const v1::WatchJobRequest& req) : coord_(c), sink_(std::make_shared<Sink>(this)) {
-    // Tiles queued back to back go out together to a client that reads `tiles` events; one a
-    // message to any other. The bounds keep a message far below what a client accepts (64 MiB).
-    sink_->box.set_batching(build_tiles, req.tile_batches() ? kMaxTilesPerMessage : 1, kMaxBatchBytes);
+    // A client that reads `tiles` events gets every tile in one, the stored bytes as they are,
+    // with the tiles queued behind it; any other, one parsed `tile` event a tile. The bounds keep
+    // a message far below what a client accepts (64 MiB).
+    if (req.tile_batches()) {
+      sink_->box.set_batching(batch_event, kMaxTilesPerMessage, kMaxBatchBytes);
+    } else {
+      sink_->box.set_batching(tile_event, 1, kMaxBatchBytes);
+    }
     Status s = coord_.attach_watcher(req.job_id(), sink_);
     if (!s.ok()) {
       sink_->finish(s);
@@ -129,13 +134,11 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::WatchJobEvent> {
   }
 
  private:
-  // One tile: a `tile` event (parsed, as every client reads it); more: a `tiles` event holding the
-  // stored bytes as they are.
-  static void build_tiles(v1::WatchJobEvent* ev, const std::shared_ptr<const std::string>* tiles, size_t n) {
-    if (n == 1) {
-      ev->mutable_tile()->ParseFromString(*tiles[0]);
-      return;
-    }
+  static void tile_event(v1::WatchJobEvent* ev, const std::shared_ptr<const std::string>* tiles, size_t) {
+    ev->mutable_tile()->ParseFromString(*tiles[0]);
+  }
+  // No parse and re-serialization: the bytes stored are the bytes sent.
+  static void batch_event(v1::WatchJobEvent* ev, const std::shared_ptr<const std::string>* tiles, size_t n) {
     auto* batch = ev->mutable_tiles();
     batch->mutable_tiles()->Reserve(int(n));
     for (size_t i = 0; i < n; ++i) batch->add_tiles(*tiles[i]);

@@ -211,10 +211,11 @@ void SimWorker::finish_tile(const v1::Assignment& a) {
     farm::encode_tile(tile, t);
     // Like tessera-worker: the next tile's request rides on the result when the coordinator
     // reads it there.
-    if (result_requests_) r->set_request_more(1);
+    const bool rides = result_requests_;
+    if (rides) r->set_request_more(1);
     send(std::move(out));
     counters_.results++;
-    if (result_requests_) return;
+    if (rides) return;
   }
   request(1);
 }

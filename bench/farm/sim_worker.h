@@ -1,9 +1,9 @@
 // A simulated tessera-worker for the coordinator load generator: it speaks worker_service.proto
 // as worker/connection.cpp does (register; pull 2 x threads tiles, then one more per finished
-// tile, asked for on the result itself; a heartbeat every interval the welcome names; revoked leases are not returned) but,
-// instead of rendering, returns a constant tile of the leased size after a fixed delay. It runs
-// on the gRPC callback API, so a thousand of them share gRPC's few threads and one timer thread
-// instead of a thousand OS threads.
+// tile, asked for on the result itself; a heartbeat every interval the welcome names; revoked
+// leases are not returned) but, instead of rendering, returns a constant tile of the leased size
+// after a fixed delay. It runs on the gRPC callback API, so a thousand of them share gRPC's few
+// threads and one timer thread instead of a thousand OS threads.
 #pragma once
 
 #include <grpcpp/grpcpp.h>

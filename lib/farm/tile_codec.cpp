@@ -14,6 +14,16 @@ namespace {
 
 static_assert(sizeof(float) == 4);
 
+// The little-endian 32- and 16-bit words at `p`: every read of the wire's bytes uses these.
+uint32_t le_u32_at(const char* p) {
+  uint32_t u;
+  std::memcpy(&u, p, 4);
+  if constexpr (std::endian::native == std::endian::big) u = __builtin_bswap32(u);
+  return u;
+}
+
+uint16_t le_u16_at(const char* p) { return uint16_t(uint8_t(p[0]) | uint8_t(p[1]) << 8); }
+
 // 32-bit words (float32 or uint32) to and from little-endian bytes.
 template <typename T>
 void words_to_le(const std::vector<T>& v, std::string* out) {
@@ -38,19 +48,8 @@ void le_to_words(const std::string& s, std::vector<T>* v) {
   if constexpr (std::endian::native == std::endian::little) {
     std::memcpy(v->data(), s.data(), v->size() * 4);
   } else {
-    for (size_t i = 0; i < v->size(); ++i) {
-      uint32_t u = 0;
-      for (int b = 0; b < 4; ++b) u |= uint32_t(uint8_t(s[i * 4 + size_t(b)])) << (8 * b);
-      (*v)[i] = std::bit_cast<T>(u);
-    }
+    for (size_t i = 0; i < v->size(); ++i) (*v)[i] = std::bit_cast<T>(le_u32_at(s.data() + 4 * i));
   }
-}
-
-uint32_t le_u32_at(const char* p) {
-  uint32_t u;
-  std::memcpy(&u, p, 4);
-  if constexpr (std::endian::native == std::endian::big) u = __builtin_bswap32(u);
-  return u;
 }
 
 bool nonfinite_f32(uint32_t u) { return (u & 0x7f800000u) == 0x7f800000u; }
@@ -90,18 +89,14 @@ void floats_to_bf16_le(const std::vector<float>& v, std::string* out) {
 
 void bf16_le_to_floats(const std::string& s, std::vector<float>* v) {
   v->resize(s.size() / 2);
-  const auto* p = reinterpret_cast<const unsigned char*>(s.data());
-  for (size_t i = 0; i < v->size(); ++i) {
-    (*v)[i] = from_bfloat16(uint16_t(p[2 * i] | p[2 * i + 1] << 8));
-  }
+  for (size_t i = 0; i < v->size(); ++i) (*v)[i] = from_bfloat16(le_u16_at(s.data() + 2 * i));
 }
 
 // The index of the first bfloat16 (little-endian) in `bytes` that is not a variance (NaN,
 // infinite or negative), or -1.
 int64_t first_bad_variance_bf16(const std::string& bytes) {
-  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
   for (size_t i = 0; i + 2 <= bytes.size(); i += 2) {
-    if (bad_variance_f32(uint32_t(p[i] | p[i + 1] << 8) << 16)) return int64_t(i / 2);
+    if (bad_variance_f32(uint32_t(le_u16_at(bytes.data() + i)) << 16)) return int64_t(i / 2);
   }
   return -1;
 }
@@ -114,8 +109,7 @@ std::string variance_problem(float v) {
 }
 
 float le_float_at(const std::string& bytes, int64_t index) {
-  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data()) + index * 4;
-  return std::bit_cast<float>(uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24);
+  return std::bit_cast<float>(le_u32_at(bytes.data() + 4 * index));
 }
 
 }  // namespace
@@ -237,8 +231,8 @@ std::string validate_tile(const tessera::v1::TileData& in, const TileRect& expec
     return "variance of pixel " + pixel(j) + " " + variance_problem(le_float_at(in.variance(), j));
   }
   if (const int64_t j = first_bad_variance_bf16(in.variance_bf16()); j >= 0) {
-    const auto* b = reinterpret_cast<const unsigned char*>(in.variance_bf16().data()) + 2 * j;
-    return "variance of pixel " + pixel(j) + " " + variance_problem(from_bfloat16(uint16_t(b[0] | b[1] << 8)));
+    const float v = from_bfloat16(le_u16_at(in.variance_bf16().data() + 2 * j));
+    return "variance of pixel " + pixel(j) + " " + variance_problem(v);
   }
   // The statistics a tile carries feed reports and metrics: a NaN time or an absurd count would
   // poison every sum after it.
