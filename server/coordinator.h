@@ -59,6 +59,9 @@ struct CoordinatorOptions {
   // tiles in flight and the unacknowledged frames. 0: no bound. Unwatched jobs are not held:
   // their tiles are durable and a client attaching later gets them in one go.
   size_t watch_backlog_tiles = 2048;
+  // The largest message the gRPC server receives, told to workers so that their result batches
+  // stay under it (0: not said).
+  int64_t max_message_bytes = 0;
 };
 
 // What a submission must satisfy besides naming a valid scene, and whose it is. The scene is
@@ -120,7 +123,8 @@ class Coordinator : private SchedulerListener {
   size_t watch_low_water() const { return options_.watch_backlog_tiles / 2; }
 
   // --- worker service -----------------------------------------------------------------------
-  WorkerId register_worker(const WorkerInfo& info, std::shared_ptr<WorkerSink> sink);
+  // `reads_batches`: the worker reads several assignments in one message (Register).
+  WorkerId register_worker(const WorkerInfo& info, std::shared_ptr<WorkerSink> sink, bool reads_batches = false);
   void worker_gone(WorkerId id, std::string_view reason);
   // Takes the pixel bytes out of `msg` (no copy): the caller reads the next message into it.
   void worker_message(WorkerId id, tessera::v1::WorkerMessage& msg);
@@ -179,7 +183,11 @@ class Coordinator : private SchedulerListener {
   RayServers ray_servers_;
   std::mutex mu_;
   Scheduler scheduler_;
-  std::map<WorkerId, std::shared_ptr<WorkerSink>> workers_;
+  struct WorkerStream {
+    std::shared_ptr<WorkerSink> sink;
+    bool reads_batches = false;  // Register.reads_assignment_batches
+  };
+  std::map<WorkerId, WorkerStream> workers_;
   std::multimap<JobId, std::shared_ptr<WatchSink>> watchers_;
   std::map<JobId, TimePoint> ended_;  // ended jobs still in memory (retention)
   std::map<JobId, TimePoint> awaiting_first_tile_;  // submit time, until the first tile (logged)

@@ -225,7 +225,7 @@ Status Coordinator::ack_frame(const std::string& id, int frame) {
   Status s = locked([&] {
     switch (scheduler_.acknowledge_frame(id, frame)) {
       case Scheduler::AckResult::kAcknowledged:
-        if (auto s = scheduler_.job(id); s && job_ended(s->state) && scheduler_.all_acknowledged(id)) {
+        if (auto h = scheduler_.header(id); h && job_ended(h->state) && scheduler_.all_acknowledged(id)) {
           evict_locked(id, "every frame delivered");
         }
         return Status::OK;

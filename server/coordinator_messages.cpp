@@ -67,9 +67,7 @@ void worker_proto(const WorkerStats& w, v1::WorkerInfo* p) {
   p->set_since_heartbeat_seconds(seconds_since(w.last_seen));
 }
 
-v1::CoordinatorMessage assignment_message(const Assignment& a) {
-  v1::CoordinatorMessage m;
-  auto* p = m.mutable_assignment();
+void assignment_proto(const Assignment& a, v1::Assignment* p) {
   p->set_lease_id(a.lease.id);
   p->set_deadline_unix_ms(int64_t(to_unix(a.lease.deadline) * 1000));
   p->set_job_id(a.lease.tile.job);
@@ -78,6 +76,11 @@ v1::CoordinatorMessage assignment_message(const Assignment& a) {
   p->set_frame(a.lease.tile.frame);
   p->set_tile_index(a.lease.tile.tile);
   farm::to_proto(a.rect, p->mutable_rect());
+}
+
+v1::CoordinatorMessage assignment_message(const Assignment& a) {
+  v1::CoordinatorMessage m;
+  assignment_proto(a, m.mutable_assignment());
   return m;
 }
 

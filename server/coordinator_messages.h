@@ -13,6 +13,7 @@ void job_status_proto(const JobSnapshot& s, tessera::v1::JobStatus* out);
 // A connected worker as ListWorkers shows it (ages measured now).
 void worker_proto(const WorkerStats& w, tessera::v1::WorkerInfo* out);
 // The message that hands a leased tile to its worker (the deadline in Unix milliseconds).
+void assignment_proto(const Assignment& a, tessera::v1::Assignment* out);
 tessera::v1::CoordinatorMessage assignment_message(const Assignment& a);
 
 }  // namespace tessera::server

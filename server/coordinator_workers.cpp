@@ -5,21 +5,25 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+
 #include "farm/tile_codec.h"
 
 namespace tessera::server {
 
 namespace v1 = tessera::v1;
 
-WorkerId Coordinator::register_worker(const WorkerInfo& info, std::shared_ptr<WorkerSink> sink) {
+WorkerId Coordinator::register_worker(const WorkerInfo& info, std::shared_ptr<WorkerSink> sink, bool reads_batches) {
   return locked([&] {
     const WorkerId id = scheduler_.add_worker(info);
-    workers_[id] = sink;
+    workers_[id] = WorkerStream{sink, reads_batches};
     v1::CoordinatorMessage m;
     m.mutable_welcome()->set_worker_id(std::to_string(id));
     m.mutable_welcome()->set_heartbeat_interval_ms(int(options_.heartbeat_interval.count()));
     m.mutable_welcome()->set_lease_timeout_ms(int(options_.scheduler.lease_timeout.count()));
     m.mutable_welcome()->set_reads_request_more(true);
+    m.mutable_welcome()->set_reads_result_batches(true);
+    m.mutable_welcome()->set_max_message_bytes(options_.max_message_bytes);
     sink->push(m);
     touched_workers_.push_back(sink);
     return id;
@@ -45,6 +49,17 @@ void Coordinator::worker_message(WorkerId id, v1::WorkerMessage& msg) {
         tile_result_locked(id, *msg.mutable_result());
         if (msg.result().request_more() > 0) scheduler_.request_tiles(id, msg.result().request_more());
         break;
+      case v1::WorkerMessage::kResults: {
+        // Each result counts exactly as if it had come alone; the requests add up (in 64 bits:
+        // the scheduler caps a worker's standing request, a sum of int32s must not wrap first).
+        int64_t more = std::max(0, msg.results().request_more());
+        for (v1::TileResult& r : *msg.mutable_results()->mutable_results()) {
+          tile_result_locked(id, r);
+          more += std::max(0, r.request_more());
+        }
+        if (more > 0) scheduler_.request_tiles(id, int(std::min<int64_t>(more, 1 << 30)));
+        break;
+      }
       case v1::WorkerMessage::kReturned:
         scheduler_.return_leases(id, {msg.returned().lease_ids().begin(), msg.returned().lease_ids().end()});
         break;
@@ -111,12 +126,36 @@ void Coordinator::tile_result_locked(WorkerId id, v1::TileResult& r) {
 }
 
 void Coordinator::dispatch_locked() {
-  for (const Assignment& a : scheduler_.dispatch()) {
+  // A worker that reads batches gets every lease of this dispatch in one message: the cost of a
+  // message is paid once for all of them (a worker asks for several tiles with each batch of
+  // results it sends). Dispatch goes round the wanting workers one lease at a time; a stable sort
+  // by worker keeps each worker's leases in the order they were made.
+  std::vector<Assignment> assignments = scheduler_.dispatch();
+  std::stable_sort(assignments.begin(), assignments.end(),
+                   [](const Assignment& x, const Assignment& y) { return x.lease.worker < y.lease.worker; });
+  v1::CoordinatorMessage batch;
+  WorkerStream* batch_to = nullptr;
+  const auto send_batch = [&] {
+    if (!batch_to) return;
+    batch_to->sink->push(std::move(batch));
+    touched_workers_.push_back(batch_to->sink);
+    batch.Clear();
+    batch_to = nullptr;
+  };
+  for (const Assignment& a : assignments) {
     auto it = workers_.find(a.lease.worker);
     if (it == workers_.end()) continue;
-    it->second->push(assignment_message(a));
-    touched_workers_.push_back(it->second);
+    WorkerStream& w = it->second;
+    if (!w.reads_batches) {
+      w.sink->push(assignment_message(a));
+      touched_workers_.push_back(w.sink);
+      continue;
+    }
+    if (batch_to != &w) send_batch();
+    batch_to = &w;
+    assignment_proto(a, batch.mutable_assignments()->add_assignments());
   }
+  send_batch();
 }
 
 void Coordinator::list_workers(v1::ListWorkersResponse* out) {

@@ -127,6 +127,7 @@ CoordinatorOptions coordinator_options(const ServerFlags& f) {
   opts.scheduler.max_faults = f.max_faults;
   opts.retention = std::chrono::seconds(int64_t(f.retention_hours * 3600));
   opts.watch_backlog_tiles = f.watch_backlog_tiles;
+  opts.max_message_bytes = f.limits.max_message_bytes;
   return opts;
 }
 

@@ -522,6 +522,16 @@ std::optional<JobSnapshot> Scheduler::job(const JobId& id) const {
   return snapshot(*j);
 }
 
+const JobHeader* Scheduler::header(const JobId& id) const {
+  const Job* j = find_job(id);
+  return j ? &j->header() : nullptr;
+}
+
+int Scheduler::tiles_per_frame(const JobId& id) const {
+  const Job* j = find_job(id);
+  return j ? j->grid.count() : 0;
+}
+
 std::vector<JobSnapshot> Scheduler::jobs() const {
   std::vector<JobSnapshot> out;
   for (const JobId& id : job_order_) out.push_back(snapshot(*find_job(id)));

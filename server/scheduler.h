@@ -258,6 +258,10 @@ class Scheduler {
 
   // --- queries ----------------------------------------------------------------------------
   std::optional<JobSnapshot> job(const JobId& id) const;
+  // What the job is and where it stands, without the per-frame counts job() gathers (those visit
+  // every tile: too slow for per-frame events of a long animation). Null for an unknown job.
+  const JobHeader* header(const JobId& id) const;
+  int tiles_per_frame(const JobId& id) const;  // 0 for an unknown job
   std::vector<JobSnapshot> jobs() const;  // in submit order
   std::vector<WorkerStats> workers() const;
   std::optional<WorkerStats> worker(WorkerId id) const;

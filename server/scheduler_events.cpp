@@ -80,8 +80,8 @@ void Coordinator::lease_ended(const Lease& lease, LeaseEnd why) {
   if (it == workers_.end()) return;
   v1::CoordinatorMessage m;
   m.mutable_revoke()->add_lease_ids(lease.id);
-  it->second->push(std::move(m));
-  touched_workers_.push_back(it->second);
+  it->second.sink->push(std::move(m));
+  touched_workers_.push_back(it->second.sink);
 }
 
 void Coordinator::tile_finished(const TileKey& key, const TileOutput& out, WorkerId worker) {
@@ -114,7 +114,7 @@ void Coordinator::frame_acknowledged(const JobId& id, int frame) {
   notify([&](SchedulerListener& o) { o.frame_acknowledged(id, frame); });
 
   if (jobs_store_) {
-    if (const auto s = scheduler_.job(id)) jobs_store_->frame_acknowledged(id, frame, s->tiles_per_frame);
+    if (const int n = scheduler_.tiles_per_frame(id)) jobs_store_->frame_acknowledged(id, frame, n);
   }
   spdlog::info("job {} frame {} delivered to the client; its tiles are released", id, frame);
 }
@@ -138,8 +138,8 @@ void Coordinator::worker_left(const WorkerStats& w, std::string_view reason) {
                w.tiles_done, w.in_flight);
   auto it = workers_.find(w.id);
   if (it == workers_.end()) return;
-  it->second->finish(Status(StatusCode::UNAVAILABLE, "coordinator dropped this worker: " + std::string(reason)));
-  touched_workers_.push_back(it->second);
+  it->second.sink->finish(Status(StatusCode::UNAVAILABLE, "coordinator dropped this worker: " + std::string(reason)));
+  touched_workers_.push_back(it->second.sink);
   workers_.erase(it);
 }
 

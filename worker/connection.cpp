@@ -10,6 +10,7 @@
 #include "farm/channel.h"
 #include "farm/tile_codec.h"
 #include "reconnect_policy.h"
+#include "result_batcher.h"
 #include "render/embree_device.h"
 #include "render/tile_renderer.h"
 
@@ -27,9 +28,13 @@ struct WorkerConnection::Session {
   bool alive = true;
   bool draining = false;                // stop requested: take no new work
   std::set<uint64_t> revoked;           // leases revoked while their tile was rendering
-  int outstanding = 0;                  // tiles requested or assigned and not yet finished
+  int depth = 0;                        // tiles to keep requested or assigned and unfinished
+  double tile_seconds = 0;              // a tile's wall time on one thread (moving average)
   std::chrono::milliseconds heartbeat{1000};
   bool result_requests = false;         // the coordinator reads TileResult.request_more
+  // Set (under write_mu) at the welcome when the coordinator reads result batches. Declared last:
+  // destroyed first, while the stream it writes to is still there.
+  std::unique_ptr<ResultBatcher> batcher;
 
   bool write(const v1::WorkerMessage& m) {
     std::lock_guard lock(write_mu);
@@ -75,6 +80,16 @@ void WorkerConnection::request_stop() {
     spdlog::info("returned {} unstarted tiles", unstarted.size());
   }
   pool_.wait_idle();
+  ResultBatcher* batcher;
+  {
+    std::lock_guard lock(s->write_mu);
+    batcher = s->batcher.get();
+  }
+  if (batcher) {
+    batcher->flush();  // the last results go now, not after a linger
+    const auto c = batcher->counts();
+    spdlog::info("sent {} results in {} messages", c.results, c.messages);
+  }
   std::lock_guard lock(s->write_mu);
   if (s->alive) s->stream->WritesDone();
   s->alive = false;
@@ -117,6 +132,7 @@ bool WorkerConnection::run_session() {
   reg.mutable_register_()->set_threads(pool_.threads());
   reg.mutable_register_()->set_embree_isa(embree_isa());
   reg.mutable_register_()->set_version("tessera-worker 0.1.0");
+  reg.mutable_register_()->set_reads_assignment_batches(true);
   bool accepted = false;
   std::thread heartbeat;
   std::mutex hb_mu;
@@ -131,6 +147,13 @@ bool WorkerConnection::run_session() {
           accepted = true;
           s->heartbeat = std::chrono::milliseconds(std::max(50, msg.welcome().heartbeat_interval_ms()));
           s->result_requests = msg.welcome().reads_request_more();
+          if (msg.welcome().reads_result_batches()) {
+            auto batcher = std::make_unique<ResultBatcher>(
+                options_.batching, options_.batching.bytes_limit(msg.welcome().max_message_bytes()),
+                [raw = s.get()](const v1::WorkerMessage& m) { return raw->write(m); });
+            std::lock_guard lock(s->write_mu);
+            s->batcher = std::move(batcher);
+          }
           spdlog::info("connected to {} as worker {} ({} threads, Embree {})", options_.coordinator,
                        msg.welcome().worker_id(), pool_.threads(), embree_isa());
           heartbeat = std::thread([&, s] {
@@ -141,19 +164,22 @@ bool WorkerConnection::run_session() {
               s->write(hb);
             }
           });
-          // Pull: keep twice as many tiles as threads on hand so no thread waits for the network.
+          // Pull: keep twice as many tiles as threads on hand so no thread waits for the network;
+          // once tile times are known, more to cover the time results wait for a batch.
           v1::WorkerMessage req;
           {
             std::lock_guard lock(s->write_mu);
-            const int want = 2 * pool_.threads();
-            s->outstanding = want;
-            req.mutable_request()->set_count(want);
+            s->depth = 2 * pool_.threads();
+            req.mutable_request()->set_count(s->depth);
           }
           if (!stop_) s->write(req);
           break;
         }
         case v1::CoordinatorMessage::kAssignment:
           handle_assignment(s, msg.assignment());
+          break;
+        case v1::CoordinatorMessage::kAssignments:
+          for (const v1::Assignment& a : msg.assignments().assignments()) handle_assignment(s, a);
           break;
         case v1::CoordinatorMessage::kRevoke: {
           int freed = 0;
@@ -257,6 +283,7 @@ void WorkerConnection::inject_test_fault(v1::TileResult* r) const {
 }
 
 void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assignment& a) {
+  const auto started = std::chrono::steady_clock::now();
   v1::WorkerMessage out;
   try {
     auto scene = cache_.frame(a.bundle_sha256(), a.overrides().SerializeAsString(), a.frame());
@@ -280,19 +307,43 @@ void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assig
     out.mutable_failed()->set_lease_id(a.lease_id());
     out.mutable_failed()->set_reason(e.what());
   }
-  v1::WorkerMessage req;
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  int ask = 0;
+  ResultBatcher* batcher;
   {
     std::lock_guard lock(s->write_mu);
     if (s->revoked.erase(a.lease_id())) out.Clear();  // another copy won, or the job was cancelled
-    if (!s->draining) req.mutable_request()->set_count(1);
+    batcher = s->batcher.get();
+    if (!s->draining) {
+      // Replace this tile, and move the depth toward what covers the linger at the tile times
+      // measured so far (one step down at a time, all the way up at once).
+      s->tile_seconds = s->tile_seconds > 0 ? 0.8 * s->tile_seconds + 0.2 * seconds : seconds;
+      const int want = batcher ? options_.batching.depth(pool_.threads(), s->tile_seconds) : 2 * pool_.threads();
+      ask = 1;
+      if (want > s->depth) {
+        ask += want - s->depth;
+        s->depth = want;
+      } else if (want < s->depth) {
+        ask = 0;
+        --s->depth;
+      }
+    }
+  }
+  if (out.has_result() && batcher) {
+    batcher->add(std::move(*out.mutable_result()), ask, pool_.queued() == 0);
+    return;
   }
   // The next tile's request rides on the result where the coordinator reads it there.
-  if (out.has_result() && req.has_request() && s->result_requests) {
-    out.mutable_result()->set_request_more(req.request().count());
-    req.Clear();
+  if (out.has_result() && ask > 0 && s->result_requests) {
+    out.mutable_result()->set_request_more(ask);
+    ask = 0;
   }
   if (out.msg_case() != v1::WorkerMessage::MSG_NOT_SET) s->write(out);
-  if (req.has_request()) s->write(req);
+  if (ask > 0) {
+    v1::WorkerMessage req;
+    req.mutable_request()->set_count(ask);
+    s->write(req);
+  }
 }
 
 }  // namespace tessera::worker

@@ -16,6 +16,7 @@
 
 #include "farm/bundle_cache.h"
 #include "farm/channel.h"
+#include "farm/result_batching.h"
 #include "render_pool.h"
 #include "tessera/v1/worker_service.grpc.pb.h"
 
@@ -32,6 +33,8 @@ struct WorkerOptions {
   // be tested with real processes: "nan" (a NaN pixel), "wrong-size" (rgb one pixel short),
   // "stale" (a lease id never issued), "no-scene" (report the scene as unloadable).
   std::string test_fault;
+  // How results are gathered into messages, and so how many tiles the worker keeps on hand.
+  farm::ResultBatching batching;
   std::chrono::milliseconds backoff_initial{200};
   std::chrono::milliseconds backoff_max{10000};
 };

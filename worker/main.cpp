@@ -35,6 +35,13 @@ int main(int argc, char** argv) {
   app.add_option("--name", o.name, "Name shown by `tessera workers` (default: host-pid)");
   app.add_option("--cache-dir", cache, "Where fetched scene bundles are kept")->capture_default_str();
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
+  int linger_ms = int(o.batching.linger.count());
+  app.add_option("--result-linger-ms", linger_ms,
+                 "How long a finished tile may wait for others finishing beside it, to go to the coordinator "
+                 "in one message (0: each alone). A batch goes at once when the worker has nothing else to "
+                 "render")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1000));
   app.add_option("--test-delay-ms", o.extra_delay_ms, "Testing only: sleep this long after each tile")
       ->check(CLI::Range(0, 60000));
   app.add_option("--test-fault", o.test_fault,
@@ -53,6 +60,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "tessera-worker 0.1.0");
   CLI11_PARSE(app, argc, argv);
   o.cache_dir = cache;
+  o.batching.linger = std::chrono::milliseconds(linger_ms);
   try {
     o.security.token = tessera::farm::read_token(token_file, "TESSERA_WORKER_TOKEN");
   } catch (const std::exception& e) {

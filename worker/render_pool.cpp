@@ -44,6 +44,11 @@ std::vector<uint64_t> RenderPool::remove_all() {
   return keys;
 }
 
+size_t RenderPool::queued() {
+  std::lock_guard lock(mu_);
+  return queue_.size();
+}
+
 void RenderPool::wait_idle() {
   std::unique_lock lock(mu_);
   idle_cv_.wait(lock, [this] { return queue_.empty() && running_ == 0; });

@@ -28,6 +28,8 @@ class RenderPool {
   // Blocks until no task is queued or running.
   void wait_idle();
   int threads() const { return int(threads_.size()); }
+  // Tasks posted and not started.
+  size_t queued();
 
  private:
   void run();

@@ -51,6 +51,8 @@ struct Config {
   int delay_us = 0;
   int threads = 1;
   int connections = 0;  // 0: one TCP connection per worker, as real workers have
+  bool no_batches = false;  // the protocol before batches: one result and one assignment a message
+  int linger_ms = int(tessera::farm::ResultBatching{}.linger.count());
   int timeout_s = 300;
   std::string log_level = "info";
   std::vector<std::string> server_args;
@@ -299,6 +301,8 @@ json run_one(const Config& cfg, int n_workers, int run_index) {
   SimOptions sim;
   sim.threads = cfg.threads;
   sim.delay = std::chrono::microseconds(cfg.delay_us);
+  sim.batches = !cfg.no_batches;
+  sim.batching.linger = std::chrono::milliseconds(cfg.linger_ms);
   const int n_conn = cfg.connections > 0 ? std::min(cfg.connections, n_workers) : n_workers;
   const double t_connect0 = now_s();
   SimFleet fleet(server.address(), n_workers, n_conn, sim);
@@ -444,6 +448,11 @@ json run_one(const Config& cfg, int n_workers, int run_index) {
   r["bytes_per_queued_tile"] = double(queued.rss_kb - connected.rss_kb) * 1024.0 / double(total);
   r["sim_assignments"] = counters.assignments.load();
   r["sim_results"] = counters.results.load();
+  r["sim_result_messages"] = counters.result_messages.load();
+  r["results_per_message"] = counters.result_messages.load() > 0
+                                 ? double(counters.results.load()) / double(counters.result_messages.load())
+                                 : 0.0;
+  r["batches"] = !cfg.no_batches;
   r["sim_revoked_while_pending"] = counters.revoked.load();
   r["sim_heartbeats"] = counters.heartbeats.load();
   r["worker_wire_bytes_per_tile"] =
@@ -494,10 +503,15 @@ int main(int argc, char** argv) {
   app.add_option("--delay-us", cfg.delay_us, "Simulated render time of a tile")
       ->check(CLI::Range(0, 60000000))
       ->capture_default_str();
-  app.add_option("--threads", cfg.threads, "Threads each simulated worker reports (pull depth 2 x threads)")
+  app.add_option("--threads", cfg.threads, "Threads each simulated worker reports (its pull depth follows)")
       ->check(CLI::Range(1, 256))
       ->capture_default_str();
   app.add_option("--connections", cfg.connections, "TCP connections shared by the workers (0: one each)")
+      ->capture_default_str();
+  app.add_flag("--no-batches", cfg.no_batches,
+               "Workers as before batches: one result and one assignment a message, 2 x threads tiles pulled");
+  app.add_option("--linger-ms", cfg.linger_ms, "How long a simulated worker's result waits for others")
+      ->check(CLI::Range(0, 1000))
       ->capture_default_str();
   app.add_option("--timeout-s", cfg.timeout_s, "Give up on a run after this long")->capture_default_str();
   app.add_option("--log-level", cfg.log_level, "The coordinator's --log-level")->capture_default_str();

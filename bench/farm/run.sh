@@ -55,4 +55,9 @@ echo "## Coordinator at scale (simulated workers)"
 "$BUILD/bench/farm/coordinator_load" --server "$BUILD/server/tessera-server" --scene "$HERE/load_scene.json" \
   "${load[@]}" --json "$OUT/coordinator_load.json" --markdown "$OUT/coordinator_load.md"
 echo
+echo "## The same, workers of the protocol before batches (one result, one assignment a message)"
+"$BUILD/bench/farm/coordinator_load" --server "$BUILD/server/tessera-server" --scene "$HERE/load_scene.json" \
+  "${load[@]}" --no-batches --json "$OUT/coordinator_load_unbatched.json" \
+  --markdown "$OUT/coordinator_load_unbatched.md"
+echo
 echo "results in $OUT"

@@ -69,6 +69,7 @@ void SimWorker::start() {
   reg.mutable_register_()->set_threads(options_.threads);
   reg.mutable_register_()->set_embree_isa("simulated");
   reg.mutable_register_()->set_version("coordinator_load (simulated worker)");
+  reg.mutable_register_()->set_reads_assignment_batches(options_.batches);
   // The hold keeps OnDone away while the timer thread may still start writes (see stop()).
   AddHold();
   send(std::move(reg));
@@ -76,7 +77,12 @@ void SimWorker::start() {
   StartCall();
 }
 
-void SimWorker::go() { request(2 * options_.threads); }
+void SimWorker::go() {
+  // A simulated tile's time is known in advance; a delay of 0 counts as the shortest tile there
+  // is (the depth's cap), as tessera-worker's measured tile time would come out.
+  const double seconds = std::max(1e-6, std::chrono::duration<double>(options_.delay).count());
+  request(result_batches_ ? options_.batching.depth(options_.threads, seconds) : 2 * options_.threads);
+}
 
 void SimWorker::request(int count) {
   v1::WorkerMessage m;
@@ -149,20 +155,16 @@ void SimWorker::OnReadDone(bool ok) {
     case v1::CoordinatorMessage::kWelcome:
       heartbeat_interval_ = std::chrono::milliseconds(std::max(50, in_.welcome().heartbeat_interval_ms()));
       result_requests_ = in_.welcome().reads_request_more();
+      result_batches_ = options_.batches && in_.welcome().reads_result_batches();
       timer_.at(SteadyClock::now() + heartbeat_interval_, [this] { heartbeat(); });
       welcomed_ = true;
       break;
-    case v1::CoordinatorMessage::kAssignment: {
-      counters_.assignments++;
-      if (options_.delay.count() == 0) {
-        finish_tile(in_.assignment());
-      } else {
-        {
-          std::lock_guard lock(mu_);
-          pending_.insert(in_.assignment().lease_id());
-        }
-        timer_.at(SteadyClock::now() + options_.delay, [this, a = in_.assignment()] { finish_tile(a); });
-      }
+    case v1::CoordinatorMessage::kAssignment:
+      assigned(in_.assignment(), false);
+      break;
+    case v1::CoordinatorMessage::kAssignments: {
+      const auto& all = in_.assignments().assignments();
+      for (int i = 0; i < all.size(); ++i) assigned(all[i], i + 1 < all.size());
       break;
     }
     case v1::CoordinatorMessage::kRevoke: {
@@ -181,43 +183,92 @@ void SimWorker::OnReadDone(bool ok) {
   StartRead(&in_);
 }
 
-void SimWorker::finish_tile(const v1::Assignment& a) {
+void SimWorker::assigned(const v1::Assignment& a, bool more_in_message) {
+  counters_.assignments++;
+  if (options_.delay.count() == 0) {
+    finish_tile(a, more_in_message);  // the results of one message of assignments go together
+    return;
+  }
+  {
+    std::lock_guard lock(mu_);
+    pending_.insert(a.lease_id());
+  }
+  timer_.at(SteadyClock::now() + options_.delay, [this, a] { finish_tile(a, false); });
+}
+
+void SimWorker::finish_tile(const v1::Assignment& a, bool more_coming) {
   bool revoked;
   {
     std::lock_guard lock(mu_);
     pending_.erase(a.lease_id());
     revoked = revoked_.erase(a.lease_id()) > 0;
   }
-  if (!revoked) {  // like tessera-worker: a revoked tile's result is discarded, the slot refilled
-    // The tile a worker would return, encoded as tessera-worker encodes it (farm/tile_codec.h).
-    // The values do not matter to the coordinator (it checks only sizes, position and that
-    // they are finite), so they are constant.
-    TileResult tile;
-    tile.rect = farm::from_proto(a.rect());
-    const size_t pixels = size_t(std::max(0, tile.rect.width)) * size_t(std::max(0, tile.rect.height));
-    tile.rgb.assign(3 * pixels, 0.5f);
-    tile.variance.assign(pixels, 0.0f);
-    tile.spp.assign(pixels, 1);
-    tile.rays.camera = pixels;
-    tile.seconds = std::chrono::duration<double>(options_.delay).count();
-    v1::WorkerMessage out;
-    auto* r = out.mutable_result();
-    r->set_lease_id(a.lease_id());
-    auto* t = r->mutable_tile();
-    t->set_job_id(a.job_id());
-    t->set_frame(a.frame());
-    t->set_tile_index(a.tile_index());
-    t->set_worker(name_);
-    farm::encode_tile(tile, t);
-    // Like tessera-worker: the next tile's request rides on the result when the coordinator
-    // reads it there.
-    const bool rides = result_requests_;
-    if (rides) r->set_request_more(1);
-    send(std::move(out));
-    counters_.results++;
-    if (rides) return;
+  if (revoked) {  // like tessera-worker: a revoked tile's result is discarded, the slot refilled
+    request(1);
+    return;
   }
-  request(1);
+  // The tile a worker would return, encoded as tessera-worker encodes it (farm/tile_codec.h).
+  // The values do not matter to the coordinator (it checks only sizes, position and that they
+  // are finite), so they are constant.
+  TileResult tile;
+  tile.rect = farm::from_proto(a.rect());
+  const size_t pixels = size_t(std::max(0, tile.rect.width)) * size_t(std::max(0, tile.rect.height));
+  tile.rgb.assign(3 * pixels, 0.5f);
+  tile.variance.assign(pixels, 0.0f);
+  tile.spp.assign(pixels, 1);
+  tile.rays.camera = pixels;
+  tile.seconds = std::chrono::duration<double>(options_.delay).count();
+  v1::TileResult r;
+  r.set_lease_id(a.lease_id());
+  auto* t = r.mutable_tile();
+  t->set_job_id(a.job_id());
+  t->set_frame(a.frame());
+  t->set_tile_index(a.tile_index());
+  t->set_worker(name_);
+  farm::encode_tile(tile, t);
+  counters_.results++;
+  if (!result_batches_) {
+    // Like tessera-worker without batches: the next tile's request rides on the result when the
+    // coordinator reads it there.
+    v1::WorkerMessage out;
+    *out.mutable_result() = std::move(r);
+    const bool rides = result_requests_;
+    if (rides) out.mutable_result()->set_request_more(1);
+    send(std::move(out));
+    counters_.result_messages++;
+    if (!rides) request(1);
+    return;
+  }
+  // Like tessera-worker's ResultBatcher: the batch goes when it is full or nothing else is
+  // rendering here; otherwise when its first result has waited the linger.
+  std::unique_lock lock(mu_);
+  v1::TileResults* b = batch_.mutable_results();
+  const bool started = b->results_size() == 0;
+  *b->add_results() = std::move(r);
+  b->set_request_more(b->request_more() + 1);
+  const bool now = size_t(b->results_size()) >= options_.batching.max_tiles || (!more_coming && pending_.empty());
+  if (now) {
+    send_batch(lock);
+  } else if (started) {
+    const uint64_t gen = batch_gen_;
+    lock.unlock();
+    timer_.at(SteadyClock::now() + options_.batching.linger, [this, gen] { flush_batch(gen); });
+  }
+}
+
+void SimWorker::flush_batch(uint64_t gen) {
+  std::unique_lock lock(mu_);
+  if (gen != batch_gen_ || batch_.results().results_size() == 0) return;
+  send_batch(lock);
+}
+
+void SimWorker::send_batch(std::unique_lock<std::mutex>& lock) {
+  v1::WorkerMessage out = std::move(batch_);
+  batch_.Clear();
+  ++batch_gen_;
+  lock.unlock();
+  send(std::move(out));
+  counters_.result_messages++;
 }
 
 void SimWorker::stop() {

@@ -1,8 +1,9 @@
 // A simulated tessera-worker for the coordinator load generator: it speaks worker_service.proto
-// as worker/connection.cpp does (register; pull 2 x threads tiles, then one more per finished
-// tile, asked for on the result itself; a heartbeat every interval the welcome names; revoked
-// leases are not returned) but, instead of rendering, returns a constant tile of the leased size
-// after a fixed delay. It runs on the gRPC callback API, so a thousand of them share gRPC's few
+// as worker/connection.cpp does (register; pull as many tiles as farm::ResultBatching::depth says
+// for its tile time, then one more per finished tile, asked for with the results; results
+// gathered into batches as farm/result_batching.h says; a heartbeat every interval the welcome
+// names; revoked leases are not returned) but, instead of rendering, returns a constant tile of
+// the leased size after a fixed delay. It runs on the gRPC callback API, so a thousand of them share gRPC's few
 // threads and one timer thread instead of a thousand OS threads.
 #pragma once
 
@@ -21,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "farm/result_batching.h"
 #include "tessera/v1/worker_service.grpc.pb.h"
 
 namespace tessera::bench {
@@ -55,13 +57,19 @@ class SimTimer {
 };
 
 struct SimOptions {
-  int threads = 1;                       // reported at registration; the pull depth is 2 x threads
+  int threads = 1;                       // reported at registration
   std::chrono::microseconds delay{0};    // "render time" of every tile
+  // As tessera-worker: batches of results and assignments where the coordinator reads them, the
+  // pull depth from the tile time. Off: one result a message, one assignment a message, a pull
+  // depth of 2 x threads (the protocol before batches).
+  bool batches = true;
+  farm::ResultBatching batching;
 };
 
 struct SimCounters {
   std::atomic<int64_t> assignments{0};
   std::atomic<int64_t> results{0};
+  std::atomic<int64_t> result_messages{0};  // messages that carried results
   std::atomic<int64_t> revoked{0};       // revocations of a lease still "rendering" here
   std::atomic<int64_t> heartbeats{0};
   std::atomic<int64_t> bytes_out{0};     // serialized WorkerMessage bytes sent
@@ -91,7 +99,12 @@ class SimWorker : public grpc::ClientBidiReactor<tessera::v1::WorkerMessage, tes
 
   void send(tessera::v1::WorkerMessage m);
   void request(int count);
-  void finish_tile(const tessera::v1::Assignment& a);
+  void assigned(const tessera::v1::Assignment& a, bool more_in_message);
+  void finish_tile(const tessera::v1::Assignment& a, bool more_coming);
+  // Sends the waiting batch if it is still generation `gen` (the linger timer's call).
+  void flush_batch(uint64_t gen);
+  // Sends the waiting batch; `lock` holds mu_ and is released.
+  void send_batch(std::unique_lock<std::mutex>& lock);
   void heartbeat();
   void release_hold_locked(bool* release);
 
@@ -112,9 +125,12 @@ class SimWorker : public grpc::ClientBidiReactor<tessera::v1::WorkerMessage, tes
   bool hold_released_ = false;
   std::set<uint64_t> pending_;  // leases "rendering" (waiting on the timer)
   std::set<uint64_t> revoked_;
+  tessera::v1::WorkerMessage batch_;  // results waiting for company
+  uint64_t batch_gen_ = 0;            // bumped each time a batch is sent
 
   std::atomic<bool> welcomed_{false};
   std::atomic<bool> result_requests_{false};  // the welcome said TileResult.request_more is read
+  std::atomic<bool> result_batches_{false};   // the welcome said TileResults is read (and batches on)
   std::atomic<bool> ended_early_{false};
   std::mutex done_mu_;
   std::condition_variable done_cv_;
