@@ -56,25 +56,43 @@ bool nonfinite_f32(uint32_t u) { return (u & 0x7f800000u) == 0x7f800000u; }
 // NaN, infinite or below zero (-0 is zero): not a variance.
 bool bad_variance_f32(uint32_t u) { return nonfinite_f32(u) || u > 0x80000000u; }
 
-// The index of the first float32 (little-endian) in `bytes` for which `bad` holds, or -1. The
-// coordinator runs this over every tile it accepts: blocks of 64 values are tested without an
-// early exit, which the compiler vectorizes (a value-by-value loop with a branch took a quarter
-// of the time the coordinator spent in its own code); only a block with a bad value is searched.
-template <bool (*bad)(uint32_t)>
-int64_t first_f32(const std::string& bytes) {
+// The index of the first word (little-endian) in `bytes` for which `bad` holds, or -1. The
+// coordinator runs this over every tile it accepts, so it must run at memory speed: whole blocks
+// of 64 words are tested without an early exit, a loop of constant count that GCC vectorizes at
+// -O2 (a loop with a branch per value, or one whose count the compiler cannot see, stays scalar:
+// 2.8 us for a 32 px tile's rgb against 0.8 us). Only the block with a bad value, and the tail,
+// are searched one by one.
+template <class Word>
+Word from_le(Word w) {
+  if constexpr (std::endian::native == std::endian::big) {
+    if constexpr (sizeof(Word) == 4) return Word(__builtin_bswap32(w));
+    if constexpr (sizeof(Word) == 2) return Word(__builtin_bswap16(w));
+  }
+  return w;
+}
+template <class Word, bool (*bad)(Word)>
+int64_t first_word(const std::string& bytes) {
   constexpr size_t kBlock = 64;
-  const size_t n = bytes.size() / 4;
+  const size_t n = bytes.size() / sizeof(Word);
   const char* p = bytes.data();
-  for (size_t base = 0; base < n; base += kBlock) {
-    const size_t end = std::min(n, base + kBlock);
-    uint32_t any = 0;
-    for (size_t i = base; i < end; ++i) any |= uint32_t(bad(le_u32_at(p + 4 * i)));
-    if (!any) continue;
-    for (size_t i = base; i < end; ++i) {
-      if (bad(le_u32_at(p + 4 * i))) return int64_t(i);
-    }
+  size_t base = 0;
+  for (; base + kBlock <= n; base += kBlock) {
+    Word w[kBlock];
+    std::memcpy(w, p + sizeof(Word) * base, sizeof w);
+    Word any = 0;
+    for (size_t i = 0; i < kBlock; ++i) any |= Word(bad(from_le(w[i])));
+    if (any) break;
+  }
+  for (size_t i = base; i < n; ++i) {
+    Word w;
+    std::memcpy(&w, p + sizeof(Word) * i, sizeof w);
+    if (bad(from_le(w))) return int64_t(i);
   }
   return -1;
+}
+template <bool (*bad)(uint32_t)>
+int64_t first_f32(const std::string& bytes) {
+  return first_word<uint32_t, bad>(bytes);
 }
 int64_t first_nonfinite(const std::string& bytes) { return first_f32<nonfinite_f32>(bytes); }
 
@@ -92,14 +110,10 @@ void bf16_le_to_floats(const std::string& s, std::vector<float>* v) {
   for (size_t i = 0; i < v->size(); ++i) (*v)[i] = from_bfloat16(le_u16_at(s.data() + 2 * i));
 }
 
-// The index of the first bfloat16 (little-endian) in `bytes` that is not a variance (NaN,
-// infinite or negative), or -1.
-int64_t first_bad_variance_bf16(const std::string& bytes) {
-  for (size_t i = 0; i + 2 <= bytes.size(); i += 2) {
-    if (bad_variance_f32(uint32_t(le_u16_at(bytes.data() + i)) << 16)) return int64_t(i / 2);
-  }
-  return -1;
-}
+// NaN, infinite or negative as a bfloat16 (the top half of a float32): not a variance.
+bool bad_variance_bf16(uint16_t h) { return bad_variance_f32(uint32_t(h) << 16); }
+// The index of the first bfloat16 (little-endian) in `bytes` that is not a variance, or -1.
+int64_t first_bad_variance_bf16(const std::string& bytes) { return first_word<uint16_t, bad_variance_bf16>(bytes); }
 
 // Why a variance value is refused.
 std::string variance_problem(float v) {
