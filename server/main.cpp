@@ -12,6 +12,7 @@
 #include <iostream>
 #include <optional>
 
+#include "accept_guard.h"
 #include "bundle_store.h"
 #include "client_service.h"
 #include "coordinator.h"
@@ -92,6 +93,7 @@ std::optional<int> parse_flags(int argc, char** argv, ServerFlags& f) {
 // when accept4() fails with EMFILE: the listener is dropped, connections queue and are never
 // served again. The usual soft limit (1024) is reached by a thousand idle connections; the hard
 // limit is far higher. So take all of it, at start, and say what it is.
+// (At the hard limit, accept_guard.h keeps the listener alive.)
 void raise_descriptor_limit() {
   rlimit lim{};
   if (getrlimit(RLIMIT_NOFILE, &lim) != 0) return;
@@ -239,6 +241,7 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::from_str(flags.log_level));
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
   raise_descriptor_limit();
+  install_accept_guard();
   const sigset_t sigs = block_signals();
 
   std::unique_ptr<BundleStore> store;

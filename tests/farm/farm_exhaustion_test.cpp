@@ -139,6 +139,58 @@ TEST(FarmExhaustion, CoordinatorStartsOnAFullDiskAndServesWhatItHas) {
   EXPECT_EQ(compare_exr(out / "f_0000.exr", reference_frame(scene, 0, {})), "");
 }
 
+// Raises this process's soft descriptor limit to its hard one; false (the test skips) when that
+// is under `need`.
+bool own_descriptors(rlim_t need, rlim_t* hard) {
+  rlimit own{};
+  getrlimit(RLIMIT_NOFILE, &own);
+  *hard = own.rlim_max;
+  if (own.rlim_max < need) return false;
+  own.rlim_cur = own.rlim_max;
+  setrlimit(RLIMIT_NOFILE, &own);
+  return true;
+}
+
+// tessera-server on 127.0.0.1:0 under `prlimit --nofile=SOFT:HARD`, its data in the farm's
+// folder; `port` is 0 if it did not say where it listens.
+struct LimitedServer {
+  std::unique_ptr<Process> process;
+  int port = 0;
+  std::string address() const { return "127.0.0.1:" + std::to_string(port); }
+};
+LimitedServer start_limited_server(const Farm& farm, const std::string& nofile) {
+  LimitedServer s;
+  s.process = std::make_unique<Process>(
+      std::vector<std::string>{"/usr/bin/prlimit", "--nofile=" + nofile, bin("tessera-server").string(), "--listen",
+                               "127.0.0.1:0", "--data-dir", (farm.dir() / "data").string()},
+      farm.dir() / "server.log");
+  const std::regex re("listening on 127\\.0\\.0\\.1:([0-9]+)");
+  std::smatch m;
+  std::string log;
+  for (int i = 0; i < 800 && !std::regex_search(log = s.process->log(), m, re); ++i) std::this_thread::sleep_for(25ms);
+  if (!m.empty()) s.port = std::stoi(m[1]);
+  return s;
+}
+
+// `n` TCP connections to 127.0.0.1:port that send nothing (fewer if one fails: the test checks).
+std::vector<int> silent_connections(int port, int n) {
+  std::vector<int> fds;
+  for (int i = 0; i < n; ++i) {
+    const int fd = socket(AF_INET, SOCK_STREAM, 0);
+    if (fd < 0) break;
+    sockaddr_in sa{};
+    sa.sin_family = AF_INET;
+    sa.sin_port = htons(uint16_t(port));
+    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (connect(fd, reinterpret_cast<sockaddr*>(&sa), sizeof sa) != 0) {
+      close(fd);
+      break;
+    }
+    fds.push_back(fd);
+  }
+  return fds;
+}
+
 // Descriptors the process holds now.
 int open_descriptors(int pid) {
   int n = 0;
@@ -153,34 +205,16 @@ int open_descriptors(int pid) {
 TEST(FarmExhaustion, IdleConnectionsDoNotExhaustTheCoordinatorsDescriptors) {
   // The coordinator starts with a soft limit of 256 descriptors (hard: 4096), as a default
   // `ulimit -n` would give it; 600 connections that never send a byte then arrive.
-  rlimit own{};
-  getrlimit(RLIMIT_NOFILE, &own);
-  if (own.rlim_max < 2048) GTEST_SKIP() << "this test needs 2048 descriptors, the hard limit is " << own.rlim_max;
-  own.rlim_cur = own.rlim_max;
-  setrlimit(RLIMIT_NOFILE, &own);
+  rlim_t hard = 0;
+  if (!own_descriptors(2048, &hard)) GTEST_SKIP() << "this test needs 2048 descriptors, the hard limit is " << hard;
   Farm farm;
-  Process server({"/usr/bin/prlimit", "--nofile=256:4096", bin("tessera-server").string(), "--listen", "127.0.0.1:0",
-                  "--data-dir", (farm.dir() / "data").string()},
-                 farm.dir() / "server.log");
-  const std::regex re("listening on 127\\.0\\.0\\.1:([0-9]+)");
-  std::smatch m;
-  std::string log;
-  for (int i = 0; i < 800 && !std::regex_search(log = server.log(), m, re); ++i) std::this_thread::sleep_for(25ms);
-  ASSERT_FALSE(m.empty()) << log;
-  const int port = std::stoi(m[1]);
-  const std::string address = "127.0.0.1:" + std::to_string(port);
-  EXPECT_NE(log.find("descriptor limit 4096 (was 256"), std::string::npos) << log;
-  std::vector<int> idle;
-  for (int i = 0; i < 600; ++i) {
-    const int fd = socket(AF_INET, SOCK_STREAM, 0);
-    ASSERT_GE(fd, 0);
-    sockaddr_in sa{};
-    sa.sin_family = AF_INET;
-    sa.sin_port = htons(uint16_t(port));
-    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    ASSERT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&sa), sizeof sa), 0) << std::strerror(errno);
-    idle.push_back(fd);
-  }
+  LimitedServer s = start_limited_server(farm, "256:4096");
+  Process& server = *s.process;
+  ASSERT_NE(s.port, 0) << server.log();
+  const std::string address = s.address();
+  EXPECT_NE(server.log().find("descriptor limit 4096 (was 256"), std::string::npos) << server.log();
+  const std::vector<int> idle = silent_connections(s.port, 600);
+  ASSERT_EQ(idle.size(), 600u) << std::strerror(errno);
   // Still serving while they are open...
   CliResult h = farm.cli({"health", "--coordinator", address, "--timeout", "20"}, 60s);
   EXPECT_EQ(h.code, 0) << h.output << server.log();
@@ -195,6 +229,39 @@ TEST(FarmExhaustion, IdleConnectionsDoNotExhaustTheCoordinatorsDescriptors) {
   for (int fd : idle) close(fd);
   CliResult h2 = farm.cli({"health", "--coordinator", address, "--timeout", "20"}, 60s);
   EXPECT_EQ(h2.code, 0) << h2.output;
+}
+
+// Issue 26's reproduction: soft and hard limit 200, as a container or a systemd unit may set
+// them, and 300 connections that send nothing, held 3 s, then closed. gRPC 1.51 alone stops
+// accepting for good at the first EMFILE; with the accept guard (server/accept_guard.h) the
+// coordinator sheds what it cannot take, then serves again: a health check answers and a job
+// renders, bit-identical to `tessera render`.
+TEST(FarmExhaustion, AConnectionFloodAtTheHardLimitDoesNotStopTheCoordinator) {
+  rlim_t hard = 0;
+  if (!own_descriptors(1024, &hard)) GTEST_SKIP() << "this test needs 1024 descriptors, the hard limit is " << hard;
+  Farm farm;
+  LimitedServer s = start_limited_server(farm, "200:200");
+  Process& server = *s.process;
+  ASSERT_NE(s.port, 0) << server.log();
+  const std::string address = s.address();
+  {
+    const std::vector<int> flood = silent_connections(s.port, 300);
+    ASSERT_EQ(flood.size(), 300u) << std::strerror(errno);
+    std::this_thread::sleep_for(3s);
+    for (int fd : flood) close(fd);
+  }
+  EXPECT_NE(server.log().find("out of descriptors"), std::string::npos) << server.log();
+  CliResult h = farm.cli({"health", "--coordinator", address, "--timeout", "20"}, 60s);
+  EXPECT_EQ(h.code, 0) << h.output << server.log();
+  // Not just alive: a worker joins and a frame is delivered whole.
+  const fs::path scene = long_scene(farm.dir(), 2);
+  Process worker({bin("tessera-worker").string(), "--coordinator", address, "--threads", "1", "--name", "w"},
+                 farm.dir() / "worker.log");
+  const fs::path out = farm.dir() / "out";
+  CliResult r = farm.cli({"submit", scene.string(), "--coordinator", address, "--frames", "0", "-o",
+                          (out / "f_####.exr").string(), "--tile", "16"});
+  ASSERT_EQ(r.code, 0) << r.output << server.log();
+  EXPECT_EQ(compare_exr(out / "f_0000.exr", reference_frame(scene, 0, {})), "");
 }
 
 }  // namespace
