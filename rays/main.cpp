@@ -16,6 +16,7 @@
 
 #include "announcer.h"
 #include "bundle_scenes.h"
+#include "farm/accept_guard.h"
 #include "farm/auth.h"
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
@@ -119,6 +120,11 @@ std::unique_ptr<grpc::Server> start_grpc_server(const RaysFlags& f,
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5000);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
+  // As the coordinator: a connection that has not finished its handshake in 10 s gives its
+  // descriptor back, and running out of descriptors sheds connections instead of ending the
+  // listener (farm/accept_guard.h).
+  builder.AddChannelArgument(GRPC_ARG_SERVER_HANDSHAKE_TIMEOUT_MS, 10000);
+  farm::install_accept_guard();
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || *port == 0) return nullptr;
   return server;

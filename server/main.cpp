@@ -12,10 +12,10 @@
 #include <iostream>
 #include <optional>
 
-#include "accept_guard.h"
 #include "bundle_store.h"
 #include "client_service.h"
 #include "coordinator.h"
+#include "farm/accept_guard.h"
 #include "farm/auth.h"
 #include "farm/request_limits.h"
 #include "job_store.h"
@@ -241,7 +241,7 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::from_str(flags.log_level));
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
   raise_descriptor_limit();
-  install_accept_guard();
+  farm::install_accept_guard();
   const sigset_t sigs = block_signals();
 
   std::unique_ptr<BundleStore> store;

@@ -172,25 +172,6 @@ LimitedServer start_limited_server(const Farm& farm, const std::string& nofile) 
   return s;
 }
 
-// `n` TCP connections to 127.0.0.1:port that send nothing (fewer if one fails: the test checks).
-std::vector<int> silent_connections(int port, int n) {
-  std::vector<int> fds;
-  for (int i = 0; i < n; ++i) {
-    const int fd = socket(AF_INET, SOCK_STREAM, 0);
-    if (fd < 0) break;
-    sockaddr_in sa{};
-    sa.sin_family = AF_INET;
-    sa.sin_port = htons(uint16_t(port));
-    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    if (connect(fd, reinterpret_cast<sockaddr*>(&sa), sizeof sa) != 0) {
-      close(fd);
-      break;
-    }
-    fds.push_back(fd);
-  }
-  return fds;
-}
-
 // Descriptors the process holds now.
 int open_descriptors(int pid) {
   int n = 0;

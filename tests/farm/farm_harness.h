@@ -85,6 +85,10 @@ class Farm {
   int cli_runs_ = 0;
 };
 
+// `n` TCP connections to 127.0.0.1:port that send nothing (fewer if one fails: the caller
+// checks); the caller closes them.
+std::vector<int> silent_connections(int port, int n);
+
 // Renders frame F of the scene in-process with `tessera render` (cached per scene+args).
 fs::path reference_frame(const fs::path& scene, int frame, const std::vector<std::string>& args);
 // Empty if the two EXRs have identical pixels; else a description of the first difference.

@@ -1,10 +1,14 @@
 // `tessera rays` and tessera-rays as processes: in-process and service answers identical byte for
 // byte (CSV and .npy, several batches), analytic values in the CSV, bad input exits 2 naming the
-// ray, tokens on both hops, and the Python example client built from ray_service.proto alone.
+// ray, tokens on both hops, the Python example client built from ray_service.proto alone, and a
+// connection flood at the hard descriptor limit.
 #include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <csignal>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <random>
@@ -51,6 +55,41 @@ TEST(RaysCli, InProcessAndServiceAnswersAreIdentical) {
   EXPECT_EQ(lines, 3000u);
   EXPECT_GT(hits, 1000u);
   EXPECT_LT(hits, 3000u);
+}
+
+// tessera-rays under a hard limit of 200 descriptors takes 300 connections that send nothing,
+// held 3 s: it sheds what it cannot take (farm/accept_guard.h) and answers again afterwards, the
+// same answers as in-process. Without the guard gRPC 1.51 stops accepting for good.
+TEST(RaysService, AConnectionFloodAtTheHardLimitDoesNotStopIt) {
+  rlimit own{};
+  getrlimit(RLIMIT_NOFILE, &own);
+  if (own.rlim_max < 1024) GTEST_SKIP() << "this test needs 1024 descriptors, the hard limit is " << own.rlim_max;
+  own.rlim_cur = own.rlim_max;
+  setrlimit(RLIMIT_NOFILE, &own);
+  Farm farm;
+  farm.start_server();
+  std::unique_ptr<Process> rays;
+  const std::string addr = start_rays(farm, &rays);
+  ASSERT_FALSE(addr.empty());
+  Process prlimit({"/usr/bin/prlimit", "--pid", std::to_string(rays->pid()), "--nofile=200:200"},
+                  farm.dir() / "prlimit.log");
+  ASSERT_EQ(prlimit.wait(10s), 0) << prlimit.log();
+  {
+    const std::vector<int> flood = silent_connections(std::stoi(addr.substr(addr.rfind(':') + 1)), 300);
+    ASSERT_EQ(flood.size(), 300u) << std::strerror(errno);
+    std::this_thread::sleep_for(3s);
+    for (int fd : flood) close(fd);
+  }
+  EXPECT_NE(rays->log().find("out of descriptors"), std::string::npos) << rays->log();
+  const fs::path in = farm.dir() / "rays.csv", local = farm.dir() / "local.csv", remote = farm.dir() / "remote.csv";
+  write_bunny_rays(in, 300);
+  const std::string scene = source("scenes/bunny.json").string();
+  CliResult r = farm.cli({"rays", scene, "--in", in.string(), "--out", local.string()});
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = farm.cli({"rays", scene, "--in", in.string(), "--out", remote.string(), "--server", addr, "--coordinator",
+                farm.address()});
+  ASSERT_EQ(r.code, 0) << r.output << rays->log();
+  EXPECT_EQ(read_text(local), read_text(remote));
 }
 
 // The CSV's rows as cells, by column name (no quoted cells here: the bunny's names have no commas).

@@ -1,4 +1,5 @@
-// Keeps the coordinator accepting connections when it runs out of descriptors.
+// Keeps a gRPC server (the coordinator, the ray server) accepting connections when it runs out
+// of descriptors.
 //
 // gRPC 1.51 (Debian bookworm) drops its listener for good the first time accept4() fails with
 // EMFILE or ENFILE: its accept loop (tcp_server_posix.cc) ends on any error but EINTR, EAGAIN
@@ -6,7 +7,8 @@
 // that with a few hundred idle connections under a hard descriptor limit. A later gRPC pauses and
 // retries; this one cannot be configured to.
 //
-// So the coordinator defines accept4() itself (accept_guard.cpp). The dynamic linker binds
+// So these programs define accept4() themselves (accept_guard.cpp; the library
+// tessera_accept_guard exports it from the executable that links it). The dynamic linker binds
 // libgrpc's call to the executable's definition, which makes the system call and, when the
 // process is out of descriptors, closes the connections waiting on that listener with the help
 // of one spare descriptor kept for the purpose (the remedy libev and nginx use: close the spare,
@@ -17,7 +19,7 @@
 
 #include <cstdint>
 
-namespace tessera::server {
+namespace tessera::farm {
 
 // Opens the spare descriptor. Call once at start, before the gRPC server listens; until then
 // accept4() only turns EMFILE/ENFILE into EAGAIN.
@@ -26,4 +28,4 @@ void install_accept_guard();
 // Connections closed unserved because the process was out of descriptors, since start.
 uint64_t connections_shed();
 
-}  // namespace tessera::server
+}  // namespace tessera::farm

@@ -1,4 +1,4 @@
-#include "accept_guard.h"
+#include "farm/accept_guard.h"
 
 #include <fcntl.h>
 #include <spdlog/spdlog.h>
@@ -11,7 +11,7 @@
 #include <chrono>
 #include <mutex>
 
-namespace tessera::server {
+namespace tessera::farm {
 namespace {
 
 std::mutex g_mu;                 // one shedding at a time: they share the spare
@@ -66,12 +66,12 @@ int shed_connections(int listener, int err) {
   return -1;
 }
 
-}  // namespace tessera::server
+}  // namespace tessera::farm
 
 // Replaces libc's accept4 in this process (see accept_guard.h): exported from the executable
-// (CMake: --export-dynamic-symbol) so that libgrpc's calls bind here.
+// (lib/farm/CMakeLists.txt: --export-dynamic-symbol) so that libgrpc's calls bind here.
 extern "C" int accept4(int fd, sockaddr* addr, socklen_t* len, int flags) {
-  const int r = tessera::server::sys_accept4(fd, addr, len, flags);
+  const int r = tessera::farm::sys_accept4(fd, addr, len, flags);
   if (r >= 0 || (errno != EMFILE && errno != ENFILE)) return r;
-  return tessera::server::shed_connections(fd, errno);
+  return tessera::farm::shed_connections(fd, errno);
 }
