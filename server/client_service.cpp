@@ -203,7 +203,9 @@ grpc::ServerUnaryReactor* ClientServiceImpl::SubmitJob(grpc::CallbackServerConte
   admission.owner = client;
   admission.max_primitives = limits_.max_primitives;
   admission.max_texture_pixels = limits_.max_texture_pixels;
-  admission.check = [&](const Scene& scene, int first, int last) { return limits_.check_job(scene, first, last); };
+  admission.check = [&](const Scene& scene, int first, int last, int tile) {
+    return limits_.check_job(scene, first, last, tile);
+  };
   s = coord_.submit(*req, resp, admission);
   quota_.settle(client, s.ok() ? resp->job_id() : std::string());
   if (!s.ok()) spdlog::info("submission from {} refused: {}", client, s.error_message());

@@ -41,6 +41,7 @@ void Coordinator::restore_locked() {
   int64_t tiles = 0;
   for (JobRecord& r : l.jobs) {
     const JobId id = r.id;
+    if (refuse_restore_locked(r)) continue;
     scheduler_.restore(std::move(r));
     auto s = scheduler_.job(id);
     tiles += s->tiles_done;
@@ -59,6 +60,39 @@ void Coordinator::restore_locked() {
                                              "(errors above): they will be rendered again",
                                              l.tiles_missing)
                                : std::string());
+}
+
+bool Coordinator::refuse_restore_locked(const JobRecord& r) {
+  // The job's tile table, which restore() would build, must fit under the limits a submission
+  // is held to now: a job accepted by an earlier release or under higher limits must not take
+  // the coordinator's memory at every start. It is not built; the job ends, saying why.
+  const int64_t frames = int64_t(r.spec.last_frame) - r.spec.first_frame + 1;
+  const int64_t tiles = std::max<int64_t>(0, frames) * TileGrid(r.spec.width, r.spec.height, std::max(1, r.spec.tile_size)).count();
+  const char* flag = nullptr;
+  int64_t limit = 0;
+  if (options_.max_job_tiles > 0 && tiles > options_.max_job_tiles) {
+    flag = "--max-job-tiles";
+    limit = options_.max_job_tiles;
+  } else if (options_.max_resident_tiles > 0 && scheduler_.tiles_held() + tiles > options_.max_resident_tiles) {
+    flag = "--max-resident-tiles";
+    limit = options_.max_resident_tiles;
+  }
+  if (!flag) return false;
+  JobSnapshot s;
+  s.header() = r.header();
+  for (const RestoredTile& d : r.done) s.rays += d.output.rays;
+  const std::string why = fmt::format("not restored at start: its {} tiles are over this coordinator's limit {} "
+                                      "(tessera-server {}); submit it again as smaller jobs, or raise the limit",
+                                      tiles, limit, flag);
+  if (!job_ended(s.state)) {
+    s.state = JobState::kFailed;
+    s.ended = Clock::now();
+    s.error = why;
+  }
+  jobs_store_->job_updated(s);
+  jobs_store_->job_evicted(r.id);  // not loaded again at the next start; `tessera status` answers
+  spdlog::error("job {} {}", r.id, why);
+  return true;
 }
 
 void Coordinator::expiry_loop() {

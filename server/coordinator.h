@@ -62,6 +62,11 @@ struct CoordinatorOptions {
   // The largest message the gRPC server receives, told to workers so that their result batches
   // stay under it (0: not said).
   int64_t max_message_bytes = 0;
+  // Tiles of all jobs in memory together (farm::Limits::max_resident_tiles), and of one job
+  // (max_job_tiles, checked at submit by the Admission): a job a restart cannot fit under them is
+  // not restored but failed, by name. 0: no limit.
+  int64_t max_resident_tiles = 0;
+  int64_t max_job_tiles = 0;
 };
 
 // What a submission must satisfy besides naming a valid scene, and whose it is. The scene is
@@ -70,8 +75,9 @@ struct Admission {
   std::string owner;            // the client identity the job counts against (stored with the job)
   uint64_t max_primitives = 0;  // checked while loading (SceneLoadOptions); 0: no limit
   uint64_t max_texture_pixels = 0;  // the same, for glTF texture pixels; 0: SceneLoadOptions' default
-  // The request limits that need the parsed scene (resolution, spp, frames); may be empty.
-  std::function<grpc::Status(const Scene&, int first_frame, int last_frame)> check;
+  // The request limits that need the parsed scene (resolution, spp, frames, tiles of `tile` px);
+  // may be empty.
+  std::function<grpc::Status(const Scene&, int first_frame, int last_frame, int tile)> check;
 };
 
 // What the coordinator knows at one instant, for observers that look rather than act (the web
@@ -163,6 +169,9 @@ class Coordinator : private SchedulerListener {
   void tile_result_locked(WorkerId id, tessera::v1::TileResult& r);
   void expiry_loop();
   void restore_locked();
+  // A stored job whose tiles do not fit under the limits: failed and left in the database, by
+  // name, instead of built (true); false to restore it.
+  bool refuse_restore_locked(const JobRecord& r);
   void evict_locked(const JobId& id, const char* why);
   // `s`, once everything the call queued in the job store is committed; UNAVAILABLE saying
   // "<what> but cannot be stored right now" when that fails. Called without mu_ held.

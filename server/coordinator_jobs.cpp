@@ -6,6 +6,7 @@
 
 #include "farm/bundle.h"
 #include "farm/overrides_codec.h"
+#include "farm/request_limits.h"
 #include "farm/tile_codec.h"
 #include "scene/scene_parser.h"
 
@@ -68,7 +69,7 @@ Status job_spec(const v1::SubmitJobRequest& req, const Scene& scene, const Admis
                                                     std::to_string(frame_count - 1));
   }
   if (admission.check) {
-    if (Status s = admission.check(scene, spec.first_frame, spec.last_frame); !s.ok()) return s;
+    if (Status s = admission.check(scene, spec.first_frame, spec.last_frame, tile); !s.ok()) return s;
   }
   spec.owner = admission.owner;
   spec.name = req.name();
@@ -112,12 +113,33 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out, 
   if (Status s = load_submitted_scene(store_, req, admission, &scene); !s.ok()) return s;
   JobSpec spec;
   if (Status s = job_spec(req, scene, admission, tile, &spec); !s.ok()) return s;
-  const JobId id = locked([&] {
-    const JobId id = scheduler_.submit(spec);
+  const int64_t tiles = int64_t(spec.last_frame - spec.first_frame + 1) * TileGrid(spec.width, spec.height, tile).count();
+  Status refused;
+  const JobId id = locked([&]() -> JobId {
+    const int64_t held = scheduler_.tiles_held();
+    if (options_.max_resident_tiles > 0 && held + tiles > options_.max_resident_tiles) {
+      refused = farm::over_limit(StatusCode::RESOURCE_EXHAUSTED,
+                                 "the tiles held in memory with this job (" + std::to_string(held) + " of jobs already here, " +
+                                     std::to_string(tiles) + " of this one; wait for jobs to finish and be delivered)",
+                                 held + tiles, "--max-resident-tiles", options_.max_resident_tiles);
+      return {};
+    }
+    JobId id;
+    try {
+      id = scheduler_.submit(spec);
+    } catch (const std::bad_alloc&) {
+      // Scheduler::submit builds the job aside and adds it only once whole: nothing is left.
+      refused = Status(StatusCode::RESOURCE_EXHAUSTED,
+                       "the coordinator ran out of memory building the job's " + std::to_string(tiles) +
+                           " tiles: not accepted (lower tessera-server --max-job-tiles or --max-resident-tiles to what "
+                           "this machine holds)");
+      return {};
+    }
     job_status_proto(*scheduler_.job(id), out);
     dispatch_locked();
     return id;
   });
+  if (!refused.ok()) return refused;
   // SubmitJob answers OK only once the job is durable: a client never holds the id of a job a
   // coordinator crash could forget.
   if (jobs_store_) {

@@ -130,6 +130,8 @@ CoordinatorOptions coordinator_options(const ServerFlags& f) {
   opts.retention = std::chrono::seconds(int64_t(f.retention_hours * 3600));
   opts.watch_backlog_tiles = f.watch_backlog_tiles;
   opts.max_message_bytes = f.limits.max_message_bytes;
+  opts.max_resident_tiles = f.limits.max_resident_tiles;
+  opts.max_job_tiles = f.limits.max_job_tiles;
   return opts;
 }
 

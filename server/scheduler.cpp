@@ -55,23 +55,29 @@ const Scheduler::Job* Scheduler::find_job(const JobId& id) const {
 }
 
 JobId Scheduler::submit(const JobSpec& spec) {
+  // The job is built aside and added only once whole: when its tiles do not fit in memory
+  // (std::bad_alloc), the scheduler is left as it was, with no half-built job.
+  Job built;
+  built.spec = spec;
+  built.spec.tile_size = std::max(1, spec.tile_size);
+  built.grid = TileGrid(spec.width, spec.height, built.spec.tile_size);
+  const int frames = spec.last_frame - spec.first_frame + 1;
+  const int per_frame = built.grid.count();
+  built.frames.resize(size_t(std::max(0, frames)));
+  for (int f = 0; f < frames; ++f) {
+    built.frames[size_t(f)].tiles.resize(size_t(per_frame));
+    for (int t = 0; t < per_frame; ++t) built.queue.emplace_back(f, t);
+  }
+  job_order_.reserve(job_order_.size() + 1);
   JobId id = make_id_();
   while (jobs_.count(id)) id = make_id_();
-  Job& job = jobs_[id];
-  job.id = id;
-  job.spec = spec;
-  job.spec.tile_size = std::max(1, spec.tile_size);
-  job.seq = next_seq_++;
-  job.submitted = now_();
-  job.grid = TileGrid(spec.width, spec.height, job.spec.tile_size);
-  const int frames = spec.last_frame - spec.first_frame + 1;
-  const int per_frame = job.grid.count();
-  job.frames.resize(size_t(std::max(0, frames)));
-  for (int f = 0; f < frames; ++f) {
-    job.frames[size_t(f)].tiles.resize(size_t(per_frame));
-    for (int t = 0; t < per_frame; ++t) job.queue.emplace_back(f, t);
-  }
-  job_order_.push_back(id);
+  built.id = id;
+  built.seq = next_seq_;
+  built.submitted = now_();
+  Job& job = jobs_.emplace(id, std::move(built)).first->second;
+  ++next_seq_;
+  tiles_held_ += int64_t(std::max(0, frames)) * per_frame;
+  job_order_.push_back(id);  // reserved above: does not throw
   update_runnable(job);
   events().job_submitted(snapshot(job));
   if (job.queue.empty()) set_state(job, JobState::kDone);  // degenerate: nothing to render
@@ -419,6 +425,7 @@ void Scheduler::restore(JobRecord rec) {
   const int per_frame = job.grid.count();
   job.frames.resize(size_t(std::max(0, frames)));
   for (auto& fr : job.frames) fr.tiles.resize(size_t(per_frame));
+  tiles_held_ += int64_t(job.frames.size()) * per_frame;
   for (RestoredTile& d : rec.done) {
     const int fi = d.frame - job.spec.first_frame;
     if (fi < 0 || fi >= frames || d.tile < 0 || d.tile >= per_frame) continue;
@@ -471,6 +478,7 @@ bool Scheduler::forget(const JobId& id) {
   runnable_.erase(queue_key(*job));
   speculable_.erase(id);
   std::erase(job_order_, id);
+  tiles_held_ -= int64_t(job->frames.size()) * job->grid.count();
   jobs_.erase(id);
   return true;
 }

@@ -262,6 +262,9 @@ class Scheduler {
   // every tile: too slow for per-frame events of a long animation). Null for an unknown job.
   const JobHeader* header(const JobId& id) const;
   int tiles_per_frame(const JobId& id) const;  // 0 for an unknown job
+  // Tiles of every job held (submitted or restored, not yet forgotten): what the scheduler's
+  // memory grows with.
+  int64_t tiles_held() const { return tiles_held_; }
   std::vector<JobSnapshot> jobs() const;  // in submit order
   std::vector<WorkerStats> workers() const;
   std::optional<WorkerStats> worker(WorkerId id) const;
@@ -334,6 +337,7 @@ class Scheduler {
   std::set<WorkerId> wanting_;        // workers with a standing request: dispatch() looks only here
   std::map<LeaseId, Lease> leases_;   // ids grow with time: begin() is the oldest lease
   uint64_t next_seq_ = 1;
+  int64_t tiles_held_ = 0;            // tiles of every job in jobs_ (frames x tiles per frame)
   WorkerId next_worker_ = 1;
   LeaseId next_lease_ = 1;
 };

@@ -15,6 +15,12 @@ void Limits::add_flags(CLI::App& app) {
       ->check(CLI::Range(1, tessera::SceneLimits::kMaxSpp))->capture_default_str()->group("Limits");
   app.add_option("--max-frames", max_frames, "Most frames in one job")
       ->check(CLI::Range(1, tessera::SceneLimits::kMaxFrames))->capture_default_str()->group("Limits");
+  app.add_option("--max-job-tiles", max_job_tiles,
+                 "Most tiles in one job (frames x tiles per frame; each costs ~150 bytes of coordinator memory)")
+      ->check(CLI::Range(int64_t(1), int64_t(1) << 40))->capture_default_str()->group("Limits");
+  app.add_option("--max-resident-tiles", max_resident_tiles,
+                 "Most tiles of all jobs held in memory together (queued, running, or ended and undelivered)")
+      ->check(CLI::Range(int64_t(1), int64_t(1) << 40))->capture_default_str()->group("Limits");
   app.add_option("--max-primitives", max_primitives, "Most primitives in a scene (triangles of every mesh instance)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40))->capture_default_str()->group("Limits");
   app.add_option("--max-texture-pixels", max_texture_pixels,
@@ -35,7 +41,7 @@ grpc::Status over_limit(grpc::StatusCode code, const std::string& what, int64_t 
                                 std::to_string(limit) + " (tessera-server " + flag + ")");
 }
 
-grpc::Status Limits::check_job(const Scene& scene, int first_frame, int last_frame) const {
+grpc::Status Limits::check_job(const Scene& scene, int first_frame, int last_frame, int tile) const {
   const int64_t pixels = int64_t(scene.image.width) * scene.image.height;
   if (pixels > max_pixels) {
     return over_limit(grpc::StatusCode::INVALID_ARGUMENT,
@@ -53,6 +59,15 @@ grpc::Status Limits::check_job(const Scene& scene, int first_frame, int last_fra
   const int64_t frames = int64_t(last_frame) - first_frame + 1;
   if (frames > max_frames) {
     return over_limit(grpc::StatusCode::INVALID_ARGUMENT, "the job's frame count", frames, "--max-frames", max_frames);
+  }
+  if (tile > 0) {
+    const int64_t per_frame = ((int64_t(scene.image.width) + tile - 1) / tile) * ((int64_t(scene.image.height) + tile - 1) / tile);
+    if (frames * per_frame > max_job_tiles) {
+      return over_limit(grpc::StatusCode::INVALID_ARGUMENT,
+                        "the job's tile count (" + std::to_string(frames) + " frames of " + std::to_string(per_frame) +
+                            " tiles of " + std::to_string(tile) + " px; larger tiles or fewer frames a job need fewer)",
+                        frames * per_frame, "--max-job-tiles", max_job_tiles);
+    }
   }
   return grpc::Status::OK;
 }

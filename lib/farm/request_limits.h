@@ -24,6 +24,12 @@ struct Limits {
   int64_t max_pixels = int64_t(8192) * 8192;  // width * height of a job's frames
   int max_spp = 65536;
   int max_frames = 10000;                     // frames in one job
+  // Tiles of one job, and of every job the coordinator holds in memory together (queued,
+  // running, or ended and not yet delivered or expired). Each tile costs the coordinator about
+  // 150 bytes while its job is in memory, whatever its size (coordinator_load's "B/queued tile":
+  // 116-184), so the defaults hold a job to ~1.5 GB and all of them to ~3 GB.
+  int64_t max_job_tiles = 10000000;
+  int64_t max_resident_tiles = 20000000;
   uint64_t max_primitives = 20000000;         // triangles of every mesh instance + spheres + planes
   // Pixels of all a scene's texture images together (glTF), checked while decoding. Workers load
   // with the library's limit, so this can only lower it.
@@ -33,8 +39,9 @@ struct Limits {
 
   // Adds --max-message-bytes, --max-bundle-bytes, ... to the server's command line.
   void add_flags(CLI::App& app);
-  // INVALID_ARGUMENT naming the limit if the job's resolution, spp or frame count is over it.
-  grpc::Status check_job(const Scene& scene, int first_frame, int last_frame) const;
+  // INVALID_ARGUMENT naming the limit if the job's resolution, spp, frame count or tile count
+  // (frames cut into tiles of `tile` px) is over it.
+  grpc::Status check_job(const Scene& scene, int first_frame, int last_frame, int tile) const;
 };
 
 // "RESOURCE_EXHAUSTED: <what> is N, over the limit --flag M" and friends, in one format.

@@ -151,19 +151,20 @@ bool own_descriptors(rlim_t need, rlim_t* hard) {
   return true;
 }
 
-// tessera-server on 127.0.0.1:0 under `prlimit --nofile=SOFT:HARD`, its data in the farm's
-// folder; `port` is 0 if it did not say where it listens.
+// tessera-server on 127.0.0.1:0 under `prlimit LIMIT` (e.g. --nofile=SOFT:HARD), its data in the
+// farm's folder, with `extra` arguments; `port` is 0 if it did not say where it listens.
 struct LimitedServer {
   std::unique_ptr<Process> process;
   int port = 0;
   std::string address() const { return "127.0.0.1:" + std::to_string(port); }
 };
-LimitedServer start_limited_server(const Farm& farm, const std::string& nofile) {
+LimitedServer start_limited_server(const Farm& farm, const std::string& limit,
+                                   const std::vector<std::string>& extra = {}) {
   LimitedServer s;
-  s.process = std::make_unique<Process>(
-      std::vector<std::string>{"/usr/bin/prlimit", "--nofile=" + nofile, bin("tessera-server").string(), "--listen",
-                               "127.0.0.1:0", "--data-dir", (farm.dir() / "data").string()},
-      farm.dir() / "server.log");
+  std::vector<std::string> argv{"/usr/bin/prlimit", limit,    bin("tessera-server").string(), "--listen",
+                                "127.0.0.1:0",      "--data-dir", (farm.dir() / "data").string()};
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  s.process = std::make_unique<Process>(argv, farm.dir() / "server.log");
   const std::regex re("listening on 127\\.0\\.0\\.1:([0-9]+)");
   std::smatch m;
   std::string log;
@@ -189,7 +190,7 @@ TEST(FarmExhaustion, IdleConnectionsDoNotExhaustTheCoordinatorsDescriptors) {
   rlim_t hard = 0;
   if (!own_descriptors(2048, &hard)) GTEST_SKIP() << "this test needs 2048 descriptors, the hard limit is " << hard;
   Farm farm;
-  LimitedServer s = start_limited_server(farm, "256:4096");
+  LimitedServer s = start_limited_server(farm, "--nofile=256:4096");
   Process& server = *s.process;
   ASSERT_NE(s.port, 0) << server.log();
   const std::string address = s.address();
@@ -221,7 +222,7 @@ TEST(FarmExhaustion, AConnectionFloodAtTheHardLimitDoesNotStopTheCoordinator) {
   rlim_t hard = 0;
   if (!own_descriptors(1024, &hard)) GTEST_SKIP() << "this test needs 1024 descriptors, the hard limit is " << hard;
   Farm farm;
-  LimitedServer s = start_limited_server(farm, "200:200");
+  LimitedServer s = start_limited_server(farm, "--nofile=200:200");
   Process& server = *s.process;
   ASSERT_NE(s.port, 0) << server.log();
   const std::string address = s.address();
@@ -243,6 +244,95 @@ TEST(FarmExhaustion, AConnectionFloodAtTheHardLimitDoesNotStopTheCoordinator) {
                           (out / "f_####.exr").string(), "--tile", "16"});
   ASSERT_EQ(r.code, 0) << r.output << server.log();
   EXPECT_EQ(compare_exr(out / "f_0000.exr", reference_frame(scene, 0, {})), "");
+}
+
+// A job is bounded by what it costs the coordinator, its tiles, not only by its parts: one over
+// --max-job-tiles is refused naming the flag and the count, one that would take the tiles held
+// over --max-resident-tiles is refused naming that, and neither leaves anything behind.
+TEST(FarmExhaustion, JobsOverTheTileLimitsAreRefusedByNameAndLeaveNothing) {
+  Farm farm;
+  farm.start_server({"--max-job-tiles", "1000", "--max-resident-tiles", "1500"});
+  const fs::path scene = long_scene(farm.dir(), 10);  // 64x48: 16 x 12 = 192 tiles of 4 px a frame
+  const auto submit = [&](const char* frames) {
+    return farm.cli({"submit", scene.string(), "--coordinator", farm.address(), "--tile", "4", "--frames", frames,
+                     "--detach"});
+  };
+  CliResult big = submit("0-9");  // 1920 tiles
+  EXPECT_NE(big.code, 0) << big.output;
+  EXPECT_NE(big.output.find("1920"), std::string::npos) << big.output;
+  EXPECT_NE(big.output.find("--max-job-tiles"), std::string::npos) << big.output;
+  CliResult first = submit("0-4");  // 960 tiles
+  ASSERT_EQ(first.code, 0) << first.output;
+  CliResult second = submit("5-9");  // 960 more: 1920 held, over 1500
+  EXPECT_NE(second.code, 0) << second.output;
+  EXPECT_NE(second.output.find("--max-resident-tiles"), std::string::npos) << second.output;
+  CliResult list = farm.cli({"status", "--json", "--coordinator", farm.address()});
+  ASSERT_EQ(list.code, 0) << list.output;
+  EXPECT_EQ(nlohmann::json::parse(list.output).size(), 1u) << list.output;
+}
+
+// A job stored under higher limits (here: the defaults) that a restart cannot fit under the limits
+// it runs with now is not built at start: it is failed, by name, and stays failed at later
+// starts; the coordinator serves on. (Before, such a job took the coordinator's memory at every
+// start, and one too big for the machine crash-looped it.)
+TEST(FarmExhaustion, AStoredJobOverTheLimitIsFailedByNameAtStartNotRebuilt) {
+  Farm farm;
+  farm.start_server();
+  const fs::path scene = long_scene(farm.dir(), 10);
+  CliResult a = farm.cli({"submit", scene.string(), "--coordinator", farm.address(), "--tile", "4", "--detach"});
+  ASSERT_EQ(a.code, 0) << a.output;
+  const std::string job = job_id_from(a.output);
+  farm.stop_server();
+  farm.start_server({"--max-job-tiles", "1000"});
+  EXPECT_NE(farm.server().log().find("not restored at start"), std::string::npos) << farm.server().log();
+  const auto state_and_error = [&] {
+    CliResult st = farm.cli({"status", job, "--json", "--coordinator", farm.address()});
+    EXPECT_EQ(st.code, 0) << st.output;
+    const auto j = nlohmann::json::parse(st.output);
+    return std::pair{j.value("state", std::string()), j.value("error", std::string())};
+  };
+  auto [state, error] = state_and_error();
+  EXPECT_EQ(state, "failed");
+  EXPECT_NE(error.find("1920 tiles"), std::string::npos) << error;
+  EXPECT_NE(error.find("--max-job-tiles"), std::string::npos) << error;
+  // Not loaded again, even with the limit gone; and the farm renders on.
+  farm.stop_server();
+  farm.start_server();
+  EXPECT_EQ(farm.server().log().find("not restored at start"), std::string::npos) << farm.server().log();
+  std::tie(state, error) = state_and_error();
+  EXPECT_EQ(state, "failed");
+  farm.start_worker("w");
+  const fs::path out = farm.dir() / "out";
+  CliResult r = farm.cli({"submit", scene.string(), "--coordinator", farm.address(), "--frames", "0", "--tile", "16",
+                          "-o", (out / "f_####.exr").string()});
+  ASSERT_EQ(r.code, 0) << r.output << farm.server().log();
+  EXPECT_EQ(compare_exr(out / "f_0000.exr", reference_frame(scene, 0, {})), "");
+}
+
+// Within the limits but beyond the machine: under a 3 GB address-space cap, a job of 42 million
+// tiles (10 frames of 8192x8192 in 4 px tiles, about 4 GB of tile state) runs the coordinator
+// out of memory while it is built. The submission is refused saying so, no half-built job stays
+// behind (before: an empty error message, and 2 GB held for good by a job `status` did not list),
+// and the next job is taken.
+TEST(FarmExhaustion, ASubmissionThatRunsOutOfMemoryLeavesNoHalfBuiltJob) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "a sanitizer's shadow memory does not fit under an address-space cap";
+#endif
+  Farm farm;
+  LimitedServer s = start_limited_server(farm, "--as=3000000000",
+                                         {"--max-job-tiles", "100000000", "--max-resident-tiles", "100000000"});
+  ASSERT_NE(s.port, 0) << s.process->log();
+  const std::string address = s.address();
+  const std::string scene = source("tests/farm/chaos_orbit.json").string();  // 10 frames
+  CliResult big = farm.cli({"submit", scene, "--coordinator", address, "--tile", "4", "--width", "8192", "--height",
+                            "8192", "--detach"});
+  EXPECT_NE(big.code, 0) << big.output;
+  EXPECT_NE(big.output.find("ran out of memory building the job's 41943040 tiles"), std::string::npos) << big.output;
+  CliResult list = farm.cli({"status", "--json", "--coordinator", address});
+  ASSERT_EQ(list.code, 0) << list.output;
+  EXPECT_EQ(nlohmann::json::parse(list.output).size(), 0u) << list.output;
+  CliResult small = farm.cli({"submit", scene, "--coordinator", address, "--detach"});
+  EXPECT_EQ(small.code, 0) << small.output << s.process->log();
 }
 
 }  // namespace
