@@ -2,16 +2,14 @@
 
 #include <httplib.h>
 
+#include "http_connections.h"
+
 #include <fstream>
 #include <stdexcept>
 
 namespace tessera::server {
 
 namespace {
-
-// Open pages (each holds at most one connection: requests are sequential), scrapers and API
-// scripts at once before the next one waits. Idle threads cost nothing but their stacks.
-constexpr size_t kThreads = 16;
 
 void require_readable(const std::string& path, const char* what) {
   if (!std::ifstream(path)) throw std::runtime_error(std::string("--http-listen: cannot read the TLS ") + what + " " + path);
@@ -54,7 +52,14 @@ HttpListener::HttpListener(const std::string& address, const HttpTls& tls) {
   server_->set_keep_alive_timeout(2);
   server_->set_read_timeout(10, 0);
   server_->set_write_timeout(10, 0);
-  server_->new_task_queue = [] { return new httplib::ThreadPool(kThreads); };
+  // Deadlines per request, caps on connections (http_connections.h): a slow or silent client
+  // holds a thread for seconds, not for as long as it likes.
+  server_->new_task_queue = [] { return new HttpConnections(HttpConnections::Options{}); };
+  server_->set_pre_routing_handler([](const httplib::Request&, httplib::Response&) {
+    HttpConnections::request_read();
+    return httplib::Server::HandlerResponse::Unhandled;
+  });
+  server_->set_logger([](const httplib::Request&, const httplib::Response&) { HttpConnections::response_written(); });
 }
 
 HttpListener::~HttpListener() { stop(); }

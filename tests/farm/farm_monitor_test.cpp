@@ -9,6 +9,8 @@
 #include <unistd.h>
 
 #include <nlohmann/json.hpp>
+#include <algorithm>
+#include <atomic>
 #include <csignal>
 #include <fstream>
 #include <regex>
@@ -180,6 +182,69 @@ TEST(MonitorHttp, TlsServesHttpsWithTheCoordinatorsCertificate) {
   plain.set_read_timeout(3, 0);
   auto no = plain.Get("/api/farm");
   EXPECT_TRUE(!no || no->status != 200);
+}
+
+// Issue 26's reproduction: 40 connections send a request line, then one header byte a second.
+// While they do, /metrics answers everyone else at once (before: it timed out, 8 s, and
+// Prometheus would mark the farm down); and the server closes each of them once its request
+// head has taken longer than the 10 s a request gets (http_connections.h), not at the client's
+// pace.
+TEST(MonitorHttp, SlowClientsDoNotStarveTheWebSide) {
+  Farm farm;
+  farm.start_server({"--http-listen", "127.0.0.1:0"});
+  const int port = http_port(farm);
+  constexpr int kSlow = 40;
+  // Each sends its request line as soon as it is connected, as a slow client does (a connection
+  // silent for 2 s is closed by the keep-alive wait, deadline or not).
+  std::vector<int> slow;
+  std::vector<std::chrono::steady_clock::time_point> connected;
+  const std::string line = "GET /metrics HTTP/1.1\r\nHost: 127.0.0.1\r\n";
+  for (int i = 0; i < kSlow; ++i) {
+    const std::vector<int> one = silent_connections(port, 1);
+    ASSERT_EQ(one.size(), 1u);
+    slow.push_back(one[0]);
+    connected.push_back(std::chrono::steady_clock::now());
+    ASSERT_EQ(send(one[0], line.data(), line.size(), MSG_NOSIGNAL), ssize_t(line.size()));
+  }
+  std::atomic<bool> done{false};
+  std::vector<double> closed_after(kSlow, -1);  // seconds from its connect, when the server closed it
+  std::thread dribble([&] {
+    while (!done) {
+      for (int i = 0; i < kSlow; ++i) {
+        if (closed_after[size_t(i)] >= 0) continue;
+        char c;
+        const ssize_t r = recv(slow[size_t(i)], &c, 1, MSG_DONTWAIT);
+        if (r == 0 || (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK) ||
+            send(slow[size_t(i)], "X", 1, MSG_NOSIGNAL) != 1) {
+          closed_after[size_t(i)] =
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - connected[size_t(i)]).count();
+        }
+      }
+      std::this_thread::sleep_for(1s);
+    }
+  });
+  std::this_thread::sleep_for(1s);  // every slow connection accepted and being read
+  for (int k = 0; k < 3; ++k) {
+    httplib::Client http("127.0.0.1", port);
+    http.set_connection_timeout(3, 0);
+    http.set_read_timeout(3, 0);
+    auto r = http.Get("/metrics");
+    ASSERT_TRUE(r) << "request " << k << ": " << httplib::to_string(r.error());
+    EXPECT_EQ(r->status, 200);
+    EXPECT_NE(r->body.find("tessera_"), std::string::npos);
+  }
+  // The slow ones are closed by the server after their 10 s, well before their client would stop.
+  for (int i = 0; i < 250 && std::count(closed_after.begin(), closed_after.end(), -1.0) > 0; ++i) {
+    std::this_thread::sleep_for(100ms);
+  }
+  done = true;
+  dribble.join();
+  for (int i = 0; i < kSlow; ++i) {
+    EXPECT_GE(closed_after[size_t(i)], 9.0) << "connection " << i << " closed too early";
+    EXPECT_LE(closed_after[size_t(i)], 18.0) << "connection " << i << " was not closed in time";
+    close(slow[size_t(i)]);
+  }
+  EXPECT_NE(farm.server().log().find("HTTP: closed"), std::string::npos) << farm.server().log();
 }
 
 TEST(MonitorHttp, MutualTlsRequiresAClientCertificateWhoseNameIsTheCaller) {

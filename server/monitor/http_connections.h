@@ -1,0 +1,88 @@
+// The HTTP side's connections (cpp-httplib serves each on a thread of a pool) with deadlines per
+// request, not per byte, so that slow or many clients cannot starve the others (issue 26).
+//
+// cpp-httplib 0.11 (Debian bookworm) times out each read on its own: a client that sends one
+// header byte a second holds its thread for as long as it likes, and 16 such clients held the
+// whole pool (/metrics and the monitor timed out for everyone). This task queue is the pool
+// cpp-httplib runs connections on (`Server::new_task_queue`), and it watches them:
+//   - a request's head must be complete within `header_deadline` of the connection's accept or
+//     of the previous response (request_read() marks it, from a pre-routing handler);
+//   - a request must be answered, body read and response written, within `response_deadline`
+//     (response_written() marks it, from the logger);
+//   - past either, the connection is shut down (the socket, through a duplicate of the
+//     descriptor, so a number reused by then is never touched) and its thread is free;
+//   - at most `max_connections` at once and `max_per_peer` from one address; beyond, a new
+//     connection is closed at once.
+// The pool has many threads (a waiting thread costs only its stack): a slow client holds one for
+// at most a deadline, and needs a connection, counted, to do it.
+//
+// cpp-httplib does not say which socket a task serves. It accepts on the listener thread and
+// queues the connection's task right after, so http_connections.cpp defines accept() (the
+// library's only caller; gRPC uses accept4) to note the descriptor it returns on that thread.
+#pragma once
+
+#include <httplib.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace tessera::server {
+
+class HttpConnections : public httplib::TaskQueue {
+ public:
+  struct Options {
+    size_t threads = 128;
+    size_t max_connections = 512;
+    size_t max_per_peer = 64;
+    std::chrono::milliseconds header_deadline{10000};
+    std::chrono::milliseconds response_deadline{30000};
+  };
+  struct Counts {
+    uint64_t served = 0;    // connections handed to cpp-httplib
+    uint64_t refused = 0;   // closed at once: over max_connections or max_per_peer
+    uint64_t cut = 0;       // shut down past a deadline
+  };
+
+  struct Connection;  // one accepted connection (http_connections.cpp)
+
+  explicit HttpConnections(Options options);
+  ~HttpConnections() override;
+
+  void enqueue(std::function<void()> fn) override;
+  void shutdown() override;
+
+  // On a connection's thread: its request's head is in (pre-routing), or its response is written
+  // and it waits for the next request (logger).
+  static void request_read();
+  static void response_written();
+
+  // Of every HttpConnections of this process (the listener makes a new queue each time it
+  // starts listening).
+  static Counts counts();
+
+ private:
+  void run();
+  void watch();
+  void end(const std::shared_ptr<Connection>& c);
+
+  const Options options_;
+  std::mutex mu_;
+  std::condition_variable cv_;        // pool threads: a connection is queued, or stop
+  std::condition_variable watch_cv_;  // the watchdog: stop
+  std::deque<std::pair<std::shared_ptr<Connection>, std::function<void()>>> queue_;
+  std::map<Connection*, std::shared_ptr<Connection>> live_;
+  std::map<std::string, size_t> per_peer_;
+  bool stop_ = false;
+  std::vector<std::thread> threads_;
+  std::thread watchdog_;
+};
+
+}  // namespace tessera::server
