@@ -66,8 +66,7 @@ bool Coordinator::refuse_restore_locked(const JobRecord& r) {
   // The job's tile table, which restore() would build, must fit under the limits a submission
   // is held to now: a job accepted by an earlier release or under higher limits must not take
   // the coordinator's memory at every start. It is not built; the job ends, saying why.
-  const int64_t frames = int64_t(r.spec.last_frame) - r.spec.first_frame + 1;
-  const int64_t tiles = std::max<int64_t>(0, frames) * TileGrid(r.spec.width, r.spec.height, std::max(1, r.spec.tile_size)).count();
+  const int64_t tiles = r.spec.tiles();
   const char* flag = nullptr;
   int64_t limit = 0;
   if (options_.max_job_tiles > 0 && tiles > options_.max_job_tiles) {

@@ -113,7 +113,7 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out, 
   if (Status s = load_submitted_scene(store_, req, admission, &scene); !s.ok()) return s;
   JobSpec spec;
   if (Status s = job_spec(req, scene, admission, tile, &spec); !s.ok()) return s;
-  const int64_t tiles = int64_t(spec.last_frame - spec.first_frame + 1) * TileGrid(spec.width, spec.height, tile).count();
+  const int64_t tiles = spec.tiles();
   Status refused;
   const JobId id = locked([&]() -> JobId {
     const int64_t held = scheduler_.tiles_held();

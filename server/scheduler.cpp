@@ -54,6 +54,10 @@ const Scheduler::Job* Scheduler::find_job(const JobId& id) const {
   return it == jobs_.end() ? nullptr : &it->second;
 }
 
+int64_t JobSpec::tiles() const {
+  return std::max<int64_t>(0, int64_t(last_frame) - first_frame + 1) * TileGrid(width, height, tile_size).count();
+}
+
 JobId Scheduler::submit(const JobSpec& spec) {
   // The job is built aside and added only once whole: when its tiles do not fit in memory
   // (std::bad_alloc), the scheduler is left as it was, with no half-built job.
@@ -76,7 +80,7 @@ JobId Scheduler::submit(const JobSpec& spec) {
   built.submitted = now_();
   Job& job = jobs_.emplace(id, std::move(built)).first->second;
   ++next_seq_;
-  tiles_held_ += int64_t(std::max(0, frames)) * per_frame;
+  tiles_held_ += job.spec.tiles();
   job_order_.push_back(id);  // reserved above: does not throw
   update_runnable(job);
   events().job_submitted(snapshot(job));
@@ -425,7 +429,7 @@ void Scheduler::restore(JobRecord rec) {
   const int per_frame = job.grid.count();
   job.frames.resize(size_t(std::max(0, frames)));
   for (auto& fr : job.frames) fr.tiles.resize(size_t(per_frame));
-  tiles_held_ += int64_t(job.frames.size()) * per_frame;
+  tiles_held_ += job.spec.tiles();
   for (RestoredTile& d : rec.done) {
     const int fi = d.frame - job.spec.first_frame;
     if (fi < 0 || fi >= frames || d.tile < 0 || d.tile >= per_frame) continue;
@@ -478,7 +482,7 @@ bool Scheduler::forget(const JobId& id) {
   runnable_.erase(queue_key(*job));
   speculable_.erase(id);
   std::erase(job_order_, id);
-  tiles_held_ -= int64_t(job->frames.size()) * job->grid.count();
+  tiles_held_ -= job->spec.tiles();
   jobs_.erase(id);
   return true;
 }

@@ -43,6 +43,9 @@ struct JobSpec {
   int tile_size = 32;
   int priority = 0;        // higher first; ties in submit order
   std::string owner;       // the submitting client's identity (request_limits.h); opaque here
+
+  // Frames x tiles per frame: what the job's tile table holds (the scheduler's memory for it).
+  int64_t tiles() const;
 };
 
 // kFailed: every connected worker was blocklisted for the job (see SchedulerOptions::max_faults).

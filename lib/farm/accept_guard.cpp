@@ -33,8 +33,6 @@ void install_accept_guard() {
   if (g_spare < 0) g_spare = open_spare();
 }
 
-uint64_t connections_shed() { return g_shed.load(); }
-
 // Out of descriptors while accepting on `listener`: close what waits there, report EAGAIN.
 int shed_connections(int listener, int err) {
   std::lock_guard lock(g_mu);

@@ -17,15 +17,10 @@
 // serving resumes by itself once they come back (the handshake timeout returns idle ones).
 #pragma once
 
-#include <cstdint>
-
 namespace tessera::farm {
 
 // Opens the spare descriptor. Call once at start, before the gRPC server listens; until then
 // accept4() only turns EMFILE/ENFILE into EAGAIN.
 void install_accept_guard();
-
-// Connections closed unserved because the process was out of descriptors, since start.
-uint64_t connections_shed();
 
 }  // namespace tessera::farm

@@ -2,6 +2,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "tile/tile_grid.h"
+
 namespace tessera::farm {
 
 void Limits::add_flags(CLI::App& app) {
@@ -61,7 +63,7 @@ grpc::Status Limits::check_job(const Scene& scene, int first_frame, int last_fra
     return over_limit(grpc::StatusCode::INVALID_ARGUMENT, "the job's frame count", frames, "--max-frames", max_frames);
   }
   if (tile > 0) {
-    const int64_t per_frame = ((int64_t(scene.image.width) + tile - 1) / tile) * ((int64_t(scene.image.height) + tile - 1) / tile);
+    const int64_t per_frame = TileGrid(scene.image.width, scene.image.height, tile).count();
     if (frames * per_frame > max_job_tiles) {
       return over_limit(grpc::StatusCode::INVALID_ARGUMENT,
                         "the job's tile count (" + std::to_string(frames) + " frames of " + std::to_string(per_frame) +

@@ -25,7 +25,6 @@
 
 #include <chrono>
 #include <condition_variable>
-#include <cstdint>
 #include <deque>
 #include <map>
 #include <memory>
@@ -45,11 +44,6 @@ class HttpConnections : public httplib::TaskQueue {
     std::chrono::milliseconds header_deadline{10000};
     std::chrono::milliseconds response_deadline{30000};
   };
-  struct Counts {
-    uint64_t served = 0;    // connections handed to cpp-httplib
-    uint64_t refused = 0;   // closed at once: over max_connections or max_per_peer
-    uint64_t cut = 0;       // shut down past a deadline
-  };
 
   struct Connection;  // one accepted connection (http_connections.cpp)
 
@@ -63,10 +57,6 @@ class HttpConnections : public httplib::TaskQueue {
   // and it waits for the next request (logger).
   static void request_read();
   static void response_written();
-
-  // Of every HttpConnections of this process (the listener makes a new queue each time it
-  // starts listening).
-  static Counts counts();
 
  private:
   void run();

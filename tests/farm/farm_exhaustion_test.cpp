@@ -139,18 +139,6 @@ TEST(FarmExhaustion, CoordinatorStartsOnAFullDiskAndServesWhatItHas) {
   EXPECT_EQ(compare_exr(out / "f_0000.exr", reference_frame(scene, 0, {})), "");
 }
 
-// Raises this process's soft descriptor limit to its hard one; false (the test skips) when that
-// is under `need`.
-bool own_descriptors(rlim_t need, rlim_t* hard) {
-  rlimit own{};
-  getrlimit(RLIMIT_NOFILE, &own);
-  *hard = own.rlim_max;
-  if (own.rlim_max < need) return false;
-  own.rlim_cur = own.rlim_max;
-  setrlimit(RLIMIT_NOFILE, &own);
-  return true;
-}
-
 // tessera-server on 127.0.0.1:0 under `prlimit LIMIT` (e.g. --nofile=SOFT:HARD), its data in the
 // farm's folder, with `extra` arguments; `port` is 0 if it did not say where it listens.
 struct LimitedServer {
@@ -215,7 +203,7 @@ TEST(FarmExhaustion, IdleConnectionsDoNotExhaustTheCoordinatorsDescriptors) {
 
 // Issue 26's reproduction: soft and hard limit 200, as a container or a systemd unit may set
 // them, and 300 connections that send nothing, held 3 s, then closed. gRPC 1.51 alone stops
-// accepting for good at the first EMFILE; with the accept guard (server/accept_guard.h) the
+// accepting for good at the first EMFILE; with the accept guard (farm/accept_guard.h) the
 // coordinator sheds what it cannot take, then serves again: a health check answers and a job
 // renders, bit-identical to `tessera render`.
 TEST(FarmExhaustion, AConnectionFloodAtTheHardLimitDoesNotStopTheCoordinator) {

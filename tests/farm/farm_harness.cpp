@@ -264,6 +264,16 @@ std::string wait_job_id(const Process& client) {
   return job;
 }
 
+bool own_descriptors(rlim_t need, rlim_t* hard) {
+  rlimit own{};
+  getrlimit(RLIMIT_NOFILE, &own);
+  *hard = own.rlim_max;
+  if (own.rlim_max < need) return false;
+  own.rlim_cur = own.rlim_max;
+  setrlimit(RLIMIT_NOFILE, &own);
+  return true;
+}
+
 std::vector<int> silent_connections(int port, int n) {
   std::vector<int> fds;
   for (int i = 0; i < n; ++i) {

@@ -4,6 +4,8 @@
 // whatever is still running when a test fails early.
 #pragma once
 
+#include <sys/resource.h>
+
 #include <chrono>
 #include <filesystem>
 #include <memory>
@@ -84,6 +86,10 @@ class Farm {
   std::vector<std::unique_ptr<Process>> workers_;
   int cli_runs_ = 0;
 };
+
+// Raises this process's soft descriptor limit to its hard one; false (the test skips) when that
+// is under `need`.
+bool own_descriptors(rlim_t need, rlim_t* hard);
 
 // `n` TCP connections to 127.0.0.1:port that send nothing (fewer if one fails: the caller
 // checks); the caller closes them.

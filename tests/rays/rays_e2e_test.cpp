@@ -3,7 +3,6 @@
 // ray, tokens on both hops, the Python example client built from ray_service.proto alone, and a
 // connection flood at the hard descriptor limit.
 #include <gtest/gtest.h>
-#include <sys/resource.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -61,11 +60,8 @@ TEST(RaysCli, InProcessAndServiceAnswersAreIdentical) {
 // held 3 s: it sheds what it cannot take (farm/accept_guard.h) and answers again afterwards, the
 // same answers as in-process. Without the guard gRPC 1.51 stops accepting for good.
 TEST(RaysService, AConnectionFloodAtTheHardLimitDoesNotStopIt) {
-  rlimit own{};
-  getrlimit(RLIMIT_NOFILE, &own);
-  if (own.rlim_max < 1024) GTEST_SKIP() << "this test needs 1024 descriptors, the hard limit is " << own.rlim_max;
-  own.rlim_cur = own.rlim_max;
-  setrlimit(RLIMIT_NOFILE, &own);
+  rlim_t hard = 0;
+  if (!own_descriptors(1024, &hard)) GTEST_SKIP() << "this test needs 1024 descriptors, the hard limit is " << hard;
   Farm farm;
   farm.start_server();
   std::unique_ptr<Process> rays;
