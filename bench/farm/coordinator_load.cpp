@@ -58,6 +58,7 @@ struct Config {
   std::vector<std::string> server_args;
   fs::path work_dir;
   fs::path profile_dir;  // perf record the coordinator during each run, if set
+  std::vector<int> server_cpus;   // the coordinator's CPUs (empty: any)
 };
 
 // `perf record -g -p PID` until stopped: where the coordinator's CPU goes during a run.
@@ -283,7 +284,7 @@ json run_one(const Config& cfg, int n_workers, int run_index) {
   const fs::path dir = cfg.work_dir / ("n" + std::to_string(n_workers) + "_" + std::to_string(run_index));
   std::vector<std::string> extra = {"--log-level", cfg.log_level};
   extra.insert(extra.end(), cfg.server_args.begin(), cfg.server_args.end());
-  ServerProcess server(cfg.server, dir, extra);
+  ServerProcess server(cfg.server, dir, extra, cfg.server_cpus);
   auto client_channel = tessera::farm::make_coordinator_channel(server.address());
   auto client = v1::ClientService::NewStub(client_channel);
 
@@ -520,7 +521,17 @@ int main(int argc, char** argv) {
   app.add_option("--json", json_out, "Write the JSON results here (default: stdout, after the table)");
   app.add_option("--markdown", md_out, "Write the markdown table here too");
   app.add_option("--profile", cfg.profile_dir, "perf record the coordinator during each run into this directory");
+  std::string server_cpus, loadgen_cpus;
+  app.add_option("--server-cpus", server_cpus, "Run the coordinator on these CPUs only, e.g. 0-3 (default: any)");
+  app.add_option("--loadgen-cpus", loadgen_cpus, "Run the simulated workers on these CPUs only (default: any)");
   CLI11_PARSE(app, argc, argv);
+  try {
+    if (!server_cpus.empty()) cfg.server_cpus = tessera::bench::parse_cpu_list(server_cpus);
+    tessera::bench::pin_to_cpus(loadgen_cpus.empty() ? std::vector<int>{} : tessera::bench::parse_cpu_list(loadgen_cpus));
+  } catch (const std::exception& e) {
+    std::cerr << "coordinator_load: --server-cpus/--loadgen-cpus: " << e.what() << "\n";
+    return 2;
+  }
 
   char tmpl[] = "/tmp/tessera-coordinator-load-XXXXXX";
   if (!mkdtemp(tmpl)) {
@@ -553,6 +564,8 @@ int main(int argc, char** argv) {
   json out;
   out["benchmark"] = "coordinator_load";
   out["cores"] = std::thread::hardware_concurrency();
+  out["server_cpus"] = cfg.server_cpus;
+  out["loadgen_cpus"] = loadgen_cpus;
   out["runs"] = runs;
   const std::string table = markdown(runs);
   std::cout << table << std::flush;

@@ -8,6 +8,11 @@ local farm (`tessera submit` to a tessera-server with N tessera-workers of T thr
 A config NxT is N workers with T threads each; T = 0 means all cores. For a speedup curve on a
 big machine: --configs 1x1,2x1,4x1,8x1,16x1 (or 1x0 against 16x1, and so on).
 
+With --pin each process gets its own CPUs: the coordinator the first, the client (and the probe)
+the second, the workers' threads one CPU each from the third on; each config is then compared
+with `tessera render --threads N*T` on the workers' CPUs, so the ratio is the farm's cost at
+equal render cores (a machine needs 2 + N*T CPUs for NxT).
+
 For each run it reports:
   - wall seconds of what the user waits for (`tessera submit`: bundle upload, scheduling,
     network, frame assembly, EXR writing) and the ratio to `tessera render`;
@@ -49,6 +54,14 @@ def cores():
         return os.cpu_count() or 1
 
 
+def cpu_model():
+    with open("/proc/cpuinfo") as f:
+        for line in f:
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    return None
+
+
 def lo_bytes():
     with open("/proc/net/dev") as f:
         for line in f:
@@ -65,11 +78,16 @@ def cpu_of(pid):
     return (int(rest[11]) + int(rest[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def run_timed(argv, log):
+def pinned(cpus):
+    """A preexec_fn that confines the child to `cpus` (None: no confinement)."""
+    return None if cpus is None else (lambda: os.sched_setaffinity(0, cpus))
+
+
+def run_timed(argv, log, cpus=None):
     """Runs argv to completion; returns (wall seconds, CPU seconds of the child, exit code)."""
     with open(log, "w") as out:
         t0 = time.monotonic()
-        p = subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT)
+        p = subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT, preexec_fn=pinned(cpus))
         _, status, ru = os.wait4(p.pid, 0)
         wall = time.monotonic() - t0
     p.returncode = os.waitstatus_to_exitcode(status)
@@ -91,13 +109,15 @@ def maybe_enter_netns(argv):
 
 
 class Farm:
-    def __init__(self, build, tmp, name, workers, threads):
+    def __init__(self, build, tmp, name, workers, threads, layout=None):
         self.build, self.tmp, self.name = build, tmp, name
+        layout = layout or {}
         self.procs = []
         log = open(os.path.join(tmp, f"server-{name}.log"), "w")
         self.server = subprocess.Popen(
             [f"{build}/server/tessera-server", "--listen", "127.0.0.1:0", "--data-dir",
-             os.path.join(tmp, f"data-{name}"), "--log-level", "info"], stdout=log, stderr=subprocess.STDOUT)
+             os.path.join(tmp, f"data-{name}"), "--log-level", "info"], stdout=log, stderr=subprocess.STDOUT,
+            preexec_fn=pinned(layout.get("coordinator")))
         self.procs.append(self.server)
         self.address = None
         for _ in range(400):
@@ -117,7 +137,8 @@ class Farm:
             w = subprocess.Popen(
                 [f"{build}/worker/tessera-worker", "--coordinator", self.address, "--threads", str(threads),
                  "--name", f"bench{i}", "--cache-dir", os.path.join(tmp, f"cache-{name}-{i}"),
-                 "--log-level", "warn"], stdout=wlog, stderr=subprocess.STDOUT)
+                 "--log-level", "warn"], stdout=wlog, stderr=subprocess.STDOUT,
+                preexec_fn=pinned(layout["workers"][i] if "workers" in layout else None))
             self.workers.append(w)
             self.procs.append(w)
         # Wait until every worker is registered: their start-up is not what we measure.
@@ -125,6 +146,7 @@ class Farm:
             r = subprocess.run([f"{build}/client/tessera", "workers", "--coordinator", self.address, "--json"],
                                capture_output=True, text=True)
             if r.returncode == 0 and len(json.loads(r.stdout or "[]")) >= workers:
+                self.embree_isa = json.loads(r.stdout)[0].get("embree_isa")
                 return
             time.sleep(0.05)
         self.close()
@@ -145,12 +167,24 @@ class Farm:
                 p.wait()
 
 
+def cpu_layout(workers, threads):
+    """--pin: the coordinator on the first CPU, the client on the second, one CPU per worker thread."""
+    cpus = sorted(os.sched_getaffinity(0))
+    if 2 + workers * threads > len(cpus):
+        raise SystemExit(f"--pin: {workers}x{threads} needs {2 + workers * threads} CPUs, this process has {len(cpus)}")
+    return {"coordinator": {cpus[0]}, "client": {cpus[1]},
+            "workers": [set(cpus[2 + i * threads:2 + (i + 1) * threads]) for i in range(workers)],
+            "render": set(cpus[2:2 + workers * threads])}
+
+
 def run_farm(args, tmp, name, workers, threads):
-    farm = Farm(args.build, tmp, name, workers, threads)
+    layout = cpu_layout(workers, threads) if args.pin else {}
+    farm = Farm(args.build, tmp, name, workers, threads, layout)
     try:
         probe = subprocess.Popen([args.probe or f"{args.build}/bench/farm/first_tile_probe", "--coordinator",
                                   farm.address],
-                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                 preexec_fn=pinned(layout.get("client")))
         time.sleep(0.1)  # the probe's channel is connected before the clock starts
         cpu0 = farm.cpu()
         lo0 = lo_bytes()
@@ -158,7 +192,8 @@ def run_farm(args, tmp, name, workers, threads):
         wall, client_cpu, code = run_timed(
             [f"{args.build}/client/tessera", "submit", args.scene, "--coordinator", farm.address, "-o",
              os.path.join(tmp, f"farm-{name}.exr"), "--width", str(args.width), "--height", str(args.height),
-             "--spp", str(args.spp), "--tile", str(args.tile), "-q"], os.path.join(tmp, f"submit-{name}.log"))
+             "--spp", str(args.spp), "--tile", str(args.tile), "-q"], os.path.join(tmp, f"submit-{name}.log"),
+            layout.get("client"))
         lo1 = lo_bytes()
         server_cpu = cpu_of(farm.server.pid)  # since start: its idle time before the submit is ~0
         farm_cpu = farm.cpu() - cpu0
@@ -173,7 +208,9 @@ def run_farm(args, tmp, name, workers, threads):
             probe.kill()
             first = {"error": str(e)}
         pixels = args.width * args.height
-        return {"workers": workers, "threads_per_worker": threads, "seconds": wall,
+        tiles = -(-args.width // args.tile) * -(-args.height // args.tile)
+        return {"tiles": tiles, "embree_isa": farm.embree_isa, "coordinator_cpu_us_per_tile": server_cpu / tiles * 1e6,
+                "coordinator_core_use": server_cpu / wall,"workers": workers, "threads_per_worker": threads, "seconds": wall,
                 "cpu_seconds": client_cpu + farm_cpu, "client_cpu_seconds": client_cpu,
                 "coordinator_cpu_seconds": server_cpu,
                 "wire_bytes": (lo1 - lo0) if lo0 is not None else None,
@@ -212,32 +249,45 @@ def main():
     ap.add_argument("--markdown", help="write the markdown table here too")
     ap.add_argument("--probe", help="first_tile_probe binary (default: BUILD/bench/farm/first_tile_probe)")
     ap.add_argument("--no-netns", action="store_true", help="do not use a private network namespace")
+    ap.add_argument("--pin", action="store_true",
+                    help="coordinator, client and each worker thread on CPUs of their own; in-process with as many "
+                         "threads as the config's workers on their CPUs")
     args = ap.parse_args()
     if not args.no_netns:
         maybe_enter_netns(sys.argv[1:])
     ncores = cores()
     configs = parse_configs(args.configs, ncores)
     tmp = tempfile.mkdtemp(prefix="tessera-farm-overhead-")
-    inproc, farms = [], {c: [] for c in configs}
+    # In-process baselines by thread count: all cores once, or (--pin) each config's render cores.
+    baseline_threads = sorted({n * t for (n, t) in configs}) if args.pin else [ncores]
+    inproc, farms = {k: [] for k in baseline_threads}, {c: [] for c in configs}
+
+    def render_inprocess(threads):
+        cpus = cpu_layout(threads, 1)["render"] if args.pin else None
+        wall, cpu, code = run_timed(
+            [f"{args.build}/client/tessera", "render", args.scene, "-o", os.path.join(tmp, "inproc.exr"),
+             "--width", str(args.width), "--height", str(args.height), "--spp", str(args.spp),
+             "--tile", str(args.tile), "--threads", str(threads), "-q"], os.path.join(tmp, "render.log"), cpus)
+        if code != 0:
+            raise RuntimeError(f"tessera render failed ({code}): {open(os.path.join(tmp, 'render.log')).read()}")
+        inproc[threads].append({"seconds": wall, "cpu_seconds": cpu})
+
     try:
         for r in range(args.repeat):
-            wall, cpu, code = run_timed(
-                [f"{args.build}/client/tessera", "render", args.scene, "-o", os.path.join(tmp, "inproc.exr"),
-                 "--width", str(args.width), "--height", str(args.height), "--spp", str(args.spp),
-                 "--tile", str(args.tile), "-q"], os.path.join(tmp, "render.log"))
-            if code != 0:
-                raise RuntimeError(f"tessera render failed ({code}): {open(os.path.join(tmp, 'render.log')).read()}")
-            inproc.append({"seconds": wall, "cpu_seconds": cpu})
+            for k in baseline_threads:
+                render_inprocess(k)
             for (n, t) in configs:
                 farms[(n, t)].append(run_farm(args, tmp, f"{n}x{t}-{r}", n, t))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
     med = lambda xs: statistics.median(xs) if xs else None  # noqa: E731
-    in_wall = med([x["seconds"] for x in inproc])
-    in_cpu = med([x["cpu_seconds"] for x in inproc])
+    in_walls = {k: med([x["seconds"] for x in v]) for k, v in inproc.items()}
+    in_cpus = {k: med([x["cpu_seconds"] for x in v]) for k, v in inproc.items()}
     rows = []
     for (n, t), runs in farms.items():
+        base = n * t if args.pin else ncores
+        in_wall, in_cpu = in_walls[base], in_cpus[base]
         wall = med([x["seconds"] for x in runs])
         cpu = med([x["cpu_seconds"] for x in runs])
         bpp = [x["wire_bytes_per_pixel"] for x in runs if x["wire_bytes_per_pixel"] is not None]
@@ -245,27 +295,37 @@ def main():
         ftj = [x["first_tile"]["from_job_submitted_s"] for x in runs if "from_job_submitted_s" in x["first_tile"]]
         rows.append({"workers": n, "threads_per_worker": t, "seconds": wall, "wall_ratio": wall / in_wall,
                      "speedup_vs_inprocess": in_wall / wall, "cpu_seconds": cpu, "cpu_ratio": cpu / in_cpu,
+                     "inprocess_threads": base, "inprocess_seconds": in_wall, "inprocess_cpu_seconds": in_cpu,
                      "coordinator_cpu_seconds": med([x["coordinator_cpu_seconds"] for x in runs]),
+                     "coordinator_cpu_us_per_tile": med([x["coordinator_cpu_us_per_tile"] for x in runs]),
+                     "coordinator_core_use": med([x["coordinator_core_use"] for x in runs]),
                      "wire_bytes_per_pixel": med(bpp), "first_tile_s": med(ft), "first_tile_after_job_s": med(ftj),
                      "first_tile_exact": all(x["first_tile"].get("exact", False) for x in runs), "runs": runs})
     in_netns = bool(os.environ.get(NETNS_ENV))
     result = {"benchmark": "farm_overhead", "scene": args.scene, "width": args.width, "height": args.height,
-              "spp": args.spp, "tile": args.tile, "cores": ncores, "repeat": args.repeat,
+              "spp": args.spp, "tile": args.tile, "cores": ncores, "repeat": args.repeat, "pinned": args.pin,
+              "cpu": cpu_model(), "embree_isa": next((x["embree_isa"] for r in rows for x in r["runs"]), None),
               "load_average_after": float(open("/proc/loadavg").read().split()[0]),
               "bytes_source": "private network namespace: /proc/net/dev lo" if in_netns
               else "shared loopback /proc/net/dev lo (other traffic on this machine is counted too)",
-              "inprocess": {"seconds": in_wall, "cpu_seconds": in_cpu, "runs": inproc}, "farm": rows}
+              "inprocess": {str(k): {"seconds": in_walls[k], "cpu_seconds": in_cpus[k], "runs": inproc[k]}
+                            for k in baseline_threads}, "farm": rows}
 
-    lines = [f"{args.width}x{args.height}, {args.spp} spp, {args.tile} px tiles, {ncores} cores, "
+    lines = [f"{result['cpu']}, Embree {result['embree_isa']}; "
+             f"{args.width}x{args.height}, {args.spp} spp, {args.tile} px tiles, {ncores} cores, "
              f"median of {args.repeat}; bytes: {result['bytes_source']}", "",
-             "| setup | wall s | wall ratio | CPU s | CPU ratio | coord. CPU s | wire B/px | first tile s (from job) |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|",
-             f"| in-process, {ncores} threads | {in_wall:.3f} | 1.000 | {in_cpu:.2f} | 1.000 | - | - | - |"]
+             "| setup | wall s | wall ratio | CPU s | CPU ratio | coord. CPU s | coord. µs/tile | wire B/px | "
+             "first tile s (from job) |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for k in baseline_threads:
+        lines.append(f"| in-process, {k} threads{' (pinned)' if args.pin else ''} | {in_walls[k]:.3f} | 1.000 | "
+                     f"{in_cpus[k]:.2f} | 1.000 | - | - | - | - |")
     for r in rows:
         exact = "" if r["first_tile_exact"] else " (upper bound)"
         lines.append(f"| farm, {r['workers']} worker(s) x {r['threads_per_worker']} thread(s) | {r['seconds']:.3f} | "
                      f"{r['wall_ratio']:.3f} | {r['cpu_seconds']:.2f} | {r['cpu_ratio']:.3f} | "
-                     f"{fmt(r['coordinator_cpu_seconds'], '.2f')} | {fmt(r['wire_bytes_per_pixel'], '.1f')} | "
+                     f"{fmt(r['coordinator_cpu_seconds'], '.2f')} | {fmt(r['coordinator_cpu_us_per_tile'], '.0f')} | "
+                     f"{fmt(r['wire_bytes_per_pixel'], '.1f')} | "
                      f"{fmt(r['first_tile_s'], '.3f')} ({fmt(r['first_tile_after_job_s'], '.3f')}){exact} |")
     table = "\n".join(lines) + "\n"
     sys.stdout.write(table)

@@ -1,6 +1,7 @@
 #include "server_process.h"
 
 #include <fcntl.h>
+#include <sched.h>
 #include <signal.h>
 #include <sys/prctl.h>
 #include <sys/wait.h>
@@ -38,7 +39,34 @@ ProcStat proc_stat(pid_t pid) {
   return s;
 }
 
-ServerProcess::ServerProcess(const fs::path& exe, const fs::path& dir, const std::vector<std::string>& extra) {
+void pin_to_cpus(const std::vector<int>& cpus) {
+  if (cpus.empty()) return;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  std::string names;
+  for (int c : cpus) {
+    CPU_SET(c, &set);
+    names += (names.empty() ? "" : ",") + std::to_string(c);
+  }
+  if (sched_setaffinity(0, sizeof set, &set) != 0) throw std::runtime_error("cannot run on CPUs " + names);
+}
+
+std::vector<int> parse_cpu_list(const std::string& text) {
+  std::vector<int> out;
+  std::stringstream in(text);
+  for (std::string part; std::getline(in, part, ',');) {
+    const std::regex range(R"(\s*(\d+)\s*(?:-\s*(\d+))?\s*)");
+    std::smatch m;
+    if (!std::regex_match(part, m, range)) throw std::invalid_argument("CPU list '" + text + "': cannot read '" + part + "'");
+    const int lo = std::stoi(m[1]), hi = m[2].matched ? std::stoi(m[2]) : lo;
+    if (hi < lo || hi >= CPU_SETSIZE) throw std::invalid_argument("CPU list '" + text + "': bad range '" + part + "'");
+    for (int c = lo; c <= hi; ++c) out.push_back(c);
+  }
+  return out;
+}
+
+ServerProcess::ServerProcess(const fs::path& exe, const fs::path& dir, const std::vector<std::string>& extra,
+                             const std::vector<int>& cpus) {
   fs::create_directories(dir / "data");
   log_ = dir / "server.log";
   std::vector<std::string> argv = {exe.string(), "--listen", "127.0.0.1:0", "--data-dir", (dir / "data").string()};
@@ -49,6 +77,11 @@ ServerProcess::ServerProcess(const fs::path& exe, const fs::path& dir, const std
   if (pid_ == 0) {
     prctl(PR_SET_PDEATHSIG, SIGKILL);
     if (getppid() != parent) _exit(127);
+    try {
+      pin_to_cpus(cpus);
+    } catch (const std::exception&) {
+      _exit(126);
+    }
     const int fd = open(log_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (fd >= 0) {
       dup2(fd, 1);

@@ -22,12 +22,20 @@ struct ProcStat {
 // Reads /proc/PID/stat and /proc/PID/status. Throws std::runtime_error if the process is gone.
 ProcStat proc_stat(pid_t pid);
 
+// Confines the calling process to `cpus` (sched_setaffinity); empty: leaves it as it is.
+// Throws std::runtime_error naming the CPU list if the kernel refuses it.
+void pin_to_cpus(const std::vector<int>& cpus);
+
+// "0-3,8" -> {0,1,2,3,8}. Throws std::invalid_argument naming the part it cannot read.
+std::vector<int> parse_cpu_list(const std::string& text);
+
 class ServerProcess {
  public:
   // Starts `exe --listen 127.0.0.1:0 --data-dir DIR/data EXTRA...` with stdout and stderr in
-  // DIR/server.log, and waits (up to 20 s) for its "listening on HOST:PORT" line.
+  // DIR/server.log, and waits (up to 20 s) for its "listening on HOST:PORT" line. A non-empty
+  // `cpus` confines the coordinator to those CPUs (for scaling runs: its cores against the work).
   ServerProcess(const std::filesystem::path& exe, const std::filesystem::path& dir,
-                const std::vector<std::string>& extra);
+                const std::vector<std::string>& extra, const std::vector<int>& cpus = {});
   ~ServerProcess();
   ServerProcess(const ServerProcess&) = delete;
   ServerProcess& operator=(const ServerProcess&) = delete;
