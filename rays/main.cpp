@@ -181,6 +181,9 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::from_str(flags.log_level));
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ [rays] %v");
 
+  // Output through a pipe whose reader went away must cost the log lines, not the service
+  // (gRPC writes with MSG_NOSIGNAL, spdlog does not).
+  signal(SIGPIPE, SIG_IGN);
   sigset_t sigs;
   sigemptyset(&sigs);
   sigaddset(&sigs, SIGINT);

@@ -108,9 +108,10 @@ void raise_descriptor_limit() {
 
 // Returns SIGINT and SIGTERM, blocked: main takes them with sigwait.
 sigset_t block_signals() {
-  // A peer that closes its connection while the HTTP side (cpp-httplib, OpenSSL) writes to it must
-  // cost an error on that one connection, not the process: neither library asks the kernel not to
-  // raise SIGPIPE on every write (gRPC does), so ignore it for the whole process.
+  // A write to a pipe or socket whose reader went away must cost that write, not the process:
+  // spdlog writing to a pipe (`tessera-server | tee`, a log shipper that restarted) and OpenSSL
+  // write without MSG_NOSIGNAL (gRPC asks for it; cpp-httplib ignores SIGPIPE itself when its
+  // server is made, so with --http-listen this line is not the only guard).
   signal(SIGPIPE, SIG_IGN);
   // Signals are taken by one thread with sigwait: block them before any thread starts.
   sigset_t sigs;

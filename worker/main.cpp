@@ -70,6 +70,9 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::from_str(log_level));
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ [" + o.name + "] %v");
 
+  // Output through a pipe whose reader went away (`tessera-worker | tee`, a log shipper that
+  // restarted) must cost the log lines, not the worker: gRPC writes with MSG_NOSIGNAL, spdlog does not.
+  signal(SIGPIPE, SIG_IGN);
   sigset_t sigs;
   sigemptyset(&sigs);
   sigaddset(&sigs, SIGINT);

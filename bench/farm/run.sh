@@ -7,7 +7,8 @@
 #
 # --smoke: a seconds-long version for CI (tiny image, 10 simulated workers). It asserts nothing
 # about time; it fails only if something is broken (a process fails, a tile is lost).
-# On a machine with 16+ cores, add the speedup curve: --configs 1x0,1x1,2x1,4x1,8x1,16x1.
+# On a machine with 16+ cores, add the speedup curve: --configs 1x0,1x1,2x1,4x1,8x1,16x1, or run
+# bench/farm/scale.sh (every process on CPUs of its own; the coordinator on 1, 2 and 4 CPUs).
 set -euo pipefail
 HERE=$(cd "$(dirname "$0")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
@@ -27,7 +28,7 @@ while [ $# -gt 0 ]; do
     --workers) WORKERS=$2; shift 2 ;;
     --tiles) TILES=$2; shift 2 ;;
     --repeat) REPEAT=$2; shift 2 ;;
-    -h|--help) sed -n '2,11p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
     *) echo "run.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done

@@ -1,11 +1,17 @@
 // Bad workers (tessera-worker --test-fault, testing only): every wrong result is refused with
 // its precise reason in the coordinator's log, the worker is blocklisted for the job after
 // --max-faults of them, the good worker finishes the job bit-identical; and a job that every
-// worker fails on fails with a clear error instead of hanging.
+// worker fails on fails with a clear error instead of hanging; and daemons whose log reader goes
+// away keep working.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <poll.h>
 #include <sqlite3.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <thread>
 
 #include "farm_harness.h"
@@ -204,6 +210,71 @@ TEST(FarmFaults, JobFailsClearlyWhenEveryWorkerIsBlocklisted) {
   auto j = nlohmann::json::parse(st.output);
   EXPECT_EQ(j.at("state"), "failed");
   EXPECT_EQ(j.at("blocklisted_workers").size(), 2u) << st.output;
+}
+
+// A daemon's output read through a pipe (`tessera-server | tee log`, a log shipper) whose reader
+// goes away: every later log line is a write to a pipe without a reader, which raises SIGPIPE,
+// and SIGPIPE's default action ends the process. The coordinator and the worker lose the log
+// lines, not the job: both keep working, the frames are right and the worker leaves cleanly on
+// SIGTERM. (The builds before the guard in worker/main.cpp die at the first line after the reader
+// left: the worker on its SIGTERM line, the coordinator on its next debug line.)
+TEST(FarmFaults, ALogReaderThatGoesAwayEndsNeitherCoordinatorNorWorker) {
+  Farm farm;
+  // Opens a FIFO for reading (non-blocking, so a child can open it to write) and returns what
+  // arrives until `until` matches, or 20 s pass; the caller closes the descriptor.
+  const auto fifo_reader = [&](const std::string& name) {
+    const fs::path p = farm.dir() / name;
+    EXPECT_EQ(mkfifo(p.c_str(), 0600), 0) << p;
+    return std::pair{p, open(p.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC)};  // not the child's
+  };
+  const auto read_until = [](int fd, const std::regex& until) {
+    std::string text;
+    const auto end = std::chrono::steady_clock::now() + 20s;
+    std::smatch m;
+    while (!std::regex_search(text, m, until) && std::chrono::steady_clock::now() < end) {
+      pollfd p{fd, POLLIN, 0};
+      if (poll(&p, 1, 100) <= 0) continue;
+      char buf[4096];
+      const ssize_t n = read(fd, buf, sizeof buf);
+      if (n > 0) text.append(buf, size_t(n));
+    }
+    return std::regex_search(text, m, until) ? m[1].str() : std::string();
+  };
+
+  auto [server_fifo, server_out] = fifo_reader("server.fifo");
+  ASSERT_GE(server_out, 0);
+  auto server = std::make_unique<Process>(
+      std::vector<std::string>{bin("tessera-server"), "--listen", "127.0.0.1:0", "--data-dir",
+                               farm.data_dir().string(), "--log-level", "debug"},
+      server_fifo);
+  const std::string address = read_until(server_out, std::regex("listening on (127\\.0\\.0\\.1:[0-9]+)"));
+  ASSERT_FALSE(address.empty()) << "no 'listening on' line from the coordinator";
+  close(server_out);  // the reader goes away
+
+  auto [worker_fifo, worker_out] = fifo_reader("worker.fifo");
+  ASSERT_GE(worker_out, 0);
+  Process worker({bin("tessera-worker"), "--coordinator", address, "--threads", "1", "--name", "w1", "--cache-dir",
+                  (farm.dir() / "cache").string(), "--log-level", "info"},
+                 worker_fifo);
+  ASSERT_FALSE(read_until(worker_out, std::regex("(connected to)")).empty()) << "the worker did not connect";
+  close(worker_out);
+
+  // The coordinator logs at debug level for every message it takes: a job is dozens of lines.
+  const fs::path out = farm.dir() / "out";
+  CliResult s = farm.cli({"submit", kScene.string(), "--coordinator", address, "--tile", "16", "-o",
+                          (out / "frame_####.exr").string()},
+                         60s);
+  ASSERT_EQ(s.code, 0) << s.output << "\nthe worker " << (worker.running() ? "runs" : "died");
+  for (int f = 0; f < 3; ++f) {
+    EXPECT_EQ(compare_exr(out / ("frame_000" + std::to_string(f) + ".exr"), reference_frame(kScene, f, {})), "")
+        << "frame " << f;
+  }
+  EXPECT_TRUE(server->running()) << "the coordinator died";
+  EXPECT_EQ(farm.cli({"status", "--coordinator", address}).code, 0);
+  // SIGTERM: the worker logs that it finishes its tiles and leaves, then leaves with status 0.
+  worker.signal(SIGTERM);
+  EXPECT_EQ(worker.wait(20s), 0) << "the worker did not leave cleanly (128 + 13: it died of SIGPIPE)";
+  EXPECT_TRUE(server->running()) << "the coordinator died";
 }
 
 }  // namespace

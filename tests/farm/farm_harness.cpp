@@ -36,10 +36,13 @@ Process::Process(const std::vector<std::string>& argv, const fs::path& log) : lo
     const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     dup2(fd, 1);
     dup2(fd, 2);
-    // Children must never inherit a blocked signal mask or the test's stdin.
+    // Children must never inherit a blocked signal mask, an ignored signal or the test's stdin:
+    // they start as a container or a shell starts them. (exec keeps SIG_IGN: the shell that runs
+    // the tests may ignore SIGPIPE, which would hide a daemon that dies of it.)
     sigset_t none;
     sigemptyset(&none);
     sigprocmask(SIG_SETMASK, &none, nullptr);
+    for (int sig = 1; sig < NSIG; ++sig) ::signal(sig, SIG_DFL);  // SIGKILL/SIGSTOP refuse: fine
     const int devnull = open("/dev/null", O_RDONLY);
     dup2(devnull, 0);
     std::vector<char*> args;

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <httplib.h>
 #include <netinet/in.h>
+#include <openssl/ssl.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -182,6 +183,68 @@ TEST(MonitorHttp, TlsServesHttpsWithTheCoordinatorsCertificate) {
   plain.set_read_timeout(3, 0);
   auto no = plain.Get("/api/farm");
   EXPECT_TRUE(!no || no->status != 200);
+}
+
+// Clients that leave while the answer is being written, as a browser tab closed mid-load does:
+// after the request they close (FIN: the server's next write meets a reset peer, EPIPE) or reset
+// (RST, SO_LINGER 0), over plain HTTP and over TLS, without reading the answer. Each costs its own
+// connection only: the coordinator runs on (SIGPIPE would end it), answers the next client, and
+// the farm's gRPC side is unaffected. (cpp-httplib ignores SIGPIPE itself when its server is made,
+// so this holds without server/main.cpp's guard too; that guard's own test is
+// FarmFaults.ALogReaderThatGoesAwayEndsNeitherCoordinatorNorWorker.)
+TEST(MonitorHttp, ClientsThatLeaveMidAnswerCostOnlyTheirConnection) {
+  const auto leave = [](int port, SSL_CTX* tls, bool reset) {
+    const std::vector<int> c = silent_connections(port, 1);
+    if (c.size() != 1) return false;
+    const std::string req = "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+    bool sent = false;
+    if (tls) {
+      SSL* ssl = SSL_new(tls);
+      SSL_set_fd(ssl, c[0]);
+      sent = SSL_connect(ssl) == 1 && SSL_write(ssl, req.data(), int(req.size())) == int(req.size());
+      SSL_free(ssl);  // no close_notify: the peer just goes
+    } else {
+      sent = send(c[0], req.data(), req.size(), MSG_NOSIGNAL) == ssize_t(req.size());
+    }
+    if (reset) {
+      const linger hard{1, 0};
+      setsockopt(c[0], SOL_SOCKET, SO_LINGER, &hard, sizeof hard);
+    }
+    close(c[0]);
+    return sent;
+  };
+  for (const bool use_tls : {false, true}) {
+    SCOPED_TRACE(use_tls ? "https" : "http");
+    Farm farm;
+    const fs::path d = farm.dir();
+    std::vector<std::string> args{"--http-listen", "127.0.0.1:0"};
+    SSL_CTX* tls = nullptr;
+    if (use_tls) {
+      ASSERT_EQ(std::system(("cd " + d.string() + " && openssl req -x509 -newkey ec -pkeyopt "
+                             "ec_paramgen_curve:prime256v1 -nodes -keyout server.key -out server.pem -days 2 "
+                             "-subj /CN=localhost -addext subjectAltName=IP:127.0.0.1 2>openssl.log").c_str()),
+                0);
+      args.insert(args.end(), {"--tls-cert", (d / "server.pem").string(), "--tls-key", (d / "server.key").string()});
+      tls = SSL_CTX_new(TLS_client_method());  // no verification: these clients only leave
+    }
+    farm.start_server(args);
+    const int port = http_port(farm);
+    int sent = 0;
+    for (int i = 0; i < 60; ++i) sent += leave(port, tls, i % 2 == 1);
+    EXPECT_EQ(sent, 60);
+    std::this_thread::sleep_for(500ms);  // the answers meet the closed connections
+    EXPECT_TRUE(farm.server().running()) << "the coordinator died:\n" << farm.server().log();
+    std::unique_ptr<httplib::Client> http = std::make_unique<httplib::Client>(
+        (use_tls ? "https://127.0.0.1:" : "http://127.0.0.1:") + std::to_string(port));
+    http->enable_server_certificate_verification(false);
+    auto r = http->Get("/api/farm");
+    ASSERT_TRUE(r) << httplib::to_string(r.error());
+    EXPECT_EQ(r->status, 200);
+    std::vector<std::string> status{"status", "--coordinator", farm.address()};
+    if (use_tls) status.insert(status.end(), {"--tls-ca", (d / "server.pem").string()});
+    EXPECT_EQ(farm.cli(status).code, 0) << "the gRPC side";
+    if (tls) SSL_CTX_free(tls);
+  }
 }
 
 // Issue 26's reproduction: 40 connections send a request line, then one header byte a second.
