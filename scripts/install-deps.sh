@@ -19,6 +19,8 @@ CHECK_PKGS=(openimageio-tools openexr python3-grpcio python3-grpc-tools python3-
 CHECK_PKGS+=(openssl clang libclang-rt-14-dev)  # TLS tests make a throwaway CA; fuzz/run.sh (libFuzzer)
 # tests/farm/farm_monitor_test: a real Prometheus scraping /metrics, the monitor in headless Chromium.
 CHECK_PKGS+=(prometheus chromium chromium-driver python3-selenium)
+# tests/farm/farm_slurm_test: a single-node Slurm on localhost places workers (docker/slurm).
+CHECK_PKGS+=(slurm-wlm munge)
 # Used by the benchmarks in bench/ only (pngquant is a GPL comparator, run, never linked).
 BENCH_PKGS=(bc time pngquant gnuplot-nox povray)
 

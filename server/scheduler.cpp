@@ -354,6 +354,7 @@ Scheduler::ResultOutcome Scheduler::complete(WorkerId worker, LeaseId lease_id, 
   ++frame.done;
   ++job.tiles_done;
   job.rays += tile.output.rays;
+  job.tile_seconds += tile.output.seconds;
   end_lease(lease_id, LeaseEnd::kCompleted, false);
   // First copy wins: the other copy's worker should stop wasting time on it.
   const std::vector<LeaseId> others = tile.leases;
@@ -441,6 +442,7 @@ void Scheduler::restore(JobRecord rec) {
     ++fr.done;
     ++job.tiles_done;
     job.rays += t.output.rays;
+    job.tile_seconds += t.output.seconds;
   }
   for (int f : rec.acknowledged) {
     const int fi = f - job.spec.first_frame;
@@ -518,6 +520,7 @@ JobSnapshot Scheduler::snapshot(const Job& job) const {
   s.tiles_total = int64_t(job.frames.size()) * s.tiles_per_frame;
   s.tiles_done = job.tiles_done;
   s.rays = job.rays;
+  s.tile_seconds = job.tile_seconds;
   s.blocklisted.assign(job.blocklisted.begin(), job.blocklisted.end());
   for (size_t f = 0; f < job.frames.size(); ++f) {
     const Frame& fr = job.frames[f];

@@ -139,6 +139,7 @@ struct JobSnapshot : JobHeader {
   int64_t tiles_done = 0;
   int64_t tiles_leased = 0;        // tiles with at least one active lease
   uint64_t rays = 0;
+  double tile_seconds = 0;         // render time of its done tiles, one thread each, summed
   std::vector<std::string> blocklisted;  // worker names refused for this job
   std::vector<int> frames_done;
   std::vector<int> frames_acknowledged;
@@ -295,6 +296,7 @@ class Scheduler {
     std::deque<std::pair<int, int>> queue;  // (frame index, tile) waiting for a worker
     int64_t tiles_done = 0;
     uint64_t rays = 0;
+    double tile_seconds = 0;  // render time of the done tiles (JobSnapshot::tile_seconds)
     std::map<std::string, int> faults;   // worker name -> faults for this job
     std::set<std::string> blocklisted;   // worker names that get no more tiles of this job
     bool held = false;                   // see hold()

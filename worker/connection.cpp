@@ -100,8 +100,29 @@ void WorkerConnection::sleep_backoff(std::chrono::milliseconds d) {
   cv_.wait_for(lock, d, [this] { return stop_.load(); });
 }
 
+void WorkerConnection::watch_idle() {
+  using Clock = std::chrono::steady_clock;
+  auto idle_since = Clock::now();
+  std::unique_lock lock(mu_);
+  while (!cv_.wait_for(lock, std::chrono::milliseconds(100), [this] { return stop_.load(); })) {
+    // Assignments go into the pool as they arrive and leave it when their result is handed on,
+    // so an empty pool is a worker without a tile (the last batch goes at once when it empties).
+    if (pool_.busy() > 0) {
+      idle_since = Clock::now();
+    } else if (Clock::now() - idle_since >= options_.exit_when_idle) {
+      lock.unlock();
+      spdlog::info("no tile for {:.1f} s (--exit-when-idle): leaving",
+                   std::chrono::duration<double>(options_.exit_when_idle).count());
+      request_stop();
+      return;
+    }
+  }
+}
+
 int WorkerConnection::run() {
   static thread_local std::mt19937 rng{std::random_device{}()};
+  std::thread idle;
+  if (options_.exit_when_idle.count() > 0) idle = std::thread([this] { watch_idle(); });
   ReconnectPolicy policy(options_.backoff_initial, options_.backoff_max);
   std::uniform_real_distribution<double> jitter(ReconnectPolicy::kMinJitter, ReconnectPolicy::kMaxJitter);
   while (!stop_) {
@@ -116,6 +137,12 @@ int WorkerConnection::run() {
       farm::wait_for_coordinator(*channel_, wait, [this] { return stop_.load(); });
     }
   }
+  {
+    std::lock_guard lock(mu_);
+    stop_ = true;  // ends watch_idle when a signal stopped us
+  }
+  cv_.notify_all();
+  if (idle.joinable()) idle.join();
   spdlog::info("worker stopped");
   return 0;
 }

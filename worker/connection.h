@@ -1,7 +1,8 @@
 // The worker's life: connect to the coordinator, register, pull tiles, render them on the pool,
 // stream results back; on a lost connection, reconnect with exponential backoff (with jitter, so
 // a restarted coordinator is not hit by every worker at the same instant). request_stop()
-// leaves cleanly: unstarted tiles are returned, running ones finished and sent.
+// leaves cleanly: unstarted tiles are returned, running ones finished and sent. With
+// `exit_when_idle`, the worker leaves that way by itself once it has held no tile for that long.
 #pragma once
 
 #include <grpcpp/grpcpp.h>
@@ -35,6 +36,9 @@ struct WorkerOptions {
   std::string test_fault;
   // How results are gathered into messages, and so how many tiles the worker keeps on hand.
   farm::ResultBatching batching;
+  // Leave (as on SIGTERM) once no tile has been on hand for this long, connected or not: a batch
+  // allocation or a Kubernetes Job then ends with the farm's queue. Zero: never.
+  std::chrono::milliseconds exit_when_idle{0};
   std::chrono::milliseconds backoff_initial{200};
   std::chrono::milliseconds backoff_max{10000};
 };
@@ -43,7 +47,8 @@ class WorkerConnection {
  public:
   explicit WorkerConnection(WorkerOptions options);
   ~WorkerConnection();
-  // Runs sessions until request_stop(). Returns the process exit code.
+  // Runs sessions until request_stop() (or, with exit_when_idle, until idle that long). Returns
+  // the process exit code.
   int run();
   // Thread-safe; called from the signal thread.
   void request_stop();
@@ -57,6 +62,9 @@ class WorkerConnection {
   void inject_test_fault(tessera::v1::TileResult* r) const;  // --test-fault
   std::string fetch_bundle(const std::string& sha256);
   void sleep_backoff(std::chrono::milliseconds d);
+  // --exit-when-idle: watches the render pool and calls request_stop() once it has been empty
+  // for options_.exit_when_idle; returns when that happened or stop_ was set otherwise.
+  void watch_idle();
 
   WorkerOptions options_;
   std::shared_ptr<grpc::Channel> channel_;

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <atomic>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -42,6 +43,14 @@ int main(int argc, char** argv) {
                  "render")
       ->capture_default_str()
       ->check(CLI::Range(0, 1000));
+  double idle_s = 0;
+  app.add_option("--exit-when-idle", idle_s,
+                 "Leave, exit status 0, after this many seconds without a tile (connected or not; the same clean "
+                 "leave as SIGTERM), so a batch allocation or a Kubernetes Job ends with the farm's queue. "
+                 "0: never")
+      ->envname("TESSERA_EXIT_WHEN_IDLE")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1e7));
   app.add_option("--test-delay-ms", o.extra_delay_ms, "Testing only: sleep this long after each tile")
       ->check(CLI::Range(0, 60000));
   app.add_option("--test-fault", o.test_fault,
@@ -61,6 +70,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   o.cache_dir = cache;
   o.batching.linger = std::chrono::milliseconds(linger_ms);
+  o.exit_when_idle = std::chrono::milliseconds(int64_t(idle_s * 1000));
   try {
     o.security.token = tessera::farm::read_token(token_file, "TESSERA_WORKER_TOKEN");
   } catch (const std::exception& e) {
@@ -88,9 +98,14 @@ int main(int argc, char** argv) {
   }
   // First SIGTERM/SIGINT: leave cleanly (return unstarted tiles, finish running ones).
   // A second one: leave now.
+  std::atomic<bool> ended{false};
   std::thread signals([&] {
-    int sig = 0;
-    sigwait(&sigs, &sig);
+    // Waits in steps so that it ends with run() when the worker leaves by itself (--exit-when-idle).
+    const timespec step{0, 200'000'000};
+    int sig = -1;
+    while (!ended && (sig = sigtimedwait(&sigs, nullptr, &step)) < 0) {
+    }
+    if (sig < 0) return;
     spdlog::info("signal {}: finishing current tiles and leaving (again to quit at once)", sig);
     std::thread([&] {
       int again = 0;
@@ -100,7 +115,7 @@ int main(int argc, char** argv) {
     conn->request_stop();
   });
   const int rc = conn->run();
-  // run() returns only after a stop request, so the signal thread has been through sigwait.
+  ended = true;
   signals.join();
   return rc;
 }

@@ -49,6 +49,11 @@ size_t RenderPool::queued() {
   return queue_.size();
 }
 
+size_t RenderPool::busy() {
+  std::lock_guard lock(mu_);
+  return queue_.size() + size_t(running_);
+}
+
 void RenderPool::wait_idle() {
   std::unique_lock lock(mu_);
   idle_cv_.wait(lock, [this] { return queue_.empty() && running_ == 0; });

@@ -30,6 +30,8 @@ class RenderPool {
   int threads() const { return int(threads_.size()); }
   // Tasks posted and not started.
   size_t queued();
+  // Tasks posted and not finished (queued or running).
+  size_t busy();
 
  private:
   void run();

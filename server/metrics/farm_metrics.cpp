@@ -2,6 +2,7 @@
 
 #include <prometheus/text_serializer.h>
 
+#include <algorithm>
 #include <map>
 
 namespace tessera::server {
@@ -72,7 +73,11 @@ FarmMetrics::FarmMetrics(Coordinator& coordinator, JobStore* jobs)
       store_queued_(gauges(registry_, "tessera_store_queued_writes", "Writes waiting for the store's next batch").Add({})),
       ray_servers_(gauges(registry_, "tessera_ray_servers",
                           "Ray servers (tessera-rays) announced to the coordinator and not expired")
-                       .Add({})) {
+                       .Add({})),
+      work_(gauges(registry_, "tessera_work_seconds",
+                   "Render-thread seconds the tiles not yet done need, by state (queued: waiting for a worker; "
+                   "leased: being rendered): each job's tiles times its mean tile time so far, else the mean of "
+                   "every tile finished since start, else 1 s a tile")) {
   coordinator.add_observer(this);
   if (jobs) jobs->set_batch_observer([this](double s, uint64_t bytes) { store_batch(s, bytes); });
   // Every state is exported from the first scrape on, at 0 when empty, so a query for one
@@ -81,6 +86,7 @@ FarmMetrics::FarmMetrics(Coordinator& coordinator, JobStore* jobs)
     jobs_.Add({{"state", job_state_name(s)}});
   }
   for (const char* s : {"queued", "leased", "done"}) tiles_.Add({{"state", s}});
+  for (const char* s : {"queued", "leased"}) work_.Add({{"state", s}});
 }
 
 void FarmMetrics::tile_leased(const Assignment& a) {
@@ -96,6 +102,8 @@ void FarmMetrics::tile_finished(const TileKey&, const TileOutput& out, WorkerId)
   tiles_completed_.Increment();
   rays_.Increment(double(out.rays));
   tile_seconds_.Observe(out.seconds);
+  finished_seconds_.fetch_add(out.seconds, std::memory_order_relaxed);
+  finished_tiles_.fetch_add(1, std::memory_order_relaxed);
 }
 
 void FarmMetrics::worker_faulted(const JobId&, const WorkerStats&, std::string_view, int, bool blocklisted) {
@@ -124,6 +132,18 @@ std::string FarmMetrics::scrape() {
   tiles_.Add({{"state", "queued"}}).Set(double(f.tiles_queued));
   tiles_.Add({{"state", "leased"}}).Set(leased);
   tiles_.Add({{"state", "done"}}).Set(done);
+  // Work left (the header says how it is estimated).
+  const int64_t timed = finished_tiles_.load(std::memory_order_relaxed);
+  const double untimed_mean = timed > 0 ? finished_seconds_.load(std::memory_order_relaxed) / double(timed) : 1.0;
+  double work_queued = 0, work_leased = 0;
+  for (const JobSnapshot& j : f.jobs) {
+    if (job_ended(j.state)) continue;
+    const double mean = j.tiles_done > 0 ? j.tile_seconds / double(j.tiles_done) : untimed_mean;
+    work_leased += double(j.tiles_leased) * mean;
+    work_queued += double(std::max<int64_t>(0, j.tiles_total - j.tiles_done - j.tiles_leased)) * mean;
+  }
+  work_.Add({{"state", "queued"}}).Set(work_queued);
+  work_.Add({{"state", "leased"}}).Set(work_leased);
   // ISAs seen since start keep their series (at 0 once their workers left): a series that
   // vanishes reads as "no data" rather than "no workers".
   std::map<std::string, double> by_isa;

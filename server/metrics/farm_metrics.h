@@ -6,8 +6,15 @@
 //   - events (tiles completed, rays, leases expired, speculative copies, faults, store batches):
 //     counted as they happen, as a scheduler observer (Coordinator::add_observer). Each event
 //     costs an atomic add or a histogram bucket, under the coordinator's mutex;
-//   - levels (jobs by state, tiles queued / leased / done, workers, ray servers, watch backlog): read from a
-//     Coordinator::snapshot() when Prometheus scrapes, so they cost nothing in between.
+//   - levels (jobs by state, tiles queued / leased / done, work left, workers, ray servers, watch
+//     backlog): read from a Coordinator::snapshot() when Prometheus scrapes, so they cost nothing
+//     in between.
+//
+// tessera_work_seconds is the level an autoscaler sizes the workers by (docker/k8s/keda): the
+// render-thread seconds the tiles not yet done need, queued or leased, estimated per job as its
+// tiles times its own mean tile time so far; a job with no tile done yet is counted at the mean
+// tile time of every tile finished since the coordinator started, and before any tile finished at
+// a nominal second a tile, so that a scaler at zero workers sees a new job at all.
 //
 // Labels stay bounded: job states and tile states are fixed sets, workers are counted per
 // Embree ISA (a handful of values). No label carries a job id or a worker name: those grow
@@ -20,6 +27,7 @@
 #include <prometheus/histogram.h>
 #include <prometheus/registry.h>
 
+#include <atomic>
 #include <mutex>
 #include <set>
 #include <string>
@@ -74,6 +82,10 @@ class FarmMetrics : public SchedulerListener {
   prometheus::Gauge& watch_backlog_;
   prometheus::Gauge& store_queued_;
   prometheus::Gauge& ray_servers_;
+  prometheus::Family<prometheus::Gauge>& work_;
+  // Every tile finished since start (tile_finished), for the work estimate of untimed jobs.
+  std::atomic<double> finished_seconds_{0};
+  std::atomic<int64_t> finished_tiles_{0};
   std::mutex scrape_mu_;  // one scrape at a time sets the levels
 };
 

@@ -1,7 +1,9 @@
 #!/usr/bin/python3
 """Checks the container definitions that no test here can run: the Kubernetes manifests in
-docker/k8s (no cluster on these machines) and the structure of docker/compose.yaml, the root
-compose.yaml and docker/Dockerfile.
+docker/k8s, its KEDA overlay (docker/k8s/keda) and batch Job (docker/k8s/batch) (no cluster on
+these machines), and the structure of docker/compose.yaml, the root compose.yaml and
+docker/Dockerfile. A KEDA query may only read metrics the coordinator registers
+(server/metrics/farm_metrics.cpp).
 
 Every YAML document is parsed; then the fields a cluster or compose would need are checked, and
 the references between objects (Service selector -> pod labels, HPA -> Deployment, volume ->
@@ -48,19 +50,175 @@ def load_yaml_docs(path):
         return [d for d in yaml.safe_load_all(f) if d is not None]
 
 
+# The folders beside the base manifests: the KEDA overlay and the batch Job (keys "keda/NAME").
+K8S_EXTRAS = ("keda", "batch")
+
+
 def load_k8s(root):
     k8s = os.path.join(root, "docker", "k8s")
     files = {}
-    for name in sorted(os.listdir(k8s)):
-        if name.endswith((".yaml", ".yml")):
-            files[name] = load_yaml_docs(os.path.join(k8s, name))
+    for sub in ("",) + K8S_EXTRAS:
+        folder = os.path.join(k8s, sub)
+        for name in sorted(os.listdir(folder)):
+            if name.endswith((".yaml", ".yml")):
+                files[f"{sub}/{name}" if sub else name] = load_yaml_docs(os.path.join(folder, name))
     return files
+
+
+def exported_metrics(root):
+    """The metric names the coordinator registers (server/metrics/farm_metrics.cpp)."""
+    with open(os.path.join(root, "server", "metrics", "farm_metrics.cpp")) as f:
+        return set(re.findall(r'"(tessera_[a-z0-9_]+)"', f.read()))
+
+
+# Set by main: what a scaler's query may name (histograms add _sum, _count and _bucket).
+METRICS = set()
+
+
+def number(text):
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return None
+
+
+def base_files(files):
+    return {n: d for n, d in files.items() if "/" not in n}
+
+
+def coordinator_service(files):
+    """(name, ports as strings) of the base Service whose name names the coordinator."""
+    for docs in base_files(files).values():
+        for d in docs:
+            if isinstance(d, dict) and d.get("kind") == "Service" and "coordinator" in get(d, "metadata.name", ""):
+                return get(d, "metadata.name"), {str(p.get("port")) for p in get(d, "spec.ports") or []}
+    return None, set()
+
+
+def objects_in(files, folder, kind):
+    """[(where, doc)] of the objects of `kind` in docker/k8s/<folder>/."""
+    return [(f"docker/k8s/{n} {kind}/{get(d, 'metadata.name')}", d) for n, docs in files.items()
+            if n.startswith(folder + "/") for d in docs if isinstance(d, dict) and d.get("kind") == kind]
+
+
+def check_keda(files):
+    """docker/k8s/keda: the base with its CPU HPA deleted and a ScaledObject on the workers."""
+    errs = []
+    base = {(d.get("kind"), get(d, "metadata.name")): d for docs in base_files(files).values() for d in docs
+            if isinstance(d, dict)}
+    kust = (files.get("keda/kustomization.yaml") or [None])[0]
+    if not kust:
+        return ["docker/k8s/keda: no kustomization.yaml (kubectl apply -k docker/k8s/keda)"]
+    resources = kust.get("resources") or []
+    if ".." not in resources and "../" not in resources:
+        errs.append("docker/k8s/keda/kustomization.yaml: resources does not include the base (..)")
+    for name in files:
+        if name.startswith("keda/") and name != "keda/kustomization.yaml" and name[5:] not in resources:
+            errs.append(f"docker/k8s/keda/kustomization.yaml: resources does not list {name[5:]}")
+    deleted = set()
+    for p in kust.get("patches") or []:
+        try:
+            doc = yaml.safe_load(p.get("patch", "")) if isinstance(p, dict) else None
+        except yaml.YAMLError as e:
+            errs.append(f"docker/k8s/keda/kustomization.yaml: a patch is not YAML: {e}")
+            continue
+        if isinstance(doc, dict) and doc.get("$patch") == "delete":
+            deleted.add((doc.get("kind"), get(doc, "metadata.name")))
+    for (kind, name), d in base.items():
+        if kind == "HorizontalPodAutoscaler" and (kind, name) not in deleted:
+            errs.append(f"docker/k8s/keda: the base's HorizontalPodAutoscaler {name} is not deleted "
+                        "(KEDA makes its own; two would fight over the Deployment)")
+    scaled = objects_in(files, "keda", "ScaledObject")
+    if not scaled:
+        errs.append("docker/k8s/keda: no ScaledObject")
+    for w, d in scaled:
+        if not str(d.get("apiVersion", "")).startswith("keda.sh/"):
+            errs.append(f"{w}: apiVersion {d.get('apiVersion')!r} is not KEDA's (keda.sh/v1alpha1)")
+        ref = get(d, "spec.scaleTargetRef") or {}
+        target = base.get((ref.get("kind", "Deployment"), ref.get("name")))
+        if target is None or "worker" not in ref.get("name", ""):
+            errs.append(f"{w}: scaleTargetRef {ref.get('kind', 'Deployment')}/{ref.get('name')} is not the worker "
+                        "Deployment of docker/k8s")
+        lo, hi = get(d, "spec.minReplicaCount", 0), get(d, "spec.maxReplicaCount", 100)
+        if not isinstance(lo, int) or not isinstance(hi, int) or not 0 <= lo <= hi or hi < 1:
+            errs.append(f"{w}: needs 0 <= minReplicaCount ({lo}) <= maxReplicaCount ({hi}), maxReplicaCount >= 1")
+        triggers = get(d, "spec.triggers") or []
+        if not triggers:
+            errs.append(f"{w}: no triggers")
+        for t in triggers:
+            if t.get("type") != "prometheus":
+                errs.append(f"{w}: trigger type {t.get('type')!r}, expected prometheus")
+                continue
+            md = t.get("metadata") or {}
+            if not re.match(r"https?://[^/\s]+", str(md.get("serverAddress", ""))):
+                errs.append(f"{w}: serverAddress {md.get('serverAddress')!r} is not an http(s) URL")
+            names = set(re.findall(r"\btessera_[a-z0-9_]+", str(md.get("query", ""))))
+            if not names:
+                errs.append(f"{w}: the query {md.get('query')!r} reads no tessera_ metric")
+            for m in names:
+                if m not in METRICS and re.sub(r"_(sum|count|bucket)$", "", m) not in METRICS:
+                    errs.append(f"{w}: the query reads {m}, which the coordinator does not export")
+            # KEDA takes thresholds as strings of numbers.
+            if not isinstance(md.get("threshold"), str) or (number(md.get("threshold")) or 0) <= 0:
+                errs.append(f"{w}: threshold {md.get('threshold')!r} is not a quoted number > 0")
+            if "activationThreshold" in md and (not isinstance(md["activationThreshold"], str)
+                                                or number(md["activationThreshold"]) is None
+                                                or number(md["activationThreshold"]) < 0):
+                errs.append(f"{w}: activationThreshold {md['activationThreshold']!r} is not a quoted number >= 0")
+    return errs
+
+
+def check_batch(files):
+    """docker/k8s/batch: Indexed Jobs of workers that end with the farm's queue."""
+    errs = []
+    service, sports = coordinator_service(files)
+    jobs = objects_in(files, "batch", "Job")
+    if not jobs:
+        errs.append("docker/k8s/batch: no Job")
+    for w, d in jobs:
+        if d.get("apiVersion") != "batch/v1":
+            errs.append(f"{w}: apiVersion {d.get('apiVersion')!r}, expected batch/v1")
+        if get(d, "spec.completionMode") != "Indexed":
+            errs.append(f"{w}: completionMode {get(d, 'spec.completionMode')!r}, expected Indexed")
+        completions, parallelism = get(d, "spec.completions"), get(d, "spec.parallelism")
+        if not isinstance(completions, int) or not isinstance(parallelism, int) or not 1 <= parallelism <= completions:
+            errs.append(f"{w}: needs 1 <= parallelism ({parallelism}) <= completions ({completions})")
+        if not isinstance(get(d, "spec.backoffLimit"), int):
+            errs.append(f"{w}: missing spec.backoffLimit")
+        if get(d, "spec.template.spec.restartPolicy") not in ("Never", "OnFailure"):
+            errs.append(f"{w}: restartPolicy must be Never or OnFailure for a Job")
+        containers = get(d, "spec.template.spec.containers") or []
+        if not containers:
+            errs.append(f"{w}: no containers")
+        for c in containers:
+            cw = f"{w} container {c.get('name')}"
+            if not c.get("image"):
+                errs.append(f"{cw}: missing image")
+            args = [str(a) for a in c.get("args") or []]
+            idle = [a.split("=", 1)[1] if "=" in a else (args[i + 1] if i + 1 < len(args) else "")
+                    for i, a in enumerate(args) if a.startswith("--exit-when-idle")]
+            if not idle or (number(idle[0]) or 0) <= 0:
+                errs.append(f"{cw}: no --exit-when-idle > 0: its pods would never finish and the Job never complete")
+            env = {e.get("name"): e.get("value") for e in c.get("env") or []}
+            host, _, port = str(env.get("TESSERA_COORDINATOR", "")).rpartition(":")
+            if service is None or host.split(".")[0] != service or port not in sports:
+                errs.append(f"{cw}: TESSERA_COORDINATOR={env.get('TESSERA_COORDINATOR')!r} is not the coordinator "
+                            f"Service {service}:{'/'.join(sorted(sports))}")
+            for res in ("cpu", "memory"):
+                if not get(c, f"resources.requests.{res}"):
+                    errs.append(f"{cw}: missing resources.requests.{res}")
+            threads = [a for a in args if a.startswith("--threads")]
+            cpu = str(get(c, "resources.requests.cpu", ""))
+            if threads and cpu and not cpu.endswith("m") and threads[0].split("=")[-1] != cpu:
+                errs.append(f"{cw}: {threads[0]} but requests.cpu {cpu}")
+    return errs
 
 
 def check_k8s(files):
     errs = []
     objects = []  # (file, doc)
     kustomization = None
+    files = base_files(files)
     for name, docs in files.items():
         for i, d in enumerate(docs):
             where = f"docker/k8s/{name} document {i + 1}"
@@ -329,7 +487,8 @@ def check_compose(compose, root_compose, stages):
 
 
 def check_all(k8s, compose, root_compose, stages):
-    return check_k8s(k8s) + check_dockerfile(stages) + check_compose(compose, root_compose, stages)
+    return (check_k8s(k8s) + check_keda(k8s) + check_batch(k8s) + check_dockerfile(stages)
+            + check_compose(compose, root_compose, stages))
 
 
 def self_test(k8s, compose, root_compose, stages):
@@ -361,6 +520,14 @@ def self_test(k8s, compose, root_compose, stages):
         "root compose does not extend": lambda k, c, r, s: r["services"]["worker"].pop("extends"),
         "worker image runs as root": lambda k, c, r, s: s["runtime"].__setitem__(s["runtime"].index(next(l for l in s["runtime"] if l.startswith("USER"))), "USER root"),
         "server image has no HEALTHCHECK": lambda k, c, r, s: s.__setitem__("server", [l for l in s["server"] if not l.startswith("HEALTHCHECK")]),
+        "ScaledObject scales another Deployment": lambda k, c, r, s: find(k, "ScaledObject", "worker")["spec"]["scaleTargetRef"].update(name="tessera-coordinator"),
+        "ScaledObject reads a metric nobody exports": lambda k, c, r, s: get(find(k, "ScaledObject", "worker"), "spec.triggers.0.metadata").update(query="sum(tessera_queue_depth)"),
+        "ScaledObject threshold not a quoted number": lambda k, c, r, s: get(find(k, "ScaledObject", "worker"), "spec.triggers.0.metadata").update(threshold=480),
+        "KEDA overlay keeps the CPU HPA": lambda k, c, r, s: k["keda/kustomization.yaml"][0].pop("patches"),
+        "KEDA overlay without the base": lambda k, c, r, s: k["keda/kustomization.yaml"][0].update(resources=["scaledobject.yaml"]),
+        "batch Job never exits when idle": lambda k, c, r, s: container(find(k, "Job", "worker"))["args"].pop(),
+        "batch Job not Indexed": lambda k, c, r, s: find(k, "Job", "worker")["spec"].pop("completionMode"),
+        "batch Job points elsewhere": lambda k, c, r, s: container(find(k, "Job", "worker"))["env"][0].update(value="localhost:7878"),
     }
     base = check_all(k8s, compose, root_compose, stages)
     if base:
@@ -381,6 +548,7 @@ def main(argv):
     root = args[0] if args else os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
     try:
         k8s = load_k8s(root)
+        METRICS.update(exported_metrics(root))
         compose = load_yaml_docs(os.path.join(root, "docker", "compose.yaml"))[0]
         root_compose = load_yaml_docs(os.path.join(root, "compose.yaml"))[0]
         stages = dockerfile_stages(root)

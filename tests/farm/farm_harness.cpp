@@ -277,6 +277,18 @@ bool own_descriptors(rlim_t need, rlim_t* hard) {
   return true;
 }
 
+int free_port() {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+  socklen_t n = sizeof a;
+  getsockname(fd, reinterpret_cast<sockaddr*>(&a), &n);
+  close(fd);
+  return ntohs(a.sin_port);
+}
+
 std::vector<int> silent_connections(int port, int n) {
   std::vector<int> fds;
   for (int i = 0; i < n; ++i) {

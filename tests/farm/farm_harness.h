@@ -91,6 +91,9 @@ class Farm {
 // is under `need`.
 bool own_descriptors(rlim_t need, rlim_t* hard);
 
+// A TCP port on 127.0.0.1 that was free a moment ago (for programs that take a port, not 0).
+int free_port();
+
 // `n` TCP connections to 127.0.0.1:port that send nothing (fewer if one fails: the caller
 // checks); the caller closes them.
 std::vector<int> silent_connections(int port, int n);

@@ -48,16 +48,16 @@ int http_port(Farm& farm) {
   return 0;
 }
 
-int free_port() {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t n = sizeof a;
-  getsockname(fd, reinterpret_cast<sockaddr*>(&a), &n);
-  close(fd);
-  return ntohs(a.sin_port);
+// A real Prometheus on 127.0.0.1:prom_port scraping the coordinator's /metrics on `port` every second.
+std::unique_ptr<Process> start_prometheus(Farm& farm, int port, int prom_port) {
+  write(farm.dir() / "prometheus.yml", "global:\n  scrape_interval: 1s\n  scrape_timeout: 1s\n"
+                                       "scrape_configs:\n  - job_name: tessera\n    static_configs:\n"
+                                       "      - targets: ['127.0.0.1:" + std::to_string(port) + "']\n");
+  return std::make_unique<Process>(
+      std::vector<std::string>{"/usr/bin/prometheus", "--config.file", (farm.dir() / "prometheus.yml").string(),
+                               "--storage.tsdb.path", (farm.dir() / "prometheus-data").string(),
+                               "--web.listen-address", "127.0.0.1:" + std::to_string(prom_port)},
+      farm.dir() / "prometheus.log");
 }
 
 httplib::Headers bearer(const std::string& token) { return {{"Authorization", "Bearer " + token}}; }
@@ -355,13 +355,7 @@ TEST(MonitorPrometheus, PrometheusScrapesTilesCompletedEqualToTheJobsTiles) {
   farm.start_worker("w1");
   farm.start_worker("w2");
   const int prom_port = free_port();
-  write(farm.dir() / "prometheus.yml", "global:\n  scrape_interval: 1s\n  scrape_timeout: 1s\n"
-                                       "scrape_configs:\n  - job_name: tessera\n    static_configs:\n"
-                                       "      - targets: ['127.0.0.1:" + std::to_string(port) + "']\n");
-  Process prometheus({"/usr/bin/prometheus", "--config.file", (farm.dir() / "prometheus.yml").string(),
-                      "--storage.tsdb.path", (farm.dir() / "prometheus-data").string(), "--web.listen-address",
-                      "127.0.0.1:" + std::to_string(prom_port)},
-                     farm.dir() / "prometheus.log");
+  const auto prometheus = start_prometheus(farm, port, prom_port);
   CliResult r = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "-o",
                           (farm.dir() / "out" / "frame_####.exr").string(), "--tile", "16"});
   ASSERT_EQ(r.code, 0) << r.output;
@@ -377,13 +371,75 @@ TEST(MonitorPrometheus, PrometheusScrapesTilesCompletedEqualToTheJobsTiles) {
     const json result = json::parse(q->body).at("data").at("result");
     if (result.size() == 1) seen = std::stod(result[0].at("value")[1].get<std::string>());
   }
-  EXPECT_EQ(seen, tiles) << "last answer: " << last << "\n" << prometheus.log();
+  EXPECT_EQ(seen, tiles) << "last answer: " << last << "\n" << prometheus->log();
   // The rays the CLI reported went through the same counter path.
   auto rays = api.Get("/api/v1/query?query=tessera_rays_traced_total");
   ASSERT_TRUE(rays);
   const json rr = json::parse(rays->body).at("data").at("result");
   ASSERT_EQ(rr.size(), 1u) << rays->body;
   EXPECT_GT(std::stod(rr[0].at("value")[1].get<std::string>()), 0.0);
+}
+
+// The level an autoscaler reads (docker/k8s/keda: KEDA's Prometheus scaler on
+// sum(tessera_work_seconds)), through a real Prometheus: a job waiting with no worker and no tile
+// ever timed counts a nominal second a tile (a scaler at zero workers must see it); a job waiting
+// after others were rendered counts the mean tile time the coordinator measured
+// (tessera_tile_render_seconds' sum over its count, read from /metrics); a cancelled one nothing.
+TEST(MonitorPrometheus, TheWorkGaugeIsWhatAnAutoscalerReads) {
+  if (!fs::exists("/usr/bin/prometheus")) GTEST_SKIP() << "/usr/bin/prometheus not installed (Debian prometheus)";
+  Farm farm;
+  farm.start_server({"--http-listen", "127.0.0.1:0"});
+  const int port = http_port(farm);
+  const int prom_port = free_port();
+  const auto prometheus = start_prometheus(farm, port, prom_port);
+  httplib::Client api("127.0.0.1", prom_port);
+  // Polls the scaler's query until it is within 1e-6 (relative) of `want`; returns the last value.
+  const auto scaler_sees = [&](double want) {
+    double seen = -1;
+    for (int i = 0; i < 600; ++i) {  // up to a minute: Prometheus starts, then scrapes each second
+      auto q = api.Get("/api/v1/query?query=sum(tessera_work_seconds)");
+      if (q && q->status == 200) {
+        const json result = json::parse(q->body).at("data").at("result");
+        if (result.size() == 1) seen = std::stod(result[0].at("value")[1].get<std::string>());
+        if (std::abs(seen - want) <= 1e-6 * std::max(1.0, want)) break;
+      }
+      std::this_thread::sleep_for(100ms);
+    }
+    return seen;
+  };
+  const int tiles = 3 * kTilesPerFrame;
+  const auto submit = [&] {
+    CliResult s = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--tile", "16", "--detach"});
+    EXPECT_EQ(s.code, 0) << s.output;
+    return job_id_from(s.output);
+  };
+
+  const std::string first = submit();
+  EXPECT_DOUBLE_EQ(scaler_sees(tiles * 1.0), tiles * 1.0) << "no worker, no tile timed: a second a tile";
+
+  // A worker renders it and leaves; the same job again waits with nobody to render it.
+  Process& w = farm.start_worker("w1");
+  ASSERT_EQ(farm.cli({"watch", first, "--coordinator", farm.address(), "-o",
+                      (farm.dir() / "out" / "frame_####.exr").string()})
+                .code,
+            0);
+  w.signal(SIGTERM);
+  ASSERT_EQ(w.wait(30s), 0);
+  const std::string second = submit();
+  httplib::Client coordinator("127.0.0.1", port);
+  auto m = coordinator.Get("/metrics");
+  ASSERT_TRUE(m && m->status == 200);
+  std::smatch sum, count;
+  ASSERT_TRUE(std::regex_search(m->body, sum, std::regex(R"(\ntessera_tile_render_seconds_sum ([0-9.e+-]+))")));
+  ASSERT_TRUE(std::regex_search(m->body, count, std::regex(R"(\ntessera_tile_render_seconds_count ([0-9]+))")));
+  ASSERT_EQ(std::stoi(count[1]), tiles);
+  const double want = tiles * (std::stod(sum[1]) / std::stod(count[1]));
+  const double seen = scaler_sees(want);
+  EXPECT_NEAR(seen, want, 1e-6 * want) << "the measured mean tile time, times the tiles waiting";
+  EXPECT_NE(seen, tiles * 1.0);
+
+  ASSERT_EQ(farm.cli({"cancel", second, "--coordinator", farm.address()}).code, 0);
+  EXPECT_EQ(scaler_sees(0), 0.0) << "a cancelled job is no work";
 }
 
 TEST(MonitorBrowser, ChromiumShowsTheJobTheWorkersTheFinishedFrameAndCancels) {
