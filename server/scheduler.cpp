@@ -58,18 +58,21 @@ int64_t JobSpec::tiles() const {
   return std::max<int64_t>(0, int64_t(last_frame) - first_frame + 1) * TileGrid(width, height, tile_size).count();
 }
 
+void Scheduler::lay_out_tiles(Job& job) {
+  job.spec.tile_size = std::max(1, job.spec.tile_size);
+  job.grid = TileGrid(job.spec.width, job.spec.height, job.spec.tile_size);
+  job.frames.resize(size_t(std::max(0, job.spec.last_frame - job.spec.first_frame + 1)));
+  for (Frame& fr : job.frames) fr.tiles.resize(size_t(job.grid.count()));
+}
+
 JobId Scheduler::submit(const JobSpec& spec) {
   // The job is built aside and added only once whole: when its tiles do not fit in memory
   // (std::bad_alloc), the scheduler is left as it was, with no half-built job.
   Job built;
   built.spec = spec;
-  built.spec.tile_size = std::max(1, spec.tile_size);
-  built.grid = TileGrid(spec.width, spec.height, built.spec.tile_size);
-  const int frames = spec.last_frame - spec.first_frame + 1;
+  lay_out_tiles(built);
   const int per_frame = built.grid.count();
-  built.frames.resize(size_t(std::max(0, frames)));
-  for (int f = 0; f < frames; ++f) {
-    built.frames[size_t(f)].tiles.resize(size_t(per_frame));
+  for (int f = 0; f < int(built.frames.size()); ++f) {
     for (int t = 0; t < per_frame; ++t) built.queue.emplace_back(f, t);
   }
   job_order_.reserve(job_order_.size() + 1);
@@ -422,14 +425,11 @@ void Scheduler::restore(JobRecord rec) {
   if (jobs_.count(rec.id)) return;
   Job& job = jobs_[rec.id];
   job.header() = rec.header();
-  job.spec.tile_size = std::max(1, rec.spec.tile_size);
   next_seq_ = std::max(next_seq_, rec.seq + 1);
   job.blocklisted.insert(rec.blocklisted.begin(), rec.blocklisted.end());
-  job.grid = TileGrid(job.spec.width, job.spec.height, job.spec.tile_size);
-  const int frames = job.spec.last_frame - job.spec.first_frame + 1;
+  lay_out_tiles(job);
+  const int frames = int(job.frames.size());
   const int per_frame = job.grid.count();
-  job.frames.resize(size_t(std::max(0, frames)));
-  for (auto& fr : job.frames) fr.tiles.resize(size_t(per_frame));
   tiles_held_ += job.spec.tiles();
   for (RestoredTile& d : rec.done) {
     const int fi = d.frame - job.spec.first_frame;

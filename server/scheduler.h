@@ -314,6 +314,9 @@ class Scheduler {
   Job* find_job(const JobId& id);
   const Job* find_job(const JobId& id) const;
   static QueueKey queue_key(const Job& j) { return {-j.spec.priority, j.seq, j.id}; }
+  // Cuts the job's frames into tiles by its spec (tile size at least 1): its grid and an empty
+  // tile table, frames x tiles per frame, as submit() and restore() start from.
+  static void lay_out_tiles(Job& job);
   void update_runnable(Job& job);
   std::optional<Assignment> next_for(Worker& w);
   bool blocked(const Job& job, const Worker& w) const { return job.blocklisted.count(w.stats.info.name) > 0; }

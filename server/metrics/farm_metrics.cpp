@@ -102,8 +102,6 @@ void FarmMetrics::tile_finished(const TileKey&, const TileOutput& out, WorkerId)
   tiles_completed_.Increment();
   rays_.Increment(double(out.rays));
   tile_seconds_.Observe(out.seconds);
-  finished_seconds_.fetch_add(out.seconds, std::memory_order_relaxed);
-  finished_tiles_.fetch_add(1, std::memory_order_relaxed);
 }
 
 void FarmMetrics::worker_faulted(const JobId&, const WorkerStats&, std::string_view, int, bool blocklisted) {
@@ -132,9 +130,10 @@ std::string FarmMetrics::scrape() {
   tiles_.Add({{"state", "queued"}}).Set(double(f.tiles_queued));
   tiles_.Add({{"state", "leased"}}).Set(leased);
   tiles_.Add({{"state", "done"}}).Set(done);
-  // Work left (the header says how it is estimated).
-  const int64_t timed = finished_tiles_.load(std::memory_order_relaxed);
-  const double untimed_mean = timed > 0 ? finished_seconds_.load(std::memory_order_relaxed) / double(timed) : 1.0;
+  // Work left (the header says how it is estimated). Every tile finished since start is in the
+  // render-time histogram: its sum over its count is the mean for jobs with no tile timed yet.
+  const auto timed = tile_seconds_.Collect().histogram;
+  const double untimed_mean = timed.sample_count > 0 ? timed.sample_sum / double(timed.sample_count) : 1.0;
   double work_queued = 0, work_leased = 0;
   for (const JobSnapshot& j : f.jobs) {
     if (job_ended(j.state)) continue;

@@ -27,7 +27,6 @@
 #include <prometheus/histogram.h>
 #include <prometheus/registry.h>
 
-#include <atomic>
 #include <mutex>
 #include <set>
 #include <string>
@@ -83,9 +82,6 @@ class FarmMetrics : public SchedulerListener {
   prometheus::Gauge& store_queued_;
   prometheus::Gauge& ray_servers_;
   prometheus::Family<prometheus::Gauge>& work_;
-  // Every tile finished since start (tile_finished), for the work estimate of untimed jobs.
-  std::atomic<double> finished_seconds_{0};
-  std::atomic<int64_t> finished_tiles_{0};
   std::mutex scrape_mu_;  // one scrape at a time sets the levels
 };
 
