@@ -27,6 +27,7 @@ ImageSettings job_image_settings(const tessera::v1::JobStatus& job) {
   s.spp = job.spp();
   const auto& o = job.overrides();
   if (o.has_target_rmse()) s.target_rmse = o.target_rmse();
+  if (o.has_block_rmse()) s.block_rmse = o.block_rmse();
   if (o.has_min_spp()) s.min_spp = o.min_spp();
   if (o.has_max_spp()) s.max_spp = o.max_spp();
   if (o.has_sampler()) s.sampler = sampler_from_name(o.sampler()).value_or(s.sampler);

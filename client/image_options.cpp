@@ -13,9 +13,15 @@ void add_image_options(CLI::App& cmd, ImageOptions& o) {
   cmd.add_option("--sampler", o.sampler,
                  "sobol (default; also called stratified), cmj, independent or center");
   cmd.add_option("--target-rmse", o.overrides.target_rmse,
-                 "Render to a target error: samples go where the estimated RMSE (linear light) is above this");
-  cmd.add_option("--min-spp", o.overrides.min_spp, "With --target-rmse: fewest samples per pixel (default 16)");
-  cmd.add_option("--max-spp", o.overrides.max_spp, "With --target-rmse: most samples per pixel (default 1024)");
+                 "Render to a target error of the frame: its estimated RMSE (linear light) at most this, samples "
+                 "where they pay most (in-process only for now)");
+  cmd.add_option("--block-rmse", o.overrides.block_rmse,
+                 "Render to a bound on every 8x8 block's estimated RMSE (linear light): each block takes samples "
+                 "until it is at most this");
+  cmd.add_option("--min-spp", o.overrides.min_spp,
+                 "With --target-rmse or --block-rmse: fewest samples per pixel (default 8 and 16)");
+  cmd.add_option("--max-spp", o.overrides.max_spp,
+                 "With --target-rmse or --block-rmse: most samples per pixel (default 1024)");
   cmd.add_option("--camera", o.camera, "glTF scenes: the camera to render (camera or node name; default: the first)");
   cmd.add_option("--scene-index", o.scene_index, "glTF scenes: the index in the file's scenes (default: its scene)");
   cmd.add_option("--fps", o.fps, "glTF scenes: animation frames per second, in (0, 1000] (default 24)");

@@ -36,6 +36,7 @@ nlohmann::json job_json(const v1::JobStatus& j) {
           {"height", j.height()},
           {"spp", j.spp()},
           {"target_rmse", j.overrides().has_target_rmse() ? nlohmann::json(j.overrides().target_rmse()) : nlohmann::json(nullptr)},
+          {"block_rmse", j.overrides().has_block_rmse() ? nlohmann::json(j.overrides().block_rmse()) : nlohmann::json(nullptr)},
           {"tile_size", j.tile_size()},
           {"tiles_total", j.tiles_total()},
           {"tiles_done", j.tiles_done()},

@@ -23,7 +23,8 @@ std::string describe_sampling(const v1::JobStatus& st) {
   const ImageSettings s = job_image_settings(st);
   if (!s.adaptive()) return std::to_string(st.spp()) + " spp";
   char buf[96];
-  std::snprintf(buf, sizeof buf, "target RMSE %.3g (spp %d-%d)", s.target_rmse, s.min_spp, s.max_spp);
+  std::snprintf(buf, sizeof buf, "%s %.3g (spp %d-%d)", s.frame_target() ? "target RMSE" : "block RMSE", s.target(),
+                s.first_spp(), s.max_spp);
   return buf;
 }
 

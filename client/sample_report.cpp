@@ -12,8 +12,9 @@ std::string describe_samples(const SampleSummary& s, const ImageSettings& settin
   if (!settings.adaptive()) {
     std::snprintf(buf, sizeof buf, "est. RMSE %.3g", s.estimated_rmse);
   } else {
-    std::snprintf(buf, sizeof buf, "est. RMSE %.3g (target %.3g), spp %u-%u (mean %.1f)", s.estimated_rmse,
-                  settings.target_rmse, s.min_spp, s.max_spp, s.mean_spp);
+    std::snprintf(buf, sizeof buf, "est. RMSE %.3g (%s %.3g), spp %u-%u (mean %.1f)", s.estimated_rmse,
+                  settings.frame_target() ? "target" : "block bound", settings.target(), s.min_spp, s.max_spp,
+                  s.mean_spp);
   }
   return buf;
 }
@@ -24,8 +25,8 @@ void add_sample_attributes(const SampleSummary& s, const ImageSettings& settings
   (*attrs)["tessera:sppMax"] = int64_t(s.max_spp);
   (*attrs)["tessera:sppMean"] = s.mean_spp;
   if (settings.adaptive()) {
-    (*attrs)["tessera:targetRmse"] = settings.target_rmse;
-    (*attrs)["tessera:minSpp"] = int64_t(settings.min_spp);
+    (*attrs)[settings.frame_target() ? "tessera:targetRmse" : "tessera:blockRmse"] = settings.target();
+    (*attrs)["tessera:minSpp"] = int64_t(settings.first_spp());
     (*attrs)["tessera:maxSpp"] = int64_t(settings.max_spp);
     (*attrs)["tessera:unconvergedPixels"] = s.unconverged_pixels;
   }
@@ -41,12 +42,19 @@ ErrorChannels make_error_channels(const std::vector<float>& variance, const std:
 }
 
 std::string target_warning(const SampleSummary& s, const ImageSettings& settings) {
-  if (!settings.adaptive() || s.unconverged_blocks == 0) return {};
+  if (!settings.adaptive() || s.target_reached) return {};
   char buf[320];
+  if (settings.frame_target()) {
+    std::snprintf(buf, sizeof buf,
+                  "target RMSE %.3g not reached: frame estimated RMSE %.3g, with %.1f%% of pixels at --max-spp %d",
+                  settings.target_rmse, s.estimated_rmse,
+                  100.0 * double(s.unconverged_pixels) / double(std::max<int64_t>(1, s.pixels)), settings.max_spp);
+    return buf;
+  }
   std::snprintf(buf, sizeof buf,
-                "target RMSE %.3g not reached everywhere: %lld of %lld blocks (%.1f%% of pixels) stopped at "
+                "block RMSE %.3g not reached everywhere: %lld of %lld blocks (%.1f%% of pixels) stopped at "
                 "--max-spp %d above it; frame estimated RMSE %.3g",
-                settings.target_rmse, (long long)s.unconverged_blocks, (long long)s.blocks,
+                settings.block_rmse, (long long)s.unconverged_blocks, (long long)s.blocks,
                 100.0 * double(s.unconverged_pixels) / double(std::max<int64_t>(1, s.pixels)),
                 settings.max_spp, s.estimated_rmse);
   return buf;
@@ -58,10 +66,10 @@ nlohmann::json samples_json(const SampleSummary& s, const ImageSettings& setting
                    {"spp_max", s.max_spp},
                    {"spp_mean", s.mean_spp}};
   if (settings.adaptive()) {
-    j["target_rmse"] = settings.target_rmse;
-    j["min_spp"] = settings.min_spp;
+    j[settings.frame_target() ? "target_rmse" : "block_rmse"] = settings.target();
+    j["min_spp"] = settings.first_spp();
     j["max_spp"] = settings.max_spp;
-    j["target_reached"] = s.unconverged_blocks == 0;
+    j["target_reached"] = s.target_reached;
     j["unconverged_pixels"] = s.unconverged_pixels;
   }
   return j;

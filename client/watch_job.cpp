@@ -41,8 +41,8 @@ std::string progress_error(const FrameAssembler& frames) {
   if (frames.tiles_received() == 0) return {};
   char buf[96];
   if (frames.settings().adaptive()) {
-    std::snprintf(buf, sizeof buf, "est. RMSE %.3g (target %.3g)", frames.running_estimated_rmse(),
-                  frames.settings().target_rmse);
+    std::snprintf(buf, sizeof buf, "est. RMSE %.3g (%s %.3g)", frames.running_estimated_rmse(),
+                  frames.settings().frame_target() ? "target" : "block bound", frames.settings().target());
   } else {
     std::snprintf(buf, sizeof buf, "est. RMSE %.3g", frames.running_estimated_rmse());
   }

@@ -10,6 +10,7 @@ void to_proto(const ImageOverrides& o, tessera::v1::ImageOverrides* out) {
   if (o.seed) out->set_seed(*o.seed);
   if (o.sampler) out->set_sampler(sampler_name(*o.sampler));
   if (o.target_rmse) out->set_target_rmse(*o.target_rmse);
+  if (o.block_rmse) out->set_block_rmse(*o.block_rmse);
   if (o.min_spp) out->set_min_spp(*o.min_spp);
   if (o.max_spp) out->set_max_spp(*o.max_spp);
 }
@@ -29,6 +30,7 @@ ImageOverrides from_proto(const tessera::v1::ImageOverrides& o) {
     }
   }
   if (o.has_target_rmse()) out.target_rmse = o.target_rmse();
+  if (o.has_block_rmse()) out.block_rmse = o.block_rmse();
   if (o.has_min_spp()) out.min_spp = o.min_spp();
   if (o.has_max_spp()) out.max_spp = o.max_spp();
   return out;

@@ -34,7 +34,15 @@ SampleSummary summarize_samples(const std::vector<float>& variance, const std::v
   s.estimated_rmse = std::sqrt(var_sum / double(pixels));
   s.mean_spp = spp_sum / double(pixels);
   if (!settings.adaptive()) return s;
-  const double target_mse = settings.target_rmse * settings.target_rmse;
+  if (settings.frame_target()) {
+    // The renderer's own test (frame_target.cpp) up to the order of summation.
+    s.target_reached = s.estimated_rmse <= settings.target_rmse * (1 + 1e-9);
+    if (!s.target_reached) {
+      for (uint32_t n : spp) s.unconverged_pixels += n >= uint32_t(settings.max_spp) ? 1 : 0;
+    }
+    return s;
+  }
+  const double target_mse = settings.block_rmse * settings.block_rmse;
   for (int by = 0; by < height; by += kAdaptiveBlock) {
     for (int bx = 0; bx < width; bx += kAdaptiveBlock) {
       const int w = std::min(kAdaptiveBlock, width - bx), h = std::min(kAdaptiveBlock, height - by);
@@ -47,6 +55,7 @@ SampleSummary summarize_samples(const std::vector<float>& variance, const std::v
       if (sum / double(w * h) > target_mse) {
         ++s.unconverged_blocks;
         s.unconverged_pixels += w * h;
+        s.target_reached = false;
       }
     }
   }

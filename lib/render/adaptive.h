@@ -36,9 +36,11 @@ struct SampleSummary {
   uint32_t min_spp = 0, max_spp = 0;
   double mean_spp = 0;
   int64_t pixels = 0;
-  // Adaptive renders: blocks whose estimated RMSE is still above the target (they stopped at
-  // max_spp), and the pixels they hold.
+  // Block-bound renders (block_rmse): blocks whose estimated RMSE is still above the bound (they
+  // stopped at max_spp), and the pixels they hold. Frame-target renders (target_rmse): the pixels
+  // at max_spp when the frame's estimate is above the target, else 0.
   int64_t blocks = 0, unconverged_blocks = 0, unconverged_pixels = 0;
+  bool target_reached = true;  // adaptive renders: the frame or every block met its target
 };
 
 SampleSummary summarize_samples(const std::vector<float>& variance, const std::vector<uint32_t>& spp, int width,

@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -11,8 +12,10 @@
 #include <stdexcept>
 #include <string>
 
+#include "render/frame_target.h"
 #include "render/integrator.h"
 #include "render/pixel_estimate.h"
+#include "render/pixel_samples.h"
 #include "tile/bfloat16.h"
 #include "tile/frame_assembly.h"
 #include "tile/tile_grid.h"
@@ -21,72 +24,13 @@ namespace tessera {
 
 namespace {
 
-// Renders samples [from, to) of pixel (x, y) into `est`. Samples s0 .. s0+7 form one packet
-// (s0 a multiple of 8): which rays share a packet depends on the pixel and sample index only,
-// never on the tile, thread or stopping point (see RenderScene::intersect_packet).
-void render_samples(const RenderScene& scene, int x, int y, uint32_t from, uint32_t to, PixelEstimate* est,
-                    RayCounts* rays) {
-  const ImageSettings& img = scene.image();
-  const auto& cam = scene.camera();
-  PixelSampler samplers[RenderScene::kPacket];
-  const uint64_t pixel_key = PixelSampler::pixel_key(img.seed, scene.frame(), x, y);
-  const CameraSampler camera(img.sampler, pixel_key, uint32_t(img.spp));
-  for (uint32_t s0 = from; s0 < to;) {
-    const uint32_t packet_end = std::min<uint32_t>(to, (s0 / RenderScene::kPacket + 1) * RenderScene::kPacket);
-    const int n = int(packet_end - s0);
-    Ray r[RenderScene::kPacket];
-    Rgb Ls[RenderScene::kPacket];
-    // Camera rays in two passes: the sampler's integer hashing per lane, then the directions for
-    // all kPacket lanes at once (a fixed trip count the compiler vectorizes: its divisions and
-    // square roots were a sixth of a primary-ray-bound frame). The arithmetic per lane is the
-    // scalar normalize(p0 + du u + dv v), operation for operation.
-    alignas(32) float su[RenderScene::kPacket] = {}, sv[RenderScene::kPacket] = {};
-    for (int i = 0; i < n; ++i) {
-      samplers[i] = PixelSampler(img.sampler, pixel_key, s0 + uint32_t(i), uint32_t(img.spp));
-      camera.pixel_offset(s0 + uint32_t(i), &su[i], &sv[i]);
-    }
-    alignas(32) float dx[RenderScene::kPacket], dy[RenderScene::kPacket], dz[RenderScene::kPacket];
-    for (int i = 0; i < RenderScene::kPacket; ++i) {
-      const float u = (float(x) + su[i]) / float(img.width);
-      const float v = (float(y) + sv[i]) / float(img.height);
-      const float px = cam.p0.x + cam.du.x * u + cam.dv.x * v;
-      const float py = cam.p0.y + cam.du.y * u + cam.dv.y * v;
-      const float pz = cam.p0.z + cam.du.z * u + cam.dv.z * v;
-      const float len = std::sqrt(px * px + py * py + pz * pz);
-      dx[i] = px / len;
-      dy[i] = py / len;
-      dz[i] = pz / len;
-    }
-    for (int i = 0; i < n; ++i) r[i] = {Vec3f(0.0f), Vec3f(dx[i], dy[i], dz[i])};
-    rays->camera += uint64_t(n);
-    trace_radiance_packet(scene, r, samplers, n, rays, Ls);
-    for (int i = 0; i < n; ++i) {
-      Rgb L = Ls[i];
-      if (!is_finite(L)) {
-        ++rays->nonfinite_samples;  // never let NaN/Inf reach a pixel; counted, not hidden
-        L = Rgb(0.0f);
-      }
-      est->add(s0 + uint32_t(i), L);
-    }
-    s0 = packet_end;
-  }
-}
-
-void store_pixel(const PixelEstimate& est, SamplerKind kind, size_t i, TileResult* out) {
-  for (int c = 0; c < 3; ++c) out->rgb[3 * i + size_t(c)] = est.mean(c);
-  // Kept at the precision tiles carry it at (tile/bfloat16.h): a farm's frames and their error
-  // report are then bit-identical to an in-process render's.
-  out->variance[i] = round_to_bfloat16(float(est.variance(kind)));
-  out->spp[i] = est.samples();
-}
-
-// A render to a target error: every block of kAdaptiveBlock^2 pixels (aligned to the image) that
+// A render to a bound on every block's error (ImageSettings::block_rmse): every block of kAdaptiveBlock^2 pixels (aligned to the image) that
 // meets the tile is rendered whole, its pixels checked together (adaptive.h); the pixels inside
 // the tile are kept. Tiles whose edges are multiples of the block size render nothing twice.
 void render_tile_adaptive(const RenderScene& scene, const TileRect& rect, TileResult* out) {
   const ImageSettings& img = scene.image();
-  const double target_mse = img.target_rmse * img.target_rmse;
-  const uint32_t min_spp = uint32_t(img.min_spp), max_spp = uint32_t(img.max_spp);
+  const double target_mse = img.block_rmse * img.block_rmse;
+  const uint32_t min_spp = uint32_t(img.first_spp()), max_spp = uint32_t(img.max_spp);
   constexpr int B = kAdaptiveBlock;
   std::vector<PixelEstimate> block(size_t(B) * size_t(B));
   for (int by = rect.y0 / B * B; by < rect.y0 + rect.height; by += B) {
@@ -140,6 +84,11 @@ TileResult render_tile(const RenderScene& scene, const TileRect& rect) {
   out.variance.assign(pixels, 0.0f);
   out.spp.assign(pixels, 0);
   const ImageSettings& img = scene.image();
+  if (img.frame_target()) {
+    // Its samples depend on the whole frame's statistics (render/frame_target.h): not a tile's work.
+    throw std::invalid_argument("render_tile: a frame target (target_rmse) is rendered in passes by "
+                                "render_frame, not tile by tile");
+  }
   if (img.adaptive()) {
     render_tile_adaptive(scene, rect, &out);
   } else {
@@ -164,6 +113,12 @@ double FrameResult::estimated_rmse() const {
 
 FrameResult render_frame(const RenderScene& scene, int tile_size, int threads,
                          const std::function<void(int, int)>& progress) {
+  if (scene.image().frame_target()) {
+    return render_frame_to_target(scene, threads, [&](int64_t done, int64_t planned) {
+      // Passes plan more samples as they go: progress in thousandths of the samples planned so far.
+      if (progress) progress(int(done * 1000 / std::max<int64_t>(planned, 1)), 1000);
+    });
+  }
   const auto start = std::chrono::steady_clock::now();
   const ImageSettings& img = scene.image();
   FrameResult out;

@@ -11,9 +11,12 @@
 
 #include "scene/animation.h"
 #include "scene/scene_parser.h"
+#include "render/test_scenes.h"
 
 namespace tessera {
 namespace {
+
+using test::whitted_like;
 
 Scene scene_from(const std::string& json) { return parse_scene(json, "test.json"); }
 
@@ -136,26 +139,6 @@ TEST(Render, NoLightsAndBlackBackgroundIsExactlyBlack) {
   EXPECT_EQ(r.estimated_rmse(), 0.0);
 }
 
-std::string whitted_like(int w, int h, int spp) {
-  return R"({
-    "camera": {"position": [0, 1.6, 6.5], "look_at": [0, 0.9, 0], "vfov_deg": 40},
-    "image": {"width": )" + std::to_string(w) + R"(, "height": )" + std::to_string(h) +
-         R"(, "spp": )" + std::to_string(spp) + R"(, "max_depth": 6, "seed": 3},
-    "background": [0.25, 0.45, 0.8],
-    "lights": [{"type": "point", "position": [-4, 6, 5], "intensity": 160},
-               {"type": "directional", "direction": [0.3, -1, -0.2], "irradiance": 0.5}],
-    "materials": {
-      "c": {"type": "diffuse", "albedo": [0.85, 0.1, 0.08], "checker": {"albedo2": [0.9, 0.85, 0.15]}},
-      "mi": {"type": "mirror", "reflectance": 0.9}, "g": {"type": "glass", "ior": 1.5},
-      "d": {"type": "diffuse", "albedo": [0.2, 0.5, 0.25]}},
-    "objects": [
-      {"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "c"},
-      {"type": "sphere", "center": [-1.5, 1, -0.8], "radius": 1, "material": "mi"},
-      {"type": "sphere", "center": [0.55, 0.8, 1.4], "radius": 0.8, "material": "g"},
-      {"type": "sphere", "center": [2, 0.7, -0.6], "radius": 0.7, "material": "d"}]
-  })";
-}
-
 TEST(Render, BitIdenticalForAnyTileSizeAndThreadCount) {
   RenderScene rs(scene_from(whitted_like(97, 61, 3)), 0);  // odd sizes: ragged edge tiles
   const FrameResult ref = render_frame(rs, 16, 1);
@@ -234,11 +217,11 @@ TEST(Render, EstimatedErrorTracksTheTrueErrorAndFallsWithSpp) {
   }
 }
 
-// A target-error render of the Whitted-like scene: easy background blocks stop at min_spp, edges
-// and glass take more.
+// A block-bound render (block_rmse) of the Whitted-like scene: easy background blocks stop at
+// min_spp, edges and glass take more.
 Scene adaptive_scene(int w, int h, double target, int min_spp, int max_spp) {
   Scene s = scene_from(whitted_like(w, h, 16));
-  s.image.target_rmse = target;
+  s.image.block_rmse = target;
   s.image.min_spp = min_spp;
   s.image.max_spp = max_spp;
   return s;

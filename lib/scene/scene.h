@@ -49,13 +49,24 @@ struct ImageSettings {
   int max_depth = 8;  // secondary bounces (reflection/refraction) after the camera ray's hit
   uint64_t seed = 0;
   SamplerKind sampler = SamplerKind::kSobol;
-  // Rendering to a target error (docs/renderer.md, "Rendering to a target error"): when > 0,
-  // each block of pixels takes samples until its estimated RMSE (linear light) is at most this,
-  // between min_spp and max_spp samples per pixel; spp is then unused.
+  // Rendering to a target error (docs/renderer.md, "Rendering to a target error"), between
+  // min_spp and max_spp samples per pixel; spp is then unused. At most one of the two is > 0:
+  //  - target_rmse: the frame's estimated RMSE (linear light) is at most this; samples go where
+  //    they lower it most per unit of cost (render/frame_target.h);
+  //  - block_rmse: every block of 8x8 pixels takes samples until its own estimated RMSE is at
+  //    most this (render/adaptive.h).
   double target_rmse = 0;
-  int min_spp = 16;
+  double block_rmse = 0;
+  int min_spp = 0;  // 0: the mode's default, first_spp()
   int max_spp = 1024;
-  bool adaptive() const { return target_rmse > 0; }
+  bool adaptive() const { return target_rmse > 0 || block_rmse > 0; }
+  bool frame_target() const { return target_rmse > 0; }
+  // The target this render is held to: the frame's RMSE or every block's.
+  double target() const { return target_rmse > 0 ? target_rmse : block_rmse; }
+  // The fewest samples a pixel takes in an adaptive render: min_spp, by default 8 for a frame
+  // target (its pilot pass; docs/performance.md measures 8 against 16) and 16 for the block bound
+  // (a block deciding alone needs 16 to see small features).
+  int first_spp() const { return min_spp > 0 ? min_spp : frame_target() ? 8 : 16; }
 };
 
 struct Material {

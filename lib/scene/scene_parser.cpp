@@ -209,12 +209,17 @@ namespace {
 // field as the caller's user knows it (a JSON path or a command-line flag).
 void check_adaptive(const ImageSettings& s, const std::function<std::string(const char*)>& name) {
   if (!s.adaptive()) return;
-  if (s.min_spp > s.max_spp) {
-    throw SceneError(name("min_spp") + " (" + std::to_string(s.min_spp) + ") must not exceed " + name("max_spp") +
-                     " (" + std::to_string(s.max_spp) + ")");
+  const char* field = s.frame_target() ? "target_rmse" : "block_rmse";
+  if (s.target_rmse > 0 && s.block_rmse > 0) {
+    throw SceneError(name("target_rmse") + " and " + name("block_rmse") +
+                     " conflict: a render is held to the frame's error or to every block's, not both");
+  }
+  if (s.first_spp() > s.max_spp) {
+    throw SceneError(name("min_spp") + " (" + std::to_string(s.first_spp()) + (s.min_spp > 0 ? "" : ", its default") +
+                     ") must not exceed " + name("max_spp") + " (" + std::to_string(s.max_spp) + ")");
   }
   if (s.sampler == SamplerKind::kCmj || s.sampler == SamplerKind::kCenter) {
-    throw SceneError(name("target_rmse") + " needs a progressive sampler with an error estimate (sobol or "
+    throw SceneError(name(field) + " needs a progressive sampler with an error estimate (sobol or "
                      "independent), not " + sampler_name(s.sampler) +
                      (s.sampler == SamplerKind::kCmj ? " (its pattern depends on the final spp)" : " (no error estimate)"));
   }
@@ -293,6 +298,13 @@ void read_image(const JsonReader& img, const std::string& path, ImageSettings* s
   if (auto v = img.find("target_rmse")) {
     s.target_rmse = v->number_in(0, 1e30, true);
     if (img.find("spp")) v->fail("conflicts with image.spp: an adaptive render takes min_spp and max_spp instead");
+  }
+  if (auto v = img.find("block_rmse")) {
+    s.block_rmse = v->number_in(0, 1e30, true);
+    if (img.find("spp")) v->fail("conflicts with image.spp: an adaptive render takes min_spp and max_spp instead");
+    if (img.find("target_rmse")) {
+      v->fail("conflicts with image.target_rmse: a render is held to the frame's error or to every block's, not both");
+    }
   }
   if (auto v = img.find("min_spp")) s.min_spp = int(v->integer_in(2, SceneLimits::kMaxSpp));
   if (auto v = img.find("max_spp")) s.max_spp = int(v->integer_in(2, SceneLimits::kMaxSpp));
@@ -547,24 +559,36 @@ void apply_overrides(Scene& scene, const ImageOverrides& o) {
   if (o.max_depth) { check("max-depth", *o.max_depth, 0, SceneLimits::kMaxDepth); scene.image.max_depth = *o.max_depth; }
   if (o.seed) scene.image.seed = *o.seed;
   if (o.sampler) scene.image.sampler = *o.sampler;
-  if (o.target_rmse) {
-    if (!std::isfinite(*o.target_rmse) || !(*o.target_rmse > 0)) {
-      throw SceneError("--target-rmse: must be a finite number > 0 (RMSE in linear light), got " +
-                       std::to_string(*o.target_rmse));
+  if (o.target_rmse && o.block_rmse) {
+    throw SceneError("--target-rmse and --block-rmse conflict: a render is held to the frame's error or to every "
+                     "block's, not both");
+  }
+  for (const auto& [value, flag] : {std::pair{o.target_rmse, "--target-rmse"}, std::pair{o.block_rmse, "--block-rmse"}}) {
+    if (!value) continue;
+    if (!std::isfinite(*value) || !(*value > 0)) {
+      throw SceneError(std::string(flag) + ": must be a finite number > 0 (RMSE in linear light), got " +
+                       std::to_string(*value));
     }
     if (o.spp) {
-      throw SceneError("--spp and --target-rmse conflict: a render to a target error takes --min-spp and --max-spp "
-                       "as its bounds instead of --spp");
+      throw SceneError(std::string("--spp and ") + flag + " conflict: a render to a target error takes --min-spp and "
+                       "--max-spp as its bounds instead of --spp");
     }
+  }
+  if (o.target_rmse) {
     scene.image.target_rmse = *o.target_rmse;
+    scene.image.block_rmse = 0;  // the command line's target replaces the scene file's
+  } else if (o.block_rmse) {
+    scene.image.block_rmse = *o.block_rmse;
+    scene.image.target_rmse = 0;
   } else if (o.spp) {
-    scene.image.target_rmse = 0;  // an explicit spp asks for a uniform render
+    scene.image.target_rmse = scene.image.block_rmse = 0;  // an explicit spp asks for a uniform render
   }
   if (o.min_spp) { check("min-spp", *o.min_spp, 2, SceneLimits::kMaxSpp); scene.image.min_spp = *o.min_spp; }
   if (o.max_spp) { check("max-spp", *o.max_spp, 2, SceneLimits::kMaxSpp); scene.image.max_spp = *o.max_spp; }
   if ((o.min_spp || o.max_spp) && !scene.image.adaptive()) {
     throw SceneError(std::string(o.min_spp ? "--min-spp" : "--max-spp") +
-                     " bounds a render to a target error: give --target-rmse too (or --spp for a uniform render)");
+                     " bounds a render to a target error: give --target-rmse or --block-rmse too (or --spp for a "
+                     "uniform render)");
   }
   check_adaptive(scene.image, [](const char* f) {
     std::string flag = std::string("--") + f;

@@ -19,7 +19,7 @@ struct ImageOverrides {
   std::optional<int> width, height, spp, max_depth;
   std::optional<uint64_t> seed;
   std::optional<SamplerKind> sampler;
-  std::optional<double> target_rmse;
+  std::optional<double> target_rmse, block_rmse;
   std::optional<int> min_spp, max_spp;
 };
 

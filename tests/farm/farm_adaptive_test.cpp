@@ -1,6 +1,8 @@
-// Target-error jobs on the farm: the frames are bit-identical to `tessera render` with the same
-// settings, whatever the tile size, the number of workers and the tiles rendered again after a
-// worker died; the client previews frames as they converge and reports the error it reached.
+// Block-bound jobs on the farm (--block-rmse, the farm's adaptive mode): the frames are
+// bit-identical to `tessera render` with the same settings, whatever the tile size, the number of
+// workers and the tiles rendered again after a worker died; the client previews frames as they
+// converge and reports the error it reached. A frame target (--target-rmse) is refused, naming
+// what to do instead.
 #include <gtest/gtest.h>
 #include <signal.h>
 
@@ -17,7 +19,7 @@ namespace {
 using namespace std::chrono_literals;
 
 const fs::path kScene = source("tests/farm/whitted_orbit.json");
-const std::vector<std::string> kTarget = {"--target-rmse", "0.01", "--min-spp", "8", "--max-spp", "128"};
+const std::vector<std::string> kTarget = {"--block-rmse", "0.01", "--min-spp", "8", "--max-spp", "128"};
 
 // The first preview of a frame in progress that can be read whole, or an empty path on timeout.
 fs::path wait_for_preview(const fs::path& dir, ExrAttributes* attrs, std::chrono::seconds timeout) {
@@ -68,8 +70,8 @@ TEST(FarmAdaptive, TargetErrorJobIsBitIdenticalToRenderThroughAWorkerDeath) {
   ASSERT_EQ(client->wait(120s), 0) << client->log() << farm.server().log();
 
   const std::string log = client->log();
-  EXPECT_NE(log.find("target RMSE 0.01 (spp 8-128)"), std::string::npos) << log;  // the job line
-  EXPECT_NE(log.find("(target 0.01), spp 8-"), std::string::npos) << log;          // each frame's result
+  EXPECT_NE(log.find("block RMSE 0.01 (spp 8-128)"), std::string::npos) << log;  // the job line
+  EXPECT_NE(log.find("(block bound 0.01), spp 8-"), std::string::npos) << log;    // each frame's result
   std::vector<std::string> ref_args = kTarget;
   ref_args.push_back("--error-channels");
   for (int f = 0; f < 2; ++f) {
@@ -87,7 +89,7 @@ TEST(FarmAdaptive, TargetErrorJobIsBitIdenticalToRenderThroughAWorkerDeath) {
   }
   CliResult st = farm.cli({"status", job, "--json", "--coordinator", farm.address()});
   ASSERT_EQ(st.code, 0) << st.output;
-  EXPECT_EQ(nlohmann::json::parse(st.output).at("target_rmse").get<double>(), 0.01);
+  EXPECT_EQ(nlohmann::json::parse(st.output).at("block_rmse").get<double>(), 0.01);
 }
 
 TEST(FarmAdaptive, TargetFromTheSceneFileReachesTheWorkersAndWatch) {
@@ -98,7 +100,7 @@ TEST(FarmAdaptive, TargetFromTheSceneFileReachesTheWorkersAndWatch) {
   farm.start_worker("w1");
   std::string text = read_text(kScene);
   const std::string from = R"("spp": 4,)";
-  text.replace(text.find(from), from.size(), R"("target_rmse": 0.02, "min_spp": 8, "max_spp": 64,)");
+  text.replace(text.find(from), from.size(), R"("block_rmse": 0.02, "min_spp": 8, "max_spp": 64,)");
   const fs::path scene = farm.dir() / "target.json";
   { std::ofstream(scene) << text; }
   CliResult sub = farm.cli({"submit", scene.string(), "--coordinator", farm.address(), "--frames", "0", "--detach"});
@@ -107,8 +109,33 @@ TEST(FarmAdaptive, TargetFromTheSceneFileReachesTheWorkersAndWatch) {
   const fs::path out = farm.dir() / "out";
   CliResult w = farm.cli({"watch", job, "--coordinator", farm.address(), "-o", (out / "f_####.exr").string()});
   ASSERT_EQ(w.code, 0) << w.output << farm.server().log();
-  EXPECT_NE(w.output.find("(target 0.02), spp 8-"), std::string::npos) << w.output;
+  EXPECT_NE(w.output.find("(block bound 0.02), spp 8-"), std::string::npos) << w.output;
   EXPECT_EQ(compare_exr(out / "f_0000.exr", reference_frame(scene, 0, {})), "");
+}
+
+TEST(FarmAdaptive, AFrameTargetIsRefusedWithWhatToDoInstead) {
+  // A frame target's samples depend on the whole frame (render/frame_target.h); a farm of
+  // independent tiles cannot render it the same as `tessera render`, so it takes no such job,
+  // from the command line or from the scene file, rather than render something else.
+  Farm farm;
+  farm.start_server();
+  CliResult sub = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--frames", "0", "--detach",
+                            "--target-rmse", "0.01"});
+  EXPECT_NE(sub.code, 0) << sub.output;
+  EXPECT_NE(sub.output.find("target_rmse 0.01"), std::string::npos) << sub.output;
+  EXPECT_NE(sub.output.find("--block-rmse"), std::string::npos) << sub.output;
+  EXPECT_NE(sub.output.find("tessera render --target-rmse"), std::string::npos) << sub.output;
+  std::string text = read_text(kScene);
+  const std::string from = R"("spp": 4,)";
+  text.replace(text.find(from), from.size(), R"("target_rmse": 0.02,)");
+  const fs::path scene = farm.dir() / "target.json";
+  { std::ofstream(scene) << text; }
+  sub = farm.cli({"submit", scene.string(), "--coordinator", farm.address(), "--frames", "0", "--detach"});
+  EXPECT_NE(sub.code, 0) << sub.output;
+  EXPECT_NE(sub.output.find("--block-rmse"), std::string::npos) << sub.output;
+  CliResult list = farm.cli({"status", "--json", "--coordinator", farm.address()});
+  ASSERT_EQ(list.code, 0) << list.output;
+  EXPECT_EQ(list.output.find("target"), std::string::npos) << "a refused job was kept: " << list.output;
 }
 
 }  // namespace

@@ -144,8 +144,22 @@ TEST_F(RenderCli, TargetErrorRenderReportsItsErrorAndSamplesAndWritesErrorLayers
   // max_spp too low for the target: done, exit 0, with a warning that says so.
   r = run(base + "--target-rmse 0.0005 --max-spp 16 -o " + (dir_ / "capped.exr").string());
   ASSERT_EQ(r.status, 0) << r.output;
-  EXPECT_NE(r.output.find("target RMSE 0.0005 not reached everywhere"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("target RMSE 0.0005 not reached: frame estimated RMSE"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("--max-spp 16"), std::string::npos) << r.output;
+
+  // The block bound: every block's own estimate, with its own name in the report and the file.
+  r = run(base + "--block-rmse 0.02 --report json -o " + (dir_ / "block.exr").string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto block = nlohmann::json::parse(r.output.substr(r.output.find('{')));
+  EXPECT_EQ(block.at("block_rmse").get<double>(), 0.02);
+  EXPECT_EQ(block.at("min_spp").get<int>(), 16);  // the block bound's default
+  EXPECT_FALSE(block.contains("target_rmse"));
+  attrs.clear();
+  tessera::read_exr((dir_ / "block.exr").string(), &attrs);
+  EXPECT_EQ(std::get<double>(attrs.at("tessera:blockRmse")), 0.02);
+  r = run(base + "--block-rmse 0.0005 --max-spp 16 -o " + (dir_ / "capped.exr").string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("block RMSE 0.0005 not reached everywhere"), std::string::npos) << r.output;
 }
 
 TEST_F(RenderCli, BadTargetErrorSettingsNameTheFlagAndTheAllowedValues) {
@@ -158,7 +172,12 @@ TEST_F(RenderCli, BadTargetErrorSettingsNameTheFlagAndTheAllowedValues) {
       {"--target-rmse inf", "--target-rmse: must be a finite number > 0"},
       {"--target-rmse 0.01 --min-spp 64 --max-spp 32", "--min-spp (64) must not exceed --max-spp (32)"},
       {"--target-rmse 0.01 --spp 64", "--spp and --target-rmse conflict"},
-      {"--max-spp 64", "--max-spp bounds a render to a target error: give --target-rmse too"},
+      {"--max-spp 64", "--max-spp bounds a render to a target error: give --target-rmse or --block-rmse too"},
+      {"--block-rmse 0", "--block-rmse: must be a finite number > 0"},
+      {"--target-rmse 0.01 --block-rmse 0.01", "--target-rmse and --block-rmse conflict"},
+      {"--block-rmse 0.01 --spp 8", "--spp and --block-rmse conflict"},
+      {"--block-rmse 0.01 --sampler center", "--block-rmse needs a progressive sampler"},
+      {"--min-spp 2048 --target-rmse 0.01", "--min-spp (2048) must not exceed --max-spp (1024)"},
       {"--target-rmse 0.01 --sampler cmj", "--target-rmse needs a progressive sampler"},
       {"--target-rmse 0.01 --max-spp 100000", "--max-spp: must be in [2, 65536], got 100000"},
       {"--sampler sobel", "--sampler: must be one of sobol, stratified, cmj, independent, center"},

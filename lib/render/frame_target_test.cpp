@@ -1,0 +1,97 @@
+// Rendering to a frame's target error: the frame meets the target without paying for far less
+// error, its estimate is honest against a high-spp reference, and every pixel is a pure function
+// of (scene, frame, settings).
+#include "render/frame_target.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+
+#include "render/test_scenes.h"
+#include "scene/scene_parser.h"
+
+namespace tessera {
+namespace {
+
+Scene target_scene(int w, int h, double target, int min_spp, int max_spp) {
+  Scene s = parse_scene(test::whitted_like(w, h, 16), "test.json");
+  s.image.target_rmse = target;
+  s.image.min_spp = min_spp;
+  s.image.max_spp = max_spp;
+  return s;
+}
+
+double rmse(const ImageRGB& a, const ImageRGB& b) {
+  double se = 0;
+  for (size_t i = 0; i < a.rgb.size(); ++i) se += (double(a.rgb[i]) - double(b.rgb[i])) * (double(a.rgb[i]) - double(b.rgb[i]));
+  return std::sqrt(se / double(a.rgb.size()));
+}
+
+TEST(FrameTarget, TheFrameMeetsItsTargetAndItsEstimateIsHonest) {
+  const double target = 0.004;
+  RenderScene rs(target_scene(64, 40, target, 8, 1024), 0);
+  const FrameResult r = render_frame(rs, 32, 2);
+  const SampleSummary s = r.summary();
+  EXPECT_TRUE(s.target_reached);
+  EXPECT_LE(s.estimated_rmse, target);
+  // Not far below it either: the frame gets the error asked for, not a fraction of it.
+  EXPECT_GT(s.estimated_rmse, 0.7 * target);
+  EXPECT_EQ(s.min_spp, 8u);
+  EXPECT_GT(s.max_spp, 4 * s.min_spp) << "the samples went somewhere in particular";
+  // Honest: against an independent reference (another seed, uniform 1024 spp).
+  Scene ref_scene = parse_scene(test::whitted_like(64, 40, 1024), "test.json");
+  ref_scene.image.seed = 99;
+  RenderScene ref_rs(ref_scene, 0);
+  const double measured = rmse(r.image, render_frame(ref_rs, 32, 2).image);
+  std::printf("target %.4g: estimated %.4g, measured %.4g, mean spp %.1f\n", target, s.estimated_rmse, measured,
+              s.mean_spp);
+  EXPECT_GT(s.estimated_rmse / measured, 0.7);
+  EXPECT_LT(s.estimated_rmse / measured, 1.4);
+}
+
+TEST(FrameTarget, BitIdenticalForAnyThreadCountAndRepetition) {
+  RenderScene rs(target_scene(75, 53, 0.006, 8, 256), 0);  // odd sizes: blocks clipped at the edges
+  const FrameResult ref = render_frame(rs, 32, 1);
+  for (int threads : {2, 3}) {
+    RenderScene again(target_scene(75, 53, 0.006, 8, 256), 0);  // another Embree scene, as on another machine
+    const FrameResult r = render_frame(again, 16, threads);
+    ASSERT_EQ(r.image.rgb, ref.image.rgb) << threads;
+    ASSERT_EQ(r.variance, ref.variance) << threads;
+    ASSERT_EQ(r.spp, ref.spp) << threads;
+  }
+}
+
+TEST(FrameTarget, APixelWithNSamplesEqualsTheUniformNSppRender) {
+  RenderScene rs(target_scene(48, 32, 0.005, 8, 128), 0);
+  const FrameResult a = render_frame(rs, 32, 2);
+  std::map<uint32_t, FrameResult> uniform;
+  for (size_t i = 0; i < a.spp.size(); ++i) {
+    const uint32_t n = a.spp[i];
+    if (!uniform.count(n)) {
+      RenderScene u(parse_scene(test::whitted_like(48, 32, int(n)), "test.json"), 0);
+      uniform.emplace(n, render_frame(u, 32, 2));
+    }
+    const FrameResult& u = uniform.at(n);
+    for (int c = 0; c < 3; ++c) ASSERT_EQ(a.image.rgb[3 * i + size_t(c)], u.image.rgb[3 * i + size_t(c)]) << i;
+    ASSERT_EQ(a.variance[i], u.variance[i]) << i;
+  }
+  EXPECT_GE(uniform.size(), 3u);  // several counts were compared
+}
+
+TEST(FrameTarget, AnUnreachableTargetStopsAtMaxSppAndSaysSo) {
+  RenderScene rs(target_scene(40, 24, 1e-5, 8, 24), 0);
+  const FrameResult r = render_frame(rs, 32, 2);
+  const SampleSummary s = r.summary();
+  EXPECT_FALSE(s.target_reached);
+  EXPECT_EQ(s.max_spp, 24u);
+  EXPECT_GT(s.unconverged_pixels, 0);
+}
+
+TEST(FrameTarget, RenderTileRefusesAFrameTarget) {
+  RenderScene rs(target_scene(16, 16, 0.01, 8, 64), 0);
+  EXPECT_THROW(render_tile(rs, {0, 0, 16, 16}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace tessera
