@@ -69,12 +69,14 @@ if [ $SMOKE = 1 ]; then
   W=32 H=18 MAXSPP=4 REFSPP=16 CENTER=2 TARGETS=0.05 SEEDS=1   # speed_error
   CW=32 CH=18 CSPP=1 REPS=1                      # ray_ceiling
   PW=32 PH=18 PR=2                               # povray: +R2 = 4 samples per pixel
-  BW=32 BH=18 BSPP=2 BREF=16                     # cycles
+  POV_ADAPTIVE=("+A0.3 +AM2 +R3")                # povray's adaptive anti-aliasing, as its users set it
+  BW=32 BH=18 BSPP=2 BREF=16 BNOISE=0.1          # cycles (BNOISE: its adaptive sampling's noise threshold)
 else
   W=192 H=108 MAXSPP=1024 REFSPP=4096 CENTER=16 TARGETS=auto SEEDS=3
   CW=480 CH=270 CSPP=4 REPS=3
   PW=192 PH=108 PR=4
-  BW=192 BH=108 BSPP=16 BREF=1024
+  POV_ADAPTIVE=("+A0.3 +AM2 +R3" "+A0.1 +AM2 +R3" "+A0.03 +AM2 +R4")
+  BW=192 BH=108 BSPP=16 BREF=1024 BNOISE=0.01    # 0.01: Cycles' default noise threshold
 fi
 {
   echo "<!-- bench/run_all.sh$([ $SMOKE = 1 ] && echo ' --smoke') on $(date -u '+%Y-%m-%d %H:%M UTC'), $(nproc) cores: $(lscpu | sed -n 's/^Model name: *//p') -->"
@@ -177,22 +179,31 @@ if want povray && peer povray povray "POV-Ray 3.7 against Tessera (${PW}x${PH}, 
       --ref-spp $REFSPP --samplers sobol --targets none --threads "$THREADS" --cache "$CACHE" >/dev/null
   fi
   # +A0.0 +AM1 +R n: every pixel supersampled on an n x n grid (non-adaptive in effect), no
-  # jitter; linear EXR output (assumed_gamma 1.0 in the scene); same thread count as ours.
-  s=$(date +%s.%N)
-  /usr/bin/time -f "%U %S" -o "$OUT/povray.cpu" povray +I"$HERE/povray/whitted.pov" +O"$OUT/povray_whitted.exr" \
-    +FE +W$PW +H$PH +A0.0 +AM1 +R$PR -J -D +WT"$THREADS" +V >"$OUT/povray.log" 2>&1
-  e=$(date +%s.%N)
-  process_wall=$(echo "$e - $s" | bc -l)
-  process_cpu=$(awk '{printf "%.3f", $1 + $2}' "$OUT/povray.cpu")
-  # POV-Ray's own trace time (wall) and CPU-seconds: like Tessera's render time, they leave out
-  # start-up and parsing (POV-Ray's front end alone takes most of a second).
-  wall=$(sed -n 's/.*Trace Time:.*(\([0-9.]*\) seconds).*/\1/p' "$OUT/povray.log" | tail -1)
-  cpu=$(sed -n 's/.*thread(s) with \([0-9.]*\) CPU-seconds total.*/\1/p' "$OUT/povray.log" | tail -1)
-  samples=$(sed -n 's/.*Samples: *\([0-9]*\).*/\1/p' "$OUT/povray.log" | tail -1)
-  echo "POV-Ray process: ${process_wall} s wall, ${process_cpu} s CPU (start-up included)" >&2
-  "$BUILD/bench/povray/pov_compare" --scene scenes/whitted.json --pov-exr "$OUT/povray_whitted.exr" \
-    --pov-wall "$wall" --pov-cpu "$cpu" --pov-samples "$samples" --pov-spp $((PR * PR)) --reference "$REF" \
-    --width $PW --height $PH --threads "$THREADS" --markdown "$SUMMARY" >"$OUT/povray.json"
+  # jitter; then POV-Ray's adaptive anti-aliasing as its users run it (+A threshold +AM2: a pixel
+  # is subdivided where its corners differ by more than the threshold, up to +R levels). Linear
+  # EXR output (assumed_gamma 1.0 in the scene); same thread count as ours.
+  k=0
+  for settings in "+A0.0 +AM1 +R$PR" "${POV_ADAPTIVE[@]}"; do
+    name=povray$([ $k = 0 ] || echo "_adaptive_$k")
+    s=$(date +%s.%N)
+    # shellcheck disable=SC2086  # the settings are several flags
+    /usr/bin/time -f "%U %S" -o "$OUT/$name.cpu" povray +I"$HERE/povray/whitted.pov" +O"$OUT/${name}_whitted.exr" \
+      +FE +W$PW +H$PH $settings -J -D +WT"$THREADS" +V >"$OUT/$name.log" 2>&1
+    e=$(date +%s.%N)
+    process_wall=$(echo "$e - $s" | bc -l)
+    process_cpu=$(awk '{printf "%.3f", $1 + $2}' "$OUT/$name.cpu")
+    # POV-Ray's own trace time (wall) and CPU-seconds: like Tessera's render time, they leave out
+    # start-up and parsing (POV-Ray's front end alone takes most of a second).
+    wall=$(sed -n 's/.*Trace Time:.*(\([0-9.]*\) seconds).*/\1/p' "$OUT/$name.log" | tail -1)
+    cpu=$(sed -n 's/.*thread(s) with \([0-9.]*\) CPU-seconds total.*/\1/p' "$OUT/$name.log" | tail -1)
+    samples=$(sed -n 's/.*Samples: *\([0-9]*\).*/\1/p' "$OUT/$name.log" | tail -1)
+    echo "POV-Ray $settings process: ${process_wall} s wall, ${process_cpu} s CPU (start-up included)" >&2
+    [ $k = 0 ] || echo -e "\nPOV-Ray's adaptive anti-aliasing, \`$settings\`:\n" >>"$SUMMARY"
+    "$BUILD/bench/povray/pov_compare" --scene scenes/whitted.json --pov-exr "$OUT/${name}_whitted.exr" \
+      --pov-wall "$wall" --pov-cpu "$cpu" --pov-samples "$samples" --pov-spp $((PR * PR)) --reference "$REF" \
+      --width $PW --height $PH --threads "$THREADS" --pov-settings "$settings" --markdown "$SUMMARY" >"$OUT/$name.json"
+    k=$((k + 1))
+  done
 fi
 
 if want cycles && peer blender blender "Blender's Cycles against Tessera on whitted_a.glb (${BW}x${BH}, $BSPP spp, $THREADS threads)" \
@@ -211,8 +222,17 @@ if want cycles && peer blender blender "Blender's Cycles against Tessera on whit
     "$OUT/cycles_whitted_a_ref.exr" $BW $BH $BREF 8 "$THREADS" >"$OUT/cycles_ref.log" 2>&1
   wall=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["wall_s"])' "$result")
   cpu=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["cpu_s"])' "$result")
+  # Cycles' adaptive sampling (noise threshold BNOISE, at most BREF spp) against Tessera's frame
+  # target, each at equal error against its own reference.
+  blender -b --factory-startup --python "$HERE/cycles/cycles_render.py" -- tests/data/gltf/whitted_a.glb \
+    "$OUT/cycles_whitted_a_adaptive.exr" $BW $BH $BREF 8 "$THREADS" $BNOISE >"$OUT/cycles_adaptive.log" 2>&1
+  adaptive=$(sed -n 's/^CYCLES_RESULT //p' "$OUT/cycles_adaptive.log" | tail -1)
+  awall=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["wall_s"])' "$adaptive")
+  acpu=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["cpu_s"])' "$adaptive")
   "$BUILD/bench/cycles/cycles_compare" --scene tests/data/gltf/whitted_a.glb --cycles-exr "$OUT/cycles_whitted_a.exr" \
     --cycles-reference-exr "$OUT/cycles_whitted_a_ref.exr" \
+    --cycles-adaptive-exr "$OUT/cycles_whitted_a_adaptive.exr" --cycles-adaptive-wall "$awall" \
+    --cycles-adaptive-cpu "$acpu" --cycles-adaptive-threshold $BNOISE \
     --cycles-wall "$wall" --cycles-cpu "$cpu" --spp $BSPP --ref-spp $BREF --max-depth 8 --width $BW --height $BH \
     --threads "$THREADS" --markdown "$SUMMARY" >"$OUT/cycles.json"
 fi

@@ -100,9 +100,10 @@ struct Run {
   ImageRGB image;
 };
 
-Run render(const Scene& base, int spp, int threads) {
+Run render(const Scene& base, int spp, int threads, double target_rmse = 0) {
   Scene s = base;
   s.image.spp = spp;
+  s.image.target_rmse = target_rmse;
   RenderScene rs(s, 0);
   const double c0 = bench::process_cpu_seconds();
   FrameResult r = render_frame(rs, 32, threads);
@@ -130,6 +131,17 @@ int main(int argc, char** argv) {
   app.add_option("--height", height);
   app.add_option("--threads", threads, "Tessera threads (give Cycles the same)");
   app.add_option("--markdown", markdown);
+  // Time to equal error against Cycles' adaptive sampling: Cycles' error against its own
+  // reference (--cycles-reference-exr), Tessera's against its own, so that where the two models
+  // differ counts against neither; Tessera renders to a frame target from 1.3x Cycles' error down
+  // in steps of 5% until it is at most Cycles'.
+  std::string adaptive_exr;
+  double adaptive_wall = 0, adaptive_cpu = 0, adaptive_threshold = 0;
+  app.add_option("--cycles-adaptive-exr", adaptive_exr, "Cycles with adaptive sampling (cycles_render.py's threshold)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--cycles-adaptive-wall", adaptive_wall, "Its render time, wall seconds");
+  app.add_option("--cycles-adaptive-cpu", adaptive_cpu, "Its render CPU-seconds");
+  app.add_option("--cycles-adaptive-threshold", adaptive_threshold, "Its noise threshold, for the tables");
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::err);
 
@@ -184,6 +196,27 @@ int main(int argc, char** argv) {
     }
     out["references"] = {{"rmse", rmse(cref, ref.image)}, {"rmse_masked", rmse(cref, ref.image, mask)},
                          {"mean_ratio_masked", mean(cref, mask) / mean(ref.image, mask)}};
+    if (!adaptive_exr.empty()) {
+      const ImageRGB ca = read_exr(adaptive_exr);
+      if (ca.width != width || ca.height != height) {
+        std::cerr << "cycles_compare: Cycles' adaptive render is " << ca.width << "x" << ca.height << "\n";
+        return 2;
+      }
+      const double c_err = rmse(ca, cref);
+      Run t;
+      double target = 1.3 * c_err, t_err = 0;
+      for (int i = 0; i < 40; ++i, target *= 0.95) {
+        t = render(scene, spp, threads, target);
+        t_err = rmse(t.image, ref.image);
+        if (t_err <= c_err) break;
+      }
+      out["adaptive"] = {{"cycles", {{"noise_threshold", adaptive_threshold}, {"max_spp", spp}, {"wall_s", adaptive_wall},
+                                     {"cpu_s", adaptive_cpu}, {"rmse_vs_own_reference", c_err}}},
+                         {"tessera", {{"target_rmse", target}, {"wall_s", t.wall}, {"cpu_s", t.cpu},
+                                      {"rmse_vs_own_reference", t_err}, {"reached", t_err <= c_err}}},
+                         {"speedup_cpu", adaptive_cpu / t.cpu},
+                         {"speedup_wall", adaptive_wall / t.wall}};
+    }
   }
   std::cout << out.dump(2) << "\n";
   if (!markdown.empty()) {
@@ -211,6 +244,19 @@ int main(int argc, char** argv) {
                     "Tessera's, masked: %.3f.\n",
                     ref_spp, out["references"]["rmse"].get<double>(), out["references"]["rmse_masked"].get<double>(),
                     out["references"]["mean_ratio_masked"].get<double>());
+      md << buf;
+    }
+    if (out.contains("adaptive")) {
+      const auto& a = out["adaptive"];
+      std::snprintf(buf, sizeof buf,
+                    "\nTime to equal error, each against its own %d-spp reference: Cycles' adaptive sampling (noise "
+                    "threshold %.3g, at most %d spp) %.3f CPU s at RMSE %.4g; Tessera `--target-rmse %.3g` %.3f CPU s at "
+                    "RMSE %.4g (%s): **%.2fx** (CPU), %.2fx (wall).\n",
+                    ref_spp, adaptive_threshold, spp, adaptive_cpu, a["cycles"]["rmse_vs_own_reference"].get<double>(),
+                    a["tessera"]["target_rmse"].get<double>(), a["tessera"]["cpu_s"].get<double>(),
+                    a["tessera"]["rmse_vs_own_reference"].get<double>(),
+                    a["tessera"]["reached"].get<bool>() ? "reached" : "NOT reached", a["speedup_cpu"].get<double>(),
+                    a["speedup_wall"].get<double>());
       md << buf;
     }
   }

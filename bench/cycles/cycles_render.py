@@ -2,7 +2,10 @@
 # bench/cycles/cycles_compare (the glTF peer). Blender runs as an external program only:
 #
 #   blender -b --factory-startup --python bench/cycles/cycles_render.py -- \
-#       SCENE.glb OUT.exr WIDTH HEIGHT SPP MAX_DEPTH THREADS
+#       SCENE.glb OUT.exr WIDTH HEIGHT SPP MAX_DEPTH THREADS [NOISE_THRESHOLD]
+#
+# With NOISE_THRESHOLD > 0, Cycles' adaptive sampling (its noise threshold; SPP is then the most
+# samples a pixel takes, the fewest Cycles' automatic minimum) instead of SPP everywhere.
 #
 # Whitted-like: no diffuse bounces (diffuse surfaces see lights directly only), specular
 # (glossy) and transmission bounces up to MAX_DEPTH as Tessera's max_depth, caustics off, a 1-px
@@ -63,8 +66,9 @@ def cpu_seconds():
 
 
 def main(argv):
-    scene_path, out, width, height, spp, depth, threads = argv
+    scene_path, out, width, height, spp, depth, threads = argv[:7]
     width, height, spp, depth, threads = int(width), int(height), int(spp), int(depth), int(threads)
+    threshold = float(argv[7]) if len(argv) > 7 else 0.0
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.import_scene.gltf(filepath=scene_path)
     scene = bpy.context.scene
@@ -100,7 +104,10 @@ def main(argv):
     c = scene.cycles
     c.device = "CPU"
     c.samples = spp
-    c.use_adaptive_sampling = False
+    c.use_adaptive_sampling = threshold > 0
+    if threshold > 0:
+        c.adaptive_threshold = threshold
+        c.adaptive_min_samples = 0  # Cycles' automatic minimum
     c.use_denoising = False
     c.seed = 0
     c.pixel_filter_type = "BOX"
@@ -125,14 +132,14 @@ def main(argv):
     bpy.ops.render.render(write_still=True)
     wall, cpu = time.time() - t0, cpu_seconds() - c0
     print("CYCLES_RESULT " + json.dumps({"wall_s": wall, "cpu_s": cpu, "spp": spp, "width": width, "height": height,
-                                         "max_depth": depth, "threads": threads, "blender": bpy.app.version_string,
+                                         "max_depth": depth, "threads": threads, "noise_threshold": threshold, "blender": bpy.app.version_string,
                                          "materials": kinds}))
     return 0
 
 
 if __name__ == "__main__":
     args = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-    if len(args) != 7:
+    if len(args) not in (7, 8):
         print(__doc__ if __doc__ else "usage: see the header of cycles_render.py", file=sys.stderr)
         sys.exit(2)
     sys.exit(main(args))

@@ -10,6 +10,7 @@
 
 #include "render/test_scenes.h"
 #include "scene/scene_parser.h"
+#include "tile/tile_grid.h"
 
 namespace tessera {
 namespace {
@@ -86,6 +87,75 @@ TEST(FrameTarget, AnUnreachableTargetStopsAtMaxSppAndSaysSo) {
   EXPECT_FALSE(s.target_reached);
   EXPECT_EQ(s.max_spp, 24u);
   EXPECT_GT(s.unconverged_pixels, 0);
+}
+
+// A farm's way to the same frame: tiles rendered from sample 0 to their plans, the blocks'
+// statistics gathered from the tiles after each pass, the next pass planned from them, and only the
+// tiles whose blocks take more samples rendered again.
+FrameResult render_as_a_farm(const RenderScene& rs, int tile_size, int* passes, int* tiles_rendered) {
+  const ImageSettings& img = rs.image();
+  const BlockGrid blocks(img.width, img.height);
+  const TileGrid tiles(img.width, img.height, tile_size);
+  std::vector<BlockStat> stats(size_t(blocks.count()));
+  std::vector<uint32_t> counts;  // empty: the pilot
+  std::vector<TileResult> latest(size_t(tiles.count()));
+  std::vector<SamplePlan> rendered_with(size_t(tiles.count()));  // each tile's counts when last rendered
+  *passes = *tiles_rendered = 0;
+  while (true) {
+    for (int t = 0; t < tiles.count(); ++t) {
+      const TileRect rect = tiles.rect(t);
+      const SamplePlan plan =
+          tile_plan(blocks, rect, counts.empty() ? std::vector<uint32_t>(stats.size(), uint32_t(img.first_spp())) : counts);
+      if (plan == rendered_with[size_t(t)]) continue;  // none of its blocks takes more samples
+      rendered_with[size_t(t)] = plan;
+      latest[size_t(t)] = render_tile_planned(rs, rect, plan);
+      ++*tiles_rendered;
+      for (const BlockStat& b : latest[size_t(t)].blocks) stats[size_t(b.block)] = updated_stat(stats[size_t(b.block)], b);
+    }
+    ++*passes;
+    auto next = next_pass_counts(stats, blocks, img, *passes);
+    if (!next) break;
+    counts = *next;
+  }
+  FrameResult out;
+  out.image = ImageRGB(img.width, img.height);
+  out.variance.assign(out.image.pixel_count(), 0.0f);
+  out.spp.assign(out.image.pixel_count(), 0);
+  for (const TileResult& t : latest) {
+    for (int y = 0; y < t.rect.height; ++y) {
+      for (int x = 0; x < t.rect.width; ++x) {
+        const size_t i = size_t(y * t.rect.width + x), o = size_t(t.rect.y0 + y) * size_t(img.width) + size_t(t.rect.x0 + x);
+        for (int c = 0; c < 3; ++c) out.image.rgb[3 * o + size_t(c)] = t.rgb[3 * i + size_t(c)];
+        out.variance[o] = t.variance[i];
+        out.spp[o] = t.spp[i];
+      }
+    }
+  }
+  return out;
+}
+
+TEST(FrameTarget, TilesRenderedByPlanInPassesGiveTheSameFrame) {
+  RenderScene rs(target_scene(75, 53, 0.004, 8, 256), 0);
+  const FrameResult ref = render_frame(rs, 32, 2);
+  for (int tile : {12, 32, 7}) {  // blocks straddle tiles of 7 and of 12 pixels
+    int passes = 0, rendered = 0;
+    const FrameResult farm = render_as_a_farm(rs, tile, &passes, &rendered);
+    ASSERT_EQ(farm.image.rgb, ref.image.rgb) << "tile " << tile;
+    ASSERT_EQ(farm.variance, ref.variance) << "tile " << tile;
+    ASSERT_EQ(farm.spp, ref.spp) << "tile " << tile;
+    EXPECT_GE(passes, 2) << "the test exercises the passes";
+    const int tiles = TileGrid(75, 53, tile).count();
+    if (tile < 32) EXPECT_LT(rendered, passes * tiles) << "tiles whose blocks were done were rendered again";
+  }
+}
+
+TEST(FrameTarget, APlanOfTheWrongShapeIsRefused) {
+  RenderScene rs(target_scene(32, 32, 0.01, 8, 64), 0);
+  EXPECT_THROW(render_tile_planned(rs, {0, 0, 16, 16}, SamplePlan(15, 8)), std::invalid_argument);
+  EXPECT_THROW(render_tile_planned(rs, {0, 0, 16, 16}, SamplePlan(16, 4)), std::invalid_argument);     // < min_spp
+  EXPECT_THROW(render_tile_planned(rs, {0, 0, 16, 16}, SamplePlan(16, 128)), std::invalid_argument);   // > max_spp
+  EXPECT_EQ(render_tile_planned(rs, {4, 4, 8, 8}, SamplePlan(4, 16)).blocks.size(), 4u);
+  EXPECT_EQ(render_tile_planned(rs, {2, 2, 8, 8}, SamplePlan(9, 16)).blocks.size(), 4u);  // origins at 4 and 8
 }
 
 TEST(FrameTarget, RenderTileRefusesAFrameTarget) {

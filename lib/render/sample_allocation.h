@@ -18,19 +18,9 @@
 #include <cstdint>
 #include <vector>
 
-namespace tessera {
+#include "tile/block_stat.h"
 
-// A block's samples so far.
-struct BlockStat {
-  uint32_t spp = 0;     // samples each of its pixels has
-  uint32_t pixels = 0;  // pixels in it (fewer at the image's right and bottom edges)
-  double mse = 0;       // mean over its pixels of the estimated variance of the pixel's value
-  // What the allocation shares samples by: mse, or a floor on it where mse is not trusted
-  // (PixelEstimate::stratified_floor); at least mse.
-  double shape_mse = 0;
-  double cost = 0;      // rays traced per sample, averaged over its samples so far (> 0)
-  double rate = 1;      // its MSE falls as spp^-rate
-};
+namespace tessera {
 
 struct AllocationBounds {
   double frame_mse = 0;  // the target: the frame's mean pixel MSE

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "tile/block_stat.h"
 #include "tile/tile_rect.h"
 
 namespace tessera {
@@ -33,6 +34,8 @@ struct TileResult {
   std::vector<uint32_t> spp;    // width * height: samples the pixel took
   RayCounts rays;
   double seconds = 0;           // wall time spent rendering the tile
+  // Frame-target renders only: the statistics of the blocks whose first pixel lies in the tile.
+  std::vector<BlockStat> blocks;
 };
 
 }  // namespace tessera
