@@ -14,7 +14,7 @@ void add_image_options(CLI::App& cmd, ImageOptions& o) {
                  "sobol (default; also called stratified), cmj, independent or center");
   cmd.add_option("--target-rmse", o.overrides.target_rmse,
                  "Render to a target error of the frame: its estimated RMSE (linear light) at most this, samples "
-                 "where they pay most (in-process only for now)");
+                 "where they pay most");
   cmd.add_option("--block-rmse", o.overrides.block_rmse,
                  "Render to a bound on every 8x8 block's estimated RMSE (linear light): each block takes samples "
                  "until it is at most this");

@@ -11,6 +11,10 @@ namespace v1 = tessera::v1;
 Coordinator::Coordinator(CoordinatorOptions options, BundleStore& store, JobStore* jobs)
     : options_(options), store_(store), jobs_store_(jobs), scheduler_(options.scheduler) {
   scheduler_.set_listener(this);
+  scheduler_.set_pass_planner([this](const JobId& job, int frame, int passes,
+                                     const std::vector<const TileOutput*>& outputs) {
+    return passes_.plan(scheduler_.header(job)->spec, job, frame, passes, outputs);
+  });
   if (jobs_store_) restore_locked();  // no stream or thread exists yet
   expiry_ = std::thread([this] { expiry_loop(); });
 }
@@ -42,6 +46,7 @@ void Coordinator::restore_locked() {
   for (JobRecord& r : l.jobs) {
     const JobId id = r.id;
     if (refuse_restore_locked(r)) continue;
+    r.spec.passes = FramePasses::settings_of(r.spec).has_value();  // not stored: from its overrides
     scheduler_.restore(std::move(r));
     auto s = scheduler_.job(id);
     tiles += s->tiles_done;

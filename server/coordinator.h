@@ -32,6 +32,7 @@
 
 #include "bundle_store.h"
 #include "coordinator_messages.h"
+#include "frame_passes.h"
 #include "job_store.h"
 #include "ray_servers.h"
 #include "scheduler.h"
@@ -192,6 +193,7 @@ class Coordinator : private SchedulerListener {
   RayServers ray_servers_;
   std::mutex mu_;
   Scheduler scheduler_;
+  FramePasses passes_;  // frame-target jobs' frames between passes
   struct WorkerStream {
     std::shared_ptr<WorkerSink> sink;
     bool reads_batches = false;  // Register.reads_assignment_batches

@@ -56,16 +56,6 @@ Status load_submitted_scene(BundleStore& store, const v1::SubmitJobRequest& req,
 Status job_spec(const v1::SubmitJobRequest& req, const Scene& scene, const Admission& admission, int tile,
                 JobSpec* out) {
   JobSpec& spec = *out;
-  if (scene.image.frame_target()) {
-    // A frame target's samples depend on statistics of the whole frame, gathered in passes
-    // (render/frame_target.h); the coordinator hands out independent tiles only, so it refuses
-    // the job rather than render something else under the same name.
-    return Status(StatusCode::FAILED_PRECONDITION,
-                  "target_rmse " + std::to_string(scene.image.target_rmse) +
-                      ": a target error of the whole frame is rendered in passes that the farm does not run yet; "
-                      "submit with --block-rmse (every 8x8 block's error at most this, the farm's adaptive mode) or "
-                      "render it with `tessera render --target-rmse`");
-  }
   spec.width = scene.image.width;
   spec.height = scene.image.height;
   // An adaptive job's spp is its most samples per pixel (what limits and estimates go by).
@@ -89,10 +79,20 @@ Status job_spec(const v1::SubmitJobRequest& req, const Scene& scene, const Admis
   // without the scene, and workers apply exactly the same settings.
   v1::ImageOverrides resolved = req.overrides();
   if (scene.image.adaptive()) {
-    resolved.set_block_rmse(scene.image.block_rmse);
+    // One target, the one in effect; for a frame target the sampler too (the coordinator plans
+    // its passes with the sampler's rate: sampling/pass_plan.h).
+    if (scene.image.frame_target()) {
+      resolved.set_target_rmse(scene.image.target_rmse);
+      resolved.clear_block_rmse();
+      resolved.set_sampler(sampler_name(scene.image.sampler));
+    } else {
+      resolved.set_block_rmse(scene.image.block_rmse);
+      resolved.clear_target_rmse();
+    }
     resolved.set_min_spp(scene.image.first_spp());
     resolved.set_max_spp(scene.image.max_spp);
   }
+  spec.passes = scene.image.frame_target();
   spec.overrides = resolved.SerializeAsString();
   spec.tile_size = tile;
   spec.priority = req.priority();

@@ -76,6 +76,7 @@ void assignment_proto(const Assignment& a, v1::Assignment* p) {
   p->set_frame(a.lease.tile.frame);
   p->set_tile_index(a.lease.tile.tile);
   farm::to_proto(a.rect, p->mutable_rect());
+  if (!a.plan.empty()) p->set_sample_plan(a.plan);
 }
 
 v1::CoordinatorMessage assignment_message(const Assignment& a) {

@@ -8,6 +8,7 @@
 #include <algorithm>
 
 #include "farm/tile_codec.h"
+#include "sampling/pass_plan.h"
 
 namespace tessera::server {
 
@@ -99,7 +100,20 @@ void Coordinator::tile_result_locked(WorkerId id, v1::TileResult& r) {
     return;
   }
   const auto rect = scheduler_.tile_rect(lease->tile.job, lease->tile.frame, lease->tile.tile);
-  const std::string err = farm::validate_tile(r.tile(), *rect);
+  std::string err = farm::validate_tile(r.tile(), *rect);
+  if (err.empty() && scheduler_.header(lease->tile.job)->spec.passes) {
+    // A frame target's pass is planned from the statistics every tile carries: a tile without
+    // them (a worker that renders no frame targets) or with malformed ones is a fault now, at
+    // the tile, rather than a failed plan at the frame's end.
+    std::vector<BlockStat> stats;
+    err = farm::decode_block_stats(r.tile().block_stats(), &stats);
+    const int expected = BlockGrid(scheduler_.header(lease->tile.job)->spec.width,
+                                   scheduler_.header(lease->tile.job)->spec.height).origins_in(*rect);
+    if (err.empty() && int(stats.size()) != expected) {
+      err = fmt::format("tile carries {} block statistics, expected {} (frame targets need them)", stats.size(),
+                        expected);
+    }
+  }
   if (!err.empty()) {
     scheduler_.fault(id, lease->tile.job, lease->id,
                      fmt::format("frame {} tile {}: {}", lease->tile.frame, lease->tile.tile, err));

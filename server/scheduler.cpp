@@ -292,6 +292,7 @@ Assignment Scheduler::issue(Worker& w, Job& job, int fi, int t, bool speculative
   a.rect = job.grid.rect(t);
   a.bundle_sha256 = job.spec.bundle_sha256;
   a.overrides = job.spec.overrides;
+  a.plan = tile.plan;
   tile.state = TileState::kLeased;
   tile.leases.push_back(a.lease.id);
   if (tile.leases.size() == 1) {
@@ -362,12 +363,57 @@ Scheduler::ResultOutcome Scheduler::complete(WorkerId worker, LeaseId lease_id, 
   // First copy wins: the other copy's worker should stop wasting time on it.
   const std::vector<LeaseId> others = tile.leases;
   for (LeaseId other : others) end_lease(other, LeaseEnd::kLostRace, false);
-  events().tile_finished(lease.tile, tile.output, worker);
-  if (frame.done == int(frame.tiles.size())) events().frame_finished(job.id, lease.tile.frame);
+  if (job.spec.passes) {
+    tile.finished_by = worker;
+    if (frame.done == int(frame.tiles.size())) end_pass(job, fi);
+  } else {
+    events().tile_finished(lease.tile, tile.output, worker);
+    if (frame.done == int(frame.tiles.size())) events().frame_finished(job.id, lease.tile.frame);
+  }
+  if (job_ended(job.state)) return ResultOutcome::kAccepted;  // the planner failed it
   if (job.tiles_done == int64_t(job.frames.size()) * int64_t(job.grid.count())) {
     set_state(job, JobState::kDone);
   }
   return ResultOutcome::kAccepted;
+}
+
+void Scheduler::end_pass(Job& job, int fi) {
+  Frame& frame = job.frames[size_t(fi)];
+  const int frame_number = job.spec.first_frame + fi;
+  ++frame.passes;
+  PassDecision next;
+  if (planner_) {
+    std::vector<const TileOutput*> outputs;
+    outputs.reserve(frame.tiles.size());
+    for (const Tile& t : frame.tiles) outputs.push_back(&t.output);
+    next = planner_(job.id, frame_number, frame.passes, outputs);
+  }
+  if (!next.error.empty()) {
+    fail_job(job, "frame " + std::to_string(frame_number) + ": " + next.error);
+    return;
+  }
+  int requeued = 0;
+  if (!next.final) {
+    for (size_t t = 0; t < frame.tiles.size() && t < next.plans.size(); ++t) {
+      if (!next.plans[t]) continue;
+      Tile& tile = frame.tiles[t];
+      tile.state = TileState::kQueued;
+      tile.plan = std::move(*next.plans[t]);
+      --frame.done;
+      --job.tiles_done;
+      job.queue.emplace_back(fi, int(t));
+      ++requeued;
+    }
+  }
+  if (requeued > 0) {
+    update_runnable(job);
+    return;
+  }
+  // The frame's last pass: its tiles are final, reported in tile order, then the frame.
+  for (size_t t = 0; t < frame.tiles.size(); ++t) {
+    events().tile_finished({job.id, frame_number, int(t)}, frame.tiles[t].output, frame.tiles[t].finished_by);
+  }
+  events().frame_finished(job.id, frame_number);
 }
 
 void Scheduler::return_leases(WorkerId worker, const std::vector<LeaseId>& leases) {
@@ -443,6 +489,24 @@ void Scheduler::restore(JobRecord rec) {
     ++job.tiles_done;
     job.rays += t.output.rays;
     job.tile_seconds += t.output.seconds;
+  }
+  if (job.spec.passes) {
+    // A frame's tiles are stored only when its last pass ends, all of them at once; a crash in the
+    // middle of storing them leaves a frame with some. Its other tiles are not at their last
+    // pass's counts, and the passes before are not stored: the frame starts again from its pilot.
+    // (The tiles stored are what the frame's last pass will make again, bit for bit.)
+    for (Frame& fr : job.frames) {
+      if (fr.done == 0 || fr.done == per_frame) continue;
+      for (Tile& t : fr.tiles) {
+        if (t.state != TileState::kDone) continue;
+        t.state = TileState::kQueued;
+        job.rays -= t.output.rays;
+        job.tile_seconds -= t.output.seconds;
+        t.output = {};
+        --job.tiles_done;
+      }
+      fr.done = 0;
+    }
   }
   for (int f : rec.acknowledged) {
     const int fi = f - job.spec.first_frame;

@@ -43,6 +43,11 @@ struct JobSpec {
   int tile_size = 32;
   int priority = 0;        // higher first; ties in submit order
   std::string owner;       // the submitting client's identity (request_limits.h); opaque here
+  // A frame-target job (docs/farm.md, "Frame targets"): each frame's tiles are rendered in passes
+  // that the PassPlanner plans, and its tiles are reported finished (tile_finished, then
+  // frame_finished) only when its last pass ends. Not stored: the coordinator derives it from the
+  // overrides at submit and at restore.
+  bool passes = false;
 
   // Frames x tiles per frame: what the job's tile table holds (the scheduler's memory for it).
   int64_t tiles() const;
@@ -82,7 +87,20 @@ struct Assignment {
   TileRect rect;
   std::string bundle_sha256;
   std::string overrides;
+  std::string plan;  // passes jobs: the tile's sample plan for this pass (opaque here; empty: the first pass)
 };
+
+// Plans a passes job's next pass when one ends: given every tile's output of the frame (tile
+// order) after `passes_done` passes, each tile's plan for the next pass (nullopt: the tile keeps
+// its output), or `final` when the frame is done; `error` fails the job (a worker's statistics
+// that cannot be planned from).
+struct PassDecision {
+  bool final = true;
+  std::vector<std::optional<std::string>> plans;
+  std::string error;
+};
+using PassPlanner = std::function<PassDecision(const JobId&, int frame, int passes_done,
+                                               const std::vector<const TileOutput*>& outputs)>;
 
 enum class LeaseEnd {
   kCompleted,      // its result was accepted
@@ -194,6 +212,7 @@ class Scheduler {
   explicit Scheduler(SchedulerOptions options = {}, NowFn now = Clock::now, IdFn make_id = {});
 
   void set_listener(SchedulerListener* listener) { listener_ = listener; }
+  void set_pass_planner(PassPlanner planner) { planner_ = std::move(planner); }
   const SchedulerOptions& options() const { return options_; }
 
   // --- jobs -------------------------------------------------------------------------------
@@ -284,10 +303,13 @@ class Scheduler {
     TileState state = TileState::kQueued;
     std::vector<LeaseId> leases;  // active leases (at most 2: the original and a speculative copy)
     TileOutput output;            // when done and not yet acknowledged
+    std::string plan;             // passes jobs: the plan of its current pass
+    WorkerId finished_by = 0;     // passes jobs: who rendered the output (reported at the frame's end)
   };
   struct Frame {
     std::vector<Tile> tiles;
     int done = 0;
+    int passes = 0;               // passes jobs: passes ended
     bool acknowledged = false;
   };
   struct Job : JobHeader {
@@ -328,12 +350,16 @@ class Scheduler {
   // Ends a lease; requeues its tile (at the front) when `requeue` and no other copy is active.
   void end_lease(LeaseId id, LeaseEnd why, bool requeue);
   void set_state(Job& job, JobState s);
+  // A passes job's frame whose every tile is done: plans the next pass (requeues its tiles) or
+  // reports the frame's tiles and the frame finished.
+  void end_pass(Job& job, int frame_index);
   JobSnapshot snapshot(const Job& job) const;
 
   SchedulerOptions options_;
   NowFn now_;
   IdFn make_id_;
   SchedulerListener* listener_ = nullptr;
+  PassPlanner planner_;
   SchedulerListener null_listener_;
   SchedulerListener& events() { return listener_ ? *listener_ : null_listener_; }
 

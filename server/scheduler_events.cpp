@@ -31,6 +31,7 @@ void Coordinator::job_state_changed(const JobId& id, JobState state) {
   if (job_ended(state)) {
     ended_[id] = s->ended.value_or(Clock::now());
     awaiting_first_tile_.erase(id);
+    passes_.forget(id);
   }
   if (state == JobState::kFailed) {
     spdlog::error("job {} failed: {}", id, s->error);

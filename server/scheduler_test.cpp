@@ -458,3 +458,89 @@ TEST_F(SchedulerTest, SetPriorityReordersQueuedTilesOfLiveJobsOnly) {
 
 }  // namespace
 }  // namespace tessera::server
+
+namespace tessera::server {
+namespace {
+
+// A passes job (frame targets): the planner sees every tile's output when a frame's pass ends and
+// sends some tiles round again with a plan; the frame's tiles are reported only after its last
+// pass, and a restore starts a partly stored frame again from its first pass.
+TEST_F(SchedulerTest, APassesJobReportsItsFramesOnlyAfterTheirLastPass) {
+  JobSpec j = spec(32, 16, 16, 2);  // 2 tiles a frame, 2 frames
+  j.passes = true;
+  std::vector<std::tuple<int, int, size_t>> calls;  // frame, passes done, outputs seen
+  s.set_pass_planner([&](const JobId&, int frame, int passes, const std::vector<const TileOutput*>& outs) {
+    calls.emplace_back(frame, passes, outs.size());
+    PassDecision d;
+    if (passes == 1) {  // tile 1 goes round again with plan "p2"
+      d.final = false;
+      d.plans = {std::nullopt, std::string("p2")};
+    }
+    return d;
+  });
+  const JobId id = s.submit(j);
+  const WorkerId w = worker("a");
+  auto as = pull(w, 10);
+  ASSERT_EQ(as.size(), 4u);
+  for (const auto& a : as) EXPECT_EQ(a.plan, "");  // the first pass
+  for (const auto& a : as) ASSERT_EQ(s.complete(w, a.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  EXPECT_TRUE(rec.finished.empty()) << "a tile was reported before its frame's last pass";
+  EXPECT_TRUE(rec.frames.empty());
+  ASSERT_EQ(calls.size(), 2u);
+  EXPECT_EQ(calls[0], std::make_tuple(0, 1, size_t(2)));
+  EXPECT_EQ(s.job(id)->tiles_done, 2);  // tile 1 of each frame is back in the queue
+  EXPECT_EQ(s.acknowledge_frame(id, 0), Scheduler::AckResult::kNotFinished);
+  auto again = pull(w, 10);
+  ASSERT_EQ(again.size(), 2u);
+  for (const auto& a : again) {
+    EXPECT_EQ(a.lease.tile.tile, 1);
+    EXPECT_EQ(a.plan, "p2");
+  }
+  ASSERT_EQ(s.complete(w, again[0].lease.id, out(20)), Scheduler::ResultOutcome::kAccepted);
+  ASSERT_EQ(rec.finished.size(), 2u);  // frame 0, both tiles, in order, then the frame
+  EXPECT_EQ(rec.finished[0].tile, 0);
+  EXPECT_EQ(rec.finished[1].tile, 1);
+  EXPECT_EQ(rec.frames, std::vector<int>{0});
+  EXPECT_NE(s.job(id)->state, JobState::kDone);
+  ASSERT_EQ(s.complete(w, again[1].lease.id, out(20)), Scheduler::ResultOutcome::kAccepted);
+  EXPECT_EQ(s.job(id)->state, JobState::kDone);
+  EXPECT_EQ(s.job(id)->rays, 4 * 10u + 2 * 20u);  // every pass's work counts
+}
+
+TEST_F(SchedulerTest, APlannerErrorFailsTheJobSayingWhy) {
+  JobSpec j = spec(16, 16, 16);
+  j.passes = true;
+  s.set_pass_planner([](const JobId&, int, int, const std::vector<const TileOutput*>&) {
+    PassDecision d;
+    d.error = "tile 0 carries no block statistics";
+    return d;
+  });
+  const JobId id = s.submit(j);
+  const WorkerId w = worker("a");
+  auto as = pull(w, 1);
+  ASSERT_EQ(as.size(), 1u);
+  s.complete(w, as[0].lease.id, out());
+  EXPECT_EQ(s.job(id)->state, JobState::kFailed);
+  EXPECT_EQ(s.job(id)->error, "frame 0: tile 0 carries no block statistics");
+  EXPECT_TRUE(rec.finished.empty());
+}
+
+TEST_F(SchedulerTest, RestoreStartsAPartlyStoredPassesFrameAgain) {
+  JobRecord r;
+  r.id = "jp";
+  r.spec = spec(32, 16, 16, 2);
+  r.spec.passes = true;
+  r.state = JobState::kRunning;
+  r.done.push_back({0, 0, out()});  // frame 0: one of two tiles stored
+  r.done.push_back({1, 0, out()});  // frame 1: both stored
+  r.done.push_back({1, 1, out()});
+  s.restore(r);
+  auto j = s.job("jp");
+  ASSERT_TRUE(j);
+  EXPECT_EQ(j->tiles_done, 2);
+  EXPECT_EQ(j->frames_done, std::vector<int>{1});
+  EXPECT_EQ(s.queued_tiles(), 2u);
+}
+
+}  // namespace
+}  // namespace tessera::server

@@ -12,6 +12,7 @@
 #include "reconnect_policy.h"
 #include "result_batcher.h"
 #include "render/embree_device.h"
+#include "render/frame_target.h"
 #include "render/tile_renderer.h"
 
 namespace tessera::worker {
@@ -289,6 +290,8 @@ void WorkerConnection::inject_test_fault(v1::TileResult* r) const {
     std::string rgb = r->tile().rgb();
     rgb.resize(rgb.size() >= 12 ? rgb.size() - 12 : 0);
     r->mutable_tile()->set_rgb(rgb);
+  } else if (f == "no-block-stats") {
+    r->mutable_tile()->clear_block_stats();
   } else if (f == "stale") {
     r->set_lease_id(r->lease_id() + (uint64_t(1) << 40));
   } else if (f == "no-scene") {
@@ -315,7 +318,19 @@ void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assig
   try {
     auto scene = cache_.frame(a.bundle_sha256(), a.overrides().SerializeAsString(), a.frame());
     const TileRect rect = farm::from_proto(a.rect());
-    const TileResult tile = render_tile(*scene, rect);
+    TileResult tile;
+    if (scene->image().frame_target()) {
+      // A pass of a frame target: the tile's blocks to the counts the coordinator planned from the
+      // frame's last pass (sampling/pass_plan.h); the result carries their statistics.
+      SamplePlan plan;
+      if (!decode_plan(a.sample_plan(), &plan)) {
+        throw std::runtime_error("sample plan of " + std::to_string(a.sample_plan().size()) +
+                                 " bytes is not a whole number of 4-byte counts");
+      }
+      tile = render_tile_planned(*scene, rect, plan);
+    } else {
+      tile = render_tile(*scene, rect);
+    }
     auto* r = out.mutable_result();
     r->set_lease_id(a.lease_id());
     r->mutable_tile()->set_job_id(a.job_id());

@@ -55,9 +55,11 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 60000));
   app.add_option("--test-fault", o.test_fault,
                  "Testing only: send bad results (nan, wrong-size, stale lease, no-scene, negative-variance, "
-                 "nan-seconds) to exercise the coordinator's refusal and per-job blocklist, or honest results "
-                 "padded with 1 MiB of unknown fields (padded)")
-      ->check(CLI::IsMember({"nan", "wrong-size", "stale", "no-scene", "negative-variance", "nan-seconds", "padded"}));
+                 "nan-seconds, no-block-stats: a frame-target tile without its statistics) to exercise the "
+                 "coordinator's refusal and per-job blocklist, or honest results padded with 1 MiB of unknown "
+                 "fields (padded)")
+      ->check(CLI::IsMember({"nan", "wrong-size", "stale", "no-scene", "negative-variance", "nan-seconds", "padded",
+                             "no-block-stats"}));
   std::string token_file;
   app.add_option("--token-file", token_file, "File holding the worker token (else env TESSERA_WORKER_TOKEN)")
       ->group("Security");

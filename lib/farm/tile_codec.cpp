@@ -159,6 +159,66 @@ void encode_tile(const TileResult& tile, tessera::v1::TileData* out) {
   rays->set_secondary(tile.rays.secondary);
   rays->set_nonfinite_samples(tile.rays.nonfinite_samples);
   out->set_seconds(tile.seconds);
+  if (!tile.blocks.empty()) out->set_block_stats(encode_block_stats(tile.blocks));
+}
+
+namespace {
+
+constexpr size_t kBlockStatBytes = 40;
+
+void put_le64(uint64_t v, char* p) {
+  for (int k = 0; k < 8; ++k) p[k] = char((v >> (8 * k)) & 0xff);
+}
+uint64_t le64_at(const char* p) {
+  uint64_t v = 0;
+  for (int k = 0; k < 8; ++k) v |= uint64_t(uint8_t(p[k])) << (8 * k);
+  return v;
+}
+
+}  // namespace
+
+std::string encode_block_stats(const std::vector<BlockStat>& blocks) {
+  std::string out(blocks.size() * kBlockStatBytes, '\0');
+  for (size_t i = 0; i < blocks.size(); ++i) {
+    char* p = out.data() + i * kBlockStatBytes;
+    const BlockStat& b = blocks[i];
+    put_le64(uint64_t(b.block), p);
+    put_le64(uint64_t(b.spp) | uint64_t(b.pixels) << 32, p + 8);
+    put_le64(std::bit_cast<uint64_t>(b.mse), p + 16);
+    put_le64(std::bit_cast<uint64_t>(b.shape_mse), p + 24);
+    put_le64(std::bit_cast<uint64_t>(b.cost), p + 32);
+  }
+  return out;
+}
+
+std::string decode_block_stats(const std::string& bytes, std::vector<BlockStat>* blocks) {
+  if (bytes.size() % kBlockStatBytes != 0) {
+    return "block_stats has " + std::to_string(bytes.size()) + " bytes, not a multiple of " +
+           std::to_string(kBlockStatBytes);
+  }
+  blocks->assign(bytes.size() / kBlockStatBytes, BlockStat{});
+  for (size_t i = 0; i < blocks->size(); ++i) {
+    const char* p = bytes.data() + i * kBlockStatBytes;
+    BlockStat& b = (*blocks)[i];
+    b.block = int64_t(le64_at(p));
+    const uint64_t counts = le64_at(p + 8);
+    b.spp = uint32_t(counts & 0xffffffffu);
+    b.pixels = uint32_t(counts >> 32);
+    b.mse = std::bit_cast<double>(le64_at(p + 16));
+    b.shape_mse = std::bit_cast<double>(le64_at(p + 24));
+    b.cost = std::bit_cast<double>(le64_at(p + 32));
+    const std::string which = "block_stats[" + std::to_string(i) + "] (block " + std::to_string(b.block) + ")";
+    if (b.block < 0) return which + ": negative block index";
+    if (b.spp == 0 || b.pixels == 0) return which + ": no samples or no pixels";
+    for (const auto& [name, v] : {std::pair{"mse", b.mse}, std::pair{"shape_mse", b.shape_mse}}) {
+      if (!std::isfinite(v) || v < 0) return which + ": " + name + " " + std::to_string(v) + " is not finite and >= 0";
+    }
+    if (b.shape_mse < b.mse) return which + ": shape_mse is below mse";
+    if (!std::isfinite(b.cost) || !(b.cost >= 1)) {
+      return which + ": rays per sample " + std::to_string(b.cost) + " is not finite and >= 1";
+    }
+  }
+  return {};
 }
 
 std::string check_tile(const tessera::v1::TileData& in, int w, int h) {
@@ -290,6 +350,7 @@ tessera::v1::TileData known_fields_only(tessera::v1::TileData&& in) {
   out.set_spp(std::move(*in.mutable_spp()));
   out.set_variance_bf16(std::move(*in.mutable_variance_bf16()));
   out.set_uniform_spp(in.uniform_spp());
+  out.set_block_stats(std::move(*in.mutable_block_stats()));
   return out;
 }
 

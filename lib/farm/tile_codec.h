@@ -16,12 +16,19 @@ void to_proto(const TileRect& r, tessera::v1::TileRect* out);
 TileRect from_proto(const tessera::v1::TileRect& r);
 
 // Pixels as float32, bit for bit; the variance as bfloat16 (variance_bf16); per-pixel sample
-// counts only when they differ (else uniform_spp).
+// counts only when they differ (else uniform_spp); a frame target's block statistics
+// (block_stats) when the tile has them.
 void encode_tile(const TileResult& tile, tessera::v1::TileData* out);
 // Checks sizes (rgb = 3*w*h floats; variance = w*h float32 or, in variance_bf16, w*h bfloat16;
 // spp = w*h uint32 or none) and decodes (a uniform_spp fills spp). Returns an empty string
 // on success, else what is wrong (the caller turns it into INVALID_ARGUMENT or a log line).
 std::string decode_tile(const tessera::v1::TileData& in, TileResult* out);
+// Block statistics on the wire (TileData.block_stats): 40 bytes a block, little-endian, every
+// double bit for bit (the coordinator's plan must be the one `tessera render` makes). The rate is
+// not carried (the planner sets it). decode returns "" or what is wrong.
+std::string encode_block_stats(const std::vector<BlockStat>& blocks);
+std::string decode_block_stats(const std::string& bytes, std::vector<BlockStat>* blocks);
+
 // Only the size checks of decode_tile, without copying the pixels (the coordinator forwards the
 // bytes untouched).
 std::string check_tile(const tessera::v1::TileData& in, int expected_width, int expected_height);

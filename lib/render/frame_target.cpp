@@ -14,47 +14,6 @@
 
 namespace tessera {
 
-namespace {
-
-// How a block's MSE is assumed to fall with spp before two passes have measured it: the rate of
-// an edge under the stratified samplers (N^-1.5; smooth pixels fall faster, independent samples
-// as N^-1). Measured on the showcase scenes: 1.5 lands the frame's estimate at 0.93-1.0x the
-// target, where 1 (independent samples) overshot it to 0.5-0.8x, paying for error nobody asked
-// for (docs/performance.md).
-constexpr double kFirstRate = 1.5;
-
-// What the allocation shares samples by: each block's own error averaged half and half with
-// the mean of its 3x3 neighbourhood (itself included), or its stratified floor if larger. A 4x4
-// block's estimate after the pilot has few degrees of freedom; a block that reads low by chance
-// would be left at the pilot's count with an estimate that stays low, and the frame's estimate
-// with it (measured: 0.69-0.73x the measured error at the tightest targets without this, 0.89-
-// 1.02x with it). Edges and glass continue across blocks, so the neighbours say what a block's
-// own few samples may have missed. The frame's level (the target) stays each block's own error.
-std::vector<BlockStat> shaped(const std::vector<BlockStat>& stats, const BlockGrid& grid) {
-  std::vector<BlockStat> out = stats;
-  for (int b = 0; b < grid.count(); ++b) {
-    const int cx = b % grid.cols, cy = b / grid.cols;
-    double sum = 0;
-    int n = 0;
-    for (int y = std::max(0, cy - 1); y <= std::min(grid.rows - 1, cy + 1); ++y) {
-      for (int x = std::max(0, cx - 1); x <= std::min(grid.cols - 1, cx + 1); ++x) {
-        sum += stats[size_t(y * grid.cols + x)].mse;
-        ++n;
-      }
-    }
-    const double pooled = 0.5 * stats[size_t(b)].mse + 0.5 * sum / double(n);
-    out[size_t(b)].shape_mse = std::max(stats[size_t(b)].shape_mse, pooled);
-  }
-  return out;
-}
-
-}  // namespace
-
-BlockGrid::Range BlockGrid::meeting(const TileRect& rect) const {
-  constexpr int B = kAllocationBlock;
-  return {rect.x0 / B, rect.y0 / B, (rect.x0 + rect.width + B - 1) / B, (rect.y0 + rect.height + B - 1) / B};
-}
-
 BlockStat block_stat(int64_t block, const PixelEstimate* pixels, int w, int h, uint32_t spp, uint64_t rays,
                      SamplerKind sampler) {
   BlockStat s;
@@ -73,40 +32,8 @@ BlockStat block_stat(int64_t block, const PixelEstimate* pixels, int w, int h, u
   s.mse = sum / double(s.pixels);
   s.shape_mse = shape / double(s.pixels);
   s.cost = spp > 0 ? double(rays) / (double(spp) * double(s.pixels)) : 1.0;
-  s.rate = sampler == SamplerKind::kIndependent ? 1.0 : kFirstRate;
+  s.rate = first_rate(sampler);
   return s;
-}
-
-BlockStat updated_stat(const BlockStat& before, const BlockStat& now) {
-  if (now.spp == before.spp) return before;
-  BlockStat s = now;
-  if (before.spp > 0 && before.spp < now.spp && before.shape_mse > 0 && now.shape_mse > 0) {
-    s.rate = std::clamp(std::log(before.shape_mse / now.shape_mse) / std::log(double(now.spp) / double(before.spp)),
-                        1.0, 2.5);
-  }
-  return s;
-}
-
-std::optional<std::vector<uint32_t>> next_pass_counts(const std::vector<BlockStat>& stats, const BlockGrid& grid,
-                                                      const ImageSettings& img, int passes_done) {
-  if (passes_done >= kMaxTargetPasses) return std::nullopt;
-  std::vector<uint32_t> have(stats.size());
-  for (size_t b = 0; b < stats.size(); ++b) have[b] = stats[b].spp;
-  const AllocationBounds bounds{img.target_rmse * img.target_rmse, uint32_t(img.first_spp()), uint32_t(img.max_spp)};
-  if (predicted_frame_mse(stats, have) <= bounds.frame_mse) return std::nullopt;
-  std::vector<uint32_t> want = allocate_samples(shaped(stats, grid), bounds);
-  if (want == have) return std::nullopt;
-  return want;
-}
-
-SamplePlan tile_plan(const BlockGrid& grid, const TileRect& rect, const std::vector<uint32_t>& counts) {
-  const BlockGrid::Range r = grid.meeting(rect);
-  SamplePlan plan;
-  plan.reserve(size_t(r.count()));
-  for (int row = r.row0; row < r.row1; ++row) {
-    for (int col = r.col0; col < r.col1; ++col) plan.push_back(counts[size_t(row * grid.cols + col)]);
-  }
-  return plan;
 }
 
 TileResult render_tile_planned(const RenderScene& scene, const TileRect& rect, const SamplePlan& plan) {

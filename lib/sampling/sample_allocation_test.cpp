@@ -1,6 +1,6 @@
 // The allocation against its closed form: with every block at the same rate a and no bound
 // reached, block b's count is proportional to (m_b n_b^a / c_b)^(1 / (a + 1)).
-#include "render/sample_allocation.h"
+#include "sampling/sample_allocation.h"
 
 #include <gtest/gtest.h>
 

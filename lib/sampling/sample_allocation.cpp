@@ -1,4 +1,4 @@
-#include "render/sample_allocation.h"
+#include "sampling/sample_allocation.h"
 
 #include <algorithm>
 #include <cmath>
