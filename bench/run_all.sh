@@ -232,7 +232,7 @@ if want cycles && peer blender blender "Blender's Cycles against Tessera on whit
   "$BUILD/bench/cycles/cycles_compare" --scene tests/data/gltf/whitted_a.glb --cycles-exr "$OUT/cycles_whitted_a.exr" \
     --cycles-reference-exr "$OUT/cycles_whitted_a_ref.exr" \
     --cycles-adaptive-exr "$OUT/cycles_whitted_a_adaptive.exr" --cycles-adaptive-wall "$awall" \
-    --cycles-adaptive-cpu "$acpu" --cycles-adaptive-threshold $BNOISE \
+    --cycles-adaptive-cpu "$acpu" --cycles-adaptive-threshold $BNOISE --cycles-adaptive-max-spp $BREF \
     --cycles-wall "$wall" --cycles-cpu "$cpu" --spp $BSPP --ref-spp $BREF --max-depth 8 --width $BW --height $BH \
     --threads "$THREADS" --markdown "$SUMMARY" >"$OUT/cycles.json"
 fi
