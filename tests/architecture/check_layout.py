@@ -33,6 +33,8 @@ INCLUDE_RULES = [
     ("lib/color/", r'^CLI/', "command-line parsing belongs to the programs"),
     ("lib/render/", r'^(farm|color|rays)/|^grpcpp/', "the renderer knows nothing of the farm"),
     ("lib/scene/", r'^(render|farm|color|rays|tile)/|^embree3/|^grpcpp/', "scenes are plain data"),
+    ("lib/sampling/", r'^(render|farm|color|rays)/|^embree3/|^grpcpp/',
+     "where samples go is plain arithmetic the coordinator shares: no renderer, no wire"),
     ("lib/farm/", r'^(rays|color)/', "the shared room holds what the programs share on the wire"),
 ]
 # Only these files of lib/farm may include the renderer: the bundle cache of render scenes.
