@@ -394,14 +394,17 @@ void Scheduler::end_pass(Job& job, int fi) {
   }
   int requeued = 0;
   if (!next.final) {
-    for (size_t t = 0; t < frame.tiles.size() && t < next.plans.size(); ++t) {
+    // At the front of the job's queue, in tile order: a frame in its passes is older work than
+    // the pilots of the frames after it, and finishing it first keeps few frames between passes
+    // (the planner holds each one's statistics) and frames reaching the client in order.
+    for (size_t t = std::min(frame.tiles.size(), next.plans.size()); t-- > 0;) {
       if (!next.plans[t]) continue;
       Tile& tile = frame.tiles[t];
       tile.state = TileState::kQueued;
       tile.plan = std::move(*next.plans[t]);
       --frame.done;
       --job.tiles_done;
-      job.queue.emplace_back(fi, int(t));
+      job.queue.emplace_front(fi, int(t));
       ++requeued;
     }
   }

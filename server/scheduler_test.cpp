@@ -496,6 +496,9 @@ TEST_F(SchedulerTest, APassesJobReportsItsFramesOnlyAfterTheirLastPass) {
     EXPECT_EQ(a.lease.tile.tile, 1);
     EXPECT_EQ(a.plan, "p2");
   }
+  // Requeued at the front (older work than later frames' pilots): frame 1's pass went in last.
+  EXPECT_EQ(again[0].lease.tile.frame, 1);
+  std::swap(again[0], again[1]);
   ASSERT_EQ(s.complete(w, again[0].lease.id, out(20)), Scheduler::ResultOutcome::kAccepted);
   ASSERT_EQ(rec.finished.size(), 2u);  // frame 0, both tiles, in order, then the frame
   EXPECT_EQ(rec.finished[0].tile, 0);
@@ -505,6 +508,31 @@ TEST_F(SchedulerTest, APassesJobReportsItsFramesOnlyAfterTheirLastPass) {
   ASSERT_EQ(s.complete(w, again[1].lease.id, out(20)), Scheduler::ResultOutcome::kAccepted);
   EXPECT_EQ(s.job(id)->state, JobState::kDone);
   EXPECT_EQ(s.job(id)->rays, 4 * 10u + 2 * 20u);  // every pass's work counts
+}
+
+TEST_F(SchedulerTest, AFramesNextPassGoesBeforeLaterFramesPilots) {
+  JobSpec j = spec(32, 16, 16, 3);  // 2 tiles a frame, 3 frames
+  j.passes = true;
+  s.set_pass_planner([](const JobId&, int, int passes, const std::vector<const TileOutput*>&) {
+    PassDecision d;
+    if (passes == 1) {
+      d.final = false;
+      d.plans = {std::string("a"), std::string("b")};
+    }
+    return d;
+  });
+  s.submit(j);
+  const WorkerId w = worker("a");
+  auto first = pull(w, 2);  // frame 0's pilot
+  ASSERT_EQ(first.size(), 2u);
+  for (const auto& a : first) ASSERT_EQ(s.complete(w, a.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  auto next = pull(w, 2);
+  ASSERT_EQ(next.size(), 2u);
+  EXPECT_EQ(next[0].lease.tile.frame, 0);  // frame 0's second pass, not frame 1's pilot
+  EXPECT_EQ(next[0].lease.tile.tile, 0);
+  EXPECT_EQ(next[0].plan, "a");
+  EXPECT_EQ(next[1].lease.tile.tile, 1);
+  EXPECT_EQ(next[1].plan, "b");
 }
 
 TEST_F(SchedulerTest, APlannerErrorFailsTheJobSayingWhy) {
