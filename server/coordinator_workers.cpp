@@ -101,14 +101,13 @@ void Coordinator::tile_result_locked(WorkerId id, v1::TileResult& r) {
   }
   const auto rect = scheduler_.tile_rect(lease->tile.job, lease->tile.frame, lease->tile.tile);
   std::string err = farm::validate_tile(r.tile(), *rect);
-  if (err.empty() && scheduler_.header(lease->tile.job)->spec.passes) {
+  if (const JobSpec& spec = scheduler_.header(lease->tile.job)->spec; err.empty() && spec.passes) {
     // A frame target's pass is planned from the statistics every tile carries: a tile without
     // them (a worker that renders no frame targets) or with malformed ones is a fault now, at
     // the tile, rather than a failed plan at the frame's end.
     std::vector<BlockStat> stats;
     err = farm::decode_block_stats(r.tile().block_stats(), &stats);
-    const int expected = BlockGrid(scheduler_.header(lease->tile.job)->spec.width,
-                                   scheduler_.header(lease->tile.job)->spec.height).origins_in(*rect);
+    const int expected = BlockGrid(spec.width, spec.height).origins_in(*rect);
     if (err.empty() && int(stats.size()) != expected) {
       err = fmt::format("tile carries {} block statistics, expected {} (frame targets need them)", stats.size(),
                         expected);

@@ -46,12 +46,7 @@ TileResult render_tile_planned(const RenderScene& scene, const TileRect& rect, c
     throw std::invalid_argument("sample plan has " + std::to_string(plan.size()) + " counts, the tile meets " +
                                 std::to_string(r.count()) + " blocks");
   }
-  TileResult out;
-  out.rect = rect;
-  const size_t pixels = size_t(rect.width) * size_t(rect.height);
-  out.rgb.assign(pixels * 3, 0.0f);
-  out.variance.assign(pixels, 0.0f);
-  out.spp.assign(pixels, 0);
+  TileResult out = TileResult::blank(rect);
   PixelEstimate block[B * B];
   size_t i = 0;
   for (int row = r.row0; row < r.row1; ++row) {

@@ -145,7 +145,9 @@ TEST(FrameTarget, TilesRenderedByPlanInPassesGiveTheSameFrame) {
     ASSERT_EQ(farm.spp, ref.spp) << "tile " << tile;
     EXPECT_GE(passes, 2) << "the test exercises the passes";
     const int tiles = TileGrid(75, 53, tile).count();
-    if (tile < 32) EXPECT_LT(rendered, passes * tiles) << "tiles whose blocks were done were rendered again";
+    if (tile < 32) {
+      EXPECT_LT(rendered, passes * tiles) << "tiles whose blocks were done were rendered again";
+    }
   }
 }
 

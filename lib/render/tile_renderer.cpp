@@ -76,19 +76,14 @@ void render_tile_adaptive(const RenderScene& scene, const TileRect& rect, TileRe
 }  // namespace
 
 TileResult render_tile(const RenderScene& scene, const TileRect& rect) {
-  const auto start = std::chrono::steady_clock::now();
-  TileResult out;
-  out.rect = rect;
-  const size_t pixels = size_t(rect.width) * size_t(rect.height);
-  out.rgb.assign(pixels * 3, 0.0f);
-  out.variance.assign(pixels, 0.0f);
-  out.spp.assign(pixels, 0);
   const ImageSettings& img = scene.image();
   if (img.frame_target()) {
     // Its samples depend on the whole frame's statistics (render/frame_target.h): not a tile's work.
     throw std::invalid_argument("render_tile: a frame target (target_rmse) is rendered in passes by "
                                 "render_frame, not tile by tile");
   }
+  const auto start = std::chrono::steady_clock::now();
+  TileResult out = TileResult::blank(rect);
   if (img.adaptive()) {
     render_tile_adaptive(scene, rect, &out);
   } else {

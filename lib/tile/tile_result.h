@@ -3,6 +3,7 @@
 // sends, the coordinator stores and forwards, and a client (or an in-process render) assembles.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -36,6 +37,17 @@ struct TileResult {
   double seconds = 0;           // wall time spent rendering the tile
   // Frame-target renders only: the statistics of the blocks whose first pixel lies in the tile.
   std::vector<BlockStat> blocks;
+
+  // A tile of `rect` with every pixel black, no variance and no samples, for a renderer to fill.
+  static TileResult blank(const TileRect& rect) {
+    TileResult t;
+    t.rect = rect;
+    const size_t pixels = size_t(rect.width) * size_t(rect.height);
+    t.rgb.assign(pixels * 3, 0.0f);
+    t.variance.assign(pixels, 0.0f);
+    t.spp.assign(pixels, 0);
+    return t;
+  }
 };
 
 }  // namespace tessera
