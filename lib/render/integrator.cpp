@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "render/fresnel.h"
+#include "render/shadow_rays.h"
 #include "render/shading_normal.h"
 
 namespace tessera {
@@ -28,8 +29,48 @@ struct ShadowQuery {
   float b;
 };
 
+// The shadow query of area light `li` (one sample, drawn from the pixel sample's stream at `node`)
+// from a diffuse point, if the light is above it: f(query). Shared by the scalar and the packet
+// path.
+template <typename F>
+void area_light_query(const Context& c, const Hit& hit, const Vec3f& n_f, uint64_t node, size_t li, F&& f) {
+  const Vec3f ns_f = hit.smooth ? facing(hit.ns, hit.n, n_f) : n_f;
+  auto cosine = [&](const Vec3f& w) { return hit.smooth ? smooth_light_cosine(n_f, ns_f, w) : dot(n_f, w); };
+  const auto& L = c.scene.area_lights()[li];
+  float u, v;
+  c.sampler.get_2d(hash_combine(node, 1000003u + li), &u, &v);
+  // Choose a triangle by area, then reuse u's remainder inside it (stays stratified).
+  const size_t k = std::min(size_t(std::upper_bound(L.cdf.begin(), L.cdf.end(), u) - L.cdf.begin()), L.cdf.size() - 1);
+  const float lo = k == 0 ? 0.0f : L.cdf[k - 1];
+  const float span = L.cdf[k] - lo;
+  u = span > 0 ? std::clamp((u - lo) / span, 0.0f, 1.0f) : 0.5f;
+  // Uniform point on the triangle (the square-root parametrization, pbrt's SampleUniformTriangle).
+  const float su = std::sqrt(u);
+  const float b0 = 1.0f - su, b1 = v * su, b2 = 1.0f - b0 - b1;
+  const Vec3f a = L.v[3 * k], b = L.v[3 * k + 1], cc = L.v[3 * k + 2];
+  const Vec3f q = a * b0 + b * b1 + cc * b2;
+  const Vec3f q_err = (abs(a * b0) + abs(b * b1) + abs(cc * b2)) * gamma_bound(7);
+  const Vec3f nl = normalize(cross(b - a, cc - a));
+  Vec3f to = q - hit.p;
+  const float r2 = dot(to, to);
+  if (!(r2 > 0.0f)) return;
+  const Vec3f w = to / std::sqrt(r2);
+  const float cos_t = cosine(w);
+  const float cos_l = -dot(nl, w);  // emitters emit from their front (CCW) face only
+  if (!(cos_t > 0.0f) || !(cos_l > 0.0f)) return;
+  const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
+  const Vec3f target = offset_ray_origin(q, q_err, nl, -w);
+  const Vec3f seg = target - o;
+  const float dist = length(seg);
+  if (!(dist > 0.0f)) return;
+  // Irradiance estimate: Le cos_t cos_l / r^2 divided by the pdf 1/area.
+  f(ShadowQuery{{o, seg / dist, dist * (1.0f - kShadowEpsilon)}, L.emission, cos_t * cos_l / r2 * L.area});
+}
+
 // Calls f(query) for each light that can light the diffuse point, in light order (point, spot,
-// directional, area). Shared by the scalar path and the packet path, so both do the same math.
+// directional, area): the scalar path's. The packet path sets up the same point, spot and
+// directional rays for all its lanes at once (render/shadow_rays.h: the same arithmetic, lane
+// for lane), and calls area_light_query per lane.
 template <typename F>
 void for_each_shadow_query(const Context& c, const Hit& hit, const Vec3f& n, uint64_t node, F&& f) {
   const RenderScene& s = c.scene;
@@ -60,38 +101,7 @@ void for_each_shadow_query(const Context& c, const Hit& hit, const Vec3f& n, uin
     const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
     f(ShadowQuery{{o, w}, l.irradiance, cos_t});
   }
-  const auto& area = s.area_lights();
-  for (size_t li = 0; li < area.size(); ++li) {
-    const auto& L = area[li];
-    float u, v;
-    c.sampler.get_2d(hash_combine(node, 1000003u + li), &u, &v);
-    // Choose a triangle by area, then reuse u's remainder inside it (stays stratified).
-    const size_t k = std::min(size_t(std::upper_bound(L.cdf.begin(), L.cdf.end(), u) - L.cdf.begin()), L.cdf.size() - 1);
-    const float lo = k == 0 ? 0.0f : L.cdf[k - 1];
-    const float span = L.cdf[k] - lo;
-    u = span > 0 ? std::clamp((u - lo) / span, 0.0f, 1.0f) : 0.5f;
-    // Uniform point on the triangle (the square-root parametrization, pbrt's SampleUniformTriangle).
-    const float su = std::sqrt(u);
-    const float b0 = 1.0f - su, b1 = v * su, b2 = 1.0f - b0 - b1;
-    const Vec3f a = L.v[3 * k], b = L.v[3 * k + 1], cc = L.v[3 * k + 2];
-    const Vec3f q = a * b0 + b * b1 + cc * b2;
-    const Vec3f q_err = (abs(a * b0) + abs(b * b1) + abs(cc * b2)) * gamma_bound(7);
-    const Vec3f nl = normalize(cross(b - a, cc - a));
-    Vec3f to = q - hit.p;
-    const float r2 = dot(to, to);
-    if (!(r2 > 0.0f)) continue;
-    const Vec3f w = to / std::sqrt(r2);
-    const float cos_t = cosine(w);
-    const float cos_l = -dot(nl, w);  // emitters emit from their front (CCW) face only
-    if (!(cos_t > 0.0f) || !(cos_l > 0.0f)) continue;
-    const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
-    const Vec3f target = offset_ray_origin(q, q_err, nl, -w);
-    const Vec3f seg = target - o;
-    const float dist = length(seg);
-    if (!(dist > 0.0f)) continue;
-    // Irradiance estimate: Le cos_t cos_l / r^2 divided by the pdf 1/area.
-    f(ShadowQuery{{o, seg / dist, dist * (1.0f - kShadowEpsilon)}, L.emission, cos_t * cos_l / r2 * L.area});
-  }
+  for (size_t li = 0; li < s.area_lights().size(); ++li) area_light_query(c, hit, n_f, node, li, f);
 }
 
 // Direct lighting at a diffuse point, before albedo/pi: sum over lights of irradiance * visibility.
@@ -210,6 +220,7 @@ Rgb radiance(const Context& c, const Ray& ray, const PrimRef& from, int depth, u
 // initializers) cost more than the packet's Embree traversal (measured on the Whitted scene).
 struct PacketFrame {
   static constexpr int P = RenderScene::kPacket;
+  static_assert(P == kShadowLanes);
   Hit hits[P];
   bool found[P];
   Rgb direct[P];
@@ -218,6 +229,10 @@ struct PacketFrame {
   Ray r[P];  // a shadow or child packet's rays, their origin primitives and samplers
   PrimRef f[P];
   Rgb T[P];
+  Rgb qa[P];  // an area light's shadow queries' weights a and b, by packet lane
+  float qb[P];
+  ShadingPoints points;  // the diffuse hits, for the shadow rays' set-up
+  ShadowRays shadow;
   const PixelSampler* smp[P];
   int lane_of[P];
 };
@@ -235,57 +250,91 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
   bool* found = fr.found;
   scene.intersect_packet(rays, from, n, hits, found);
 
-  // The shadow rays of every diffuse hit, grouped by light (light-major: the rays to one light
-  // from the samples of one pixel are coherent), traced in packets of P. The thread's scratch
-  // vectors are done with before the recursion below reuses them.
-  struct Query {
-    ShadowQuery q;
-    int lane;
-    int light;
-  };
-  static thread_local std::vector<Query> queries;
-  static thread_local std::vector<int> order;
-  static thread_local std::vector<Rgb> transmittance;  // by query
-  queries.clear();
-  for (int i = 0; i < n; ++i) {
-    if (!found[i]) continue;
-    const Material& m = scene.material(hits[i].material);
-    if (m.type != Material::Type::kDiffuse) continue;
-    const Vec3f n_facing = dot(rays[i].d, hits[i].n) < 0.0f ? hits[i].n : -hits[i].n;
-    const Context c{scene, *samplers[i], counts};
-    int light = 0;
-    for_each_shadow_query(c, hits[i], n_facing, node, [&](const ShadowQuery& q) { queries.push_back({q, i, light++}); });
-  }
-  counts->shadow += queries.size();
-  transmittance.resize(queries.size());
-  order.resize(queries.size());
-  for (size_t k = 0; k < order.size(); ++k) order[k] = int(k);
-  // Stable insertion sort by light (a handful of elements; std::stable_sort would allocate).
-  for (size_t k = 1; k < order.size(); ++k) {
-    const int v = order[k];
-    size_t j = k;
-    for (; j > 0 && queries[order[j - 1]].light > queries[v].light; --j) order[j] = order[j - 1];
-    order[j] = v;
-  }
-  for (size_t k = 0; k < order.size(); k += P) {
-    const int m = int(std::min<size_t>(P, order.size() - k));
-    Ray* r = fr.r;
-    PrimRef* f = fr.f;
-    Rgb* T = fr.T;
-    for (int j = 0; j < m; ++j) {
-      r[j] = queries[order[k + j]].q.ray;
-      f[j] = hits[queries[order[k + j]].lane].prim;
-    }
-    scene.transmittance_packet(r, f, m, T);
-    for (int j = 0; j < m; ++j) transmittance[size_t(order[k + j])] = T[j];
-  }
-  // Per lane, sum in light order exactly as direct_sum does.
+  // Direct light at the diffuse hits, light by light in the scalar path's order (point, spot,
+  // directional, area): one light's shadow rays from every lane form one packet (the rays to one
+  // light from the samples of one pixel are coherent), and each lane sums its lights in that
+  // order, exactly as direct_sum does. Point, spot and directional rays are set up for all lanes
+  // at once (render/shadow_rays.h); an area light's, which draw from each lane's sampler, lane
+  // by lane (area_light_query).
   Rgb* direct = fr.direct;
-  size_t qi = 0;
-  for (int i = 0; i < n; ++i) {
+  ShadingPoints& sp = fr.points;
+  bool any = false;
+  for (int i = 0; i < P; ++i) {
     direct[i] = Rgb(0.0f);
-    for (; qi < queries.size() && queries[qi].lane == i; ++qi) {
-      direct[i] += transmittance[qi] * queries[qi].q.a * queries[qi].q.b;
+    const bool diffuse = i < n && found[i] && scene.material(hits[i].material).type == Material::Type::kDiffuse;
+    const Hit& h = hits[i];
+    // Lanes without a diffuse hit hold zeros: computed on, never traced.
+    const Vec3f n_f = !diffuse ? Vec3f(0.0f) : dot(rays[i].d, h.n) < 0.0f ? h.n : -h.n;
+    const Vec3f ns_f = diffuse && h.smooth ? facing(h.ns, h.n, n_f) : n_f;
+    const Vec3f p = diffuse ? h.p : Vec3f(0.0f), e = diffuse ? h.p_err : Vec3f(0.0f);
+    sp.px[i] = p.x, sp.py[i] = p.y, sp.pz[i] = p.z;
+    sp.ex[i] = e.x, sp.ey[i] = e.y, sp.ez[i] = e.z;
+    sp.nx[i] = n_f.x, sp.ny[i] = n_f.y, sp.nz[i] = n_f.z;
+    sp.sx[i] = ns_f.x, sp.sy[i] = ns_f.y, sp.sz[i] = ns_f.z;
+    sp.g_dot_s[i] = dot(n_f, ns_f);  // smooth_light_cosine's dot(ng_facing, ns_facing)
+    sp.smooth[i] = diffuse && h.smooth ? 1 : 0;
+    sp.live[i] = diffuse ? 1 : 0;
+    any = any || diffuse;
+  }
+  // Traces lane_of[0..m)'s rays in fr.r as one packet and adds each lane's light: transmittance
+  // x a x b, with a and b as the scalar ShadowQuery has them.
+  auto trace_shadows = [&](int m, auto&& light_of) {
+    if (m == 0) return;
+    counts->shadow += uint64_t(m);
+    for (int j = 0; j < m; ++j) fr.f[j] = hits[fr.lane_of[j]].prim;
+    scene.transmittance_packet(fr.r, fr.f, m, fr.T);
+    for (int j = 0; j < m; ++j) {
+      Rgb a;
+      float b;
+      light_of(j, &a, &b);
+      direct[fr.lane_of[j]] += fr.T[j] * a * b;
+    }
+  };
+  // One light's rays set up for all lanes (render/shadow_rays.h): into the packet, lane by lane.
+  auto trace_lanes = [&](const ShadowRays& sr, const Rgb& intensity, bool spot) {
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+      if (!sr.live[i]) continue;
+      fr.r[m] = {{sr.ox[i], sr.oy[i], sr.oz[i]}, {sr.dx[i], sr.dy[i], sr.dz[i]}, sr.tmax[i]};
+      fr.lane_of[m++] = i;
+    }
+    trace_shadows(m, [&](int j, Rgb* a, float* b) {
+      const int i = fr.lane_of[j];
+      *a = spot ? intensity * sr.cone[i] : intensity;
+      *b = sr.b[i];
+    });
+  };
+  if (any) {
+    ShadowRays& sr = fr.shadow;
+    for (const auto& l : scene.point_lights()) {
+      point_light_rays(sp, l.position, nullptr, &sr);
+      trace_lanes(sr, l.intensity, false);
+    }
+    for (const auto& l : scene.spot_lights()) {
+      const SpotCone cone{l.direction, l.cone_scale, l.cone_offset};
+      point_light_rays(sp, l.position, &cone, &sr);
+      trace_lanes(sr, l.intensity, true);
+    }
+    for (const auto& l : scene.directional_lights()) {
+      directional_light_rays(sp, -l.direction, &sr);
+      trace_lanes(sr, l.irradiance, false);
+    }
+    for (size_t li = 0; li < scene.area_lights().size(); ++li) {
+      int m = 0;
+      for (int i = 0; i < n; ++i) {
+        if (!sp.live[i]) continue;
+        const Context c{scene, *samplers[i], counts};
+        area_light_query(c, hits[i], Vec3f(sp.nx[i], sp.ny[i], sp.nz[i]), node, li, [&](const ShadowQuery& q) {
+          fr.r[m] = q.ray;
+          fr.qa[m] = q.a;
+          fr.qb[m] = q.b;
+          fr.lane_of[m++] = i;
+        });
+      }
+      trace_shadows(m, [&](int j, Rgb* a, float* b) {
+        *a = fr.qa[j];
+        *b = fr.qb[j];
+      });
     }
   }
 

@@ -15,7 +15,57 @@ namespace tessera {
 namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
-// Line for line the arithmetic of intersect_triangle_watertight, on Lanes(dd) triangles.
+// The cluster's lanes whose triangle the exact test might accept (bit k for lane k): every lane
+// but those this float pass proves it rejects. Most clusters a ray's traversal reaches hold no
+// triangle it crosses, and this pass settles them at float width (8 triangles a vector on AVX2,
+// where the exact test takes two vectors of doubles and their conversions).
+//
+// Why it is exact, not a heuristic: the shear is the exact test's, the same float operations on
+// the same floats. Each edge function U = x_c y_b - y_c x_b is then formed in float: the two
+// products rounded, then their difference. Rounding is monotonic (a <= b gives fl(a) <= fl(b),
+// overflow to infinity included), so fl(fl(a) - fl(b)) > 0 implies a > b, and < 0 implies a < b:
+// a non-zero float edge function has the exact sign, the sign the exact test's double computes.
+// Only a zero (or NaN) says nothing. So a lane with one edge function provably negative and one
+// provably positive is one the exact test rejects by its first test; every other lane goes on
+// to the exact test, which decides exactly as before: answers are bit for bit unchanged.
+template <class DF>
+HWY_INLINE uint32_t MaybeCrossedChunk(DF df, const TriangleCluster& c, size_t j, hn::Vec<DF> ox, hn::Vec<DF> oy,
+                                         hn::Vec<DF> oz, hn::Vec<DF> sx, hn::Vec<DF> sy, const RayShear& s) {
+  auto sheared = [&](int k, hn::Vec<DF>* x, hn::Vec<DF>* y) {
+    const auto X = hn::Sub(hn::LoadU(df, &c.v[k][s.kx][j]), ox);
+    const auto Y = hn::Sub(hn::LoadU(df, &c.v[k][s.ky][j]), oy);
+    const auto Z = hn::Sub(hn::LoadU(df, &c.v[k][s.kz][j]), oz);
+    *x = hn::Sub(X, hn::Mul(sx, Z));
+    *y = hn::Sub(Y, hn::Mul(sy, Z));
+  };
+  hn::Vec<DF> ax, ay, bx, by, cx, cy;
+  sheared(0, &ax, &ay);
+  sheared(1, &bx, &by);
+  sheared(2, &cx, &cy);
+  const auto U = hn::Sub(hn::Mul(cx, by), hn::Mul(cy, bx));
+  const auto V = hn::Sub(hn::Mul(ax, cy), hn::Mul(ay, cx));
+  const auto W = hn::Sub(hn::Mul(bx, ay), hn::Mul(by, ax));
+  const auto zero = hn::Zero(df);
+  const auto neg = hn::Or(hn::Or(hn::Lt(U, zero), hn::Lt(V, zero)), hn::Lt(W, zero));
+  const auto pos = hn::Or(hn::Or(hn::Gt(U, zero), hn::Gt(V, zero)), hn::Gt(W, zero));
+  uint8_t bits[8] = {};
+  hn::StoreMaskBits(df, hn::Not(hn::And(neg, pos)), bits);
+  return uint32_t(bits[0]) << j;
+}
+
+// At most kSize float lanes a vector: 8 on AVX2 and AVX-512 (one vector a cluster), 4 on SSE4.
+HWY_INLINE uint32_t MaybeCrossed(const TriangleCluster& c, const Vec3f& o, const RayShear& s) {
+  const hn::CappedTag<float, TriangleCluster::kSize> df;
+  const size_t N = hn::Lanes(df);
+  const auto ox = hn::Set(df, o[s.kx]), oy = hn::Set(df, o[s.ky]), oz = hn::Set(df, o[s.kz]);
+  const auto sx = hn::Set(df, s.sx), sy = hn::Set(df, s.sy);
+  uint32_t maybe = 0;
+  for (size_t j = 0; j < size_t(TriangleCluster::kSize); j += N) maybe |= MaybeCrossedChunk(df, c, j, ox, oy, oz, sx, sy, s);
+  return maybe;
+}
+
+// Line for line the arithmetic of intersect_triangle_watertight, on Lanes(dd) triangles, for the
+// lanes the float pass above leaves open.
 uint32_t IntersectCluster(const TriangleCluster& c, const Vec3f& o, const RayShear& s, float tnear, float tfar,
                           int skip, TriangleHit* hit) {
   const hn::ScalableTag<double> dd;
@@ -26,9 +76,15 @@ uint32_t IntersectCluster(const TriangleCluster& c, const Vec3f& o, const RayShe
   const auto zero = hn::Zero(dd);
   const auto one = hn::Set(dd, 1.0);
   const auto lo = hn::Set(dd, double(tnear)), hi = hn::Set(dd, double(tfar));
+  // Which lanes the exact test could accept: all but those a float pass proves it rejects.
+  uint32_t maybe = MaybeCrossed(c, o, s);
+  maybe &= (1u << c.count) - 1u;
+  if (skip >= 0) maybe &= ~(1u << unsigned(skip));
+  if (maybe == 0) return 0;
   uint32_t mask = 0;
   alignas(64) float t_out[TriangleCluster::kSize], u_out[TriangleCluster::kSize], v_out[TriangleCluster::kSize];
   for (size_t j = 0; j < size_t(TriangleCluster::kSize); j += N) {
+    if (((maybe >> j) & ((1u << N) - 1u)) == 0) continue;  // every lane here provably rejected
     // Vertex k sheared into ray space: x, y (float, as the scalar test) and z before scaling.
     auto shear = [&](int k, hn::Vec<decltype(dd)>* x, hn::Vec<decltype(dd)>* y, hn::Vec<decltype(df)>* z) {
       const auto X = hn::Sub(hn::LoadU(df, &c.v[k][s.kx][j]), ox);
@@ -67,8 +123,7 @@ uint32_t IntersectCluster(const TriangleCluster& c, const Vec3f& o, const RayShe
     hn::StoreU(hn::DemoteTo(df, hn::Mul(V, inv)), df, u_out + j);
     hn::StoreU(hn::DemoteTo(df, hn::Mul(W, inv)), df, v_out + j);
   }
-  mask &= (1u << c.count) - 1u;
-  if (skip >= 0) mask &= ~(1u << unsigned(skip));
+  mask &= maybe;
   for (uint32_t m = mask; m != 0; m &= m - 1) {
     const int k = __builtin_ctz(m);
     hit[k] = {t_out[k], u_out[k], v_out[k]};

@@ -1,0 +1,59 @@
+// The shadow rays of a packet's diffuse hits toward one point, spot or directional light, set up
+// for all lanes at once (structure of arrays, Google Highway at the machine's width, picked at
+// run time). Each lane is the integrator's scalar set-up (integrator.cpp, for_each_shadow_query)
+// operation for operation, IEEE add, subtract, multiply, divide and square root, never fused (the
+// project builds with -ffp-contract=off), so every lane's ray and weight are bit for bit the
+// scalar ones on every target (integrator_test.cpp checks whole frames against the scalar path on
+// each target this machine runs).
+//
+// Why: per lane this set-up is two square roots, four divisions and a robust spawn per light, and
+// done one lane at a time it was the largest single item of a Whitted frame's profile after the
+// packet bookkeeping (docs/performance.md); one light's rays for all lanes also form that
+// light's packet directly, with no per-query list to sort by light.
+#pragma once
+
+#include <cstdint>
+
+#include "math/vec3.h"
+
+namespace tessera {
+
+inline constexpr int kShadowLanes = 8;  // RenderScene::kPacket (checked where both are seen)
+
+// Where shadow rays start: a packet's diffuse hits, as arrays of components.
+struct ShadingPoints {
+  alignas(32) float px[kShadowLanes], py[kShadowLanes], pz[kShadowLanes];  // Hit::p
+  alignas(32) float ex[kShadowLanes], ey[kShadowLanes], ez[kShadowLanes];  // Hit::p_err
+  alignas(32) float nx[kShadowLanes], ny[kShadowLanes], nz[kShadowLanes];  // geometric normal, facing the viewer
+  // Smooth lanes: the shading normal on the viewer's side (shading_normal.h, facing()) and its
+  // cosine with the geometric one; flat lanes: ignored.
+  alignas(32) float sx[kShadowLanes], sy[kShadowLanes], sz[kShadowLanes];
+  alignas(32) float g_dot_s[kShadowLanes];
+  alignas(32) int32_t smooth[kShadowLanes];  // 1: weigh light by the shading normal
+  alignas(32) int32_t live[kShadowLanes];    // 1: a diffuse hit; 0: no shadow rays
+};
+
+// One light's shadow rays from the live lanes of a ShadingPoints. A lane's ray is live where the
+// light is above its surface (and, for a spot, inside the cone); its direct light is then
+// transmittance x intensity (x cone, for spots) x b.
+struct ShadowRays {
+  alignas(32) float ox[kShadowLanes], oy[kShadowLanes], oz[kShadowLanes];
+  alignas(32) float dx[kShadowLanes], dy[kShadowLanes], dz[kShadowLanes];
+  alignas(32) float tmax[kShadowLanes];
+  alignas(32) float cone[kShadowLanes];  // spot lights: the cone's falloff; else 1
+  alignas(32) float b[kShadowLanes];     // point, spot: cos(theta) / r^2; directional: cos(theta)
+  alignas(32) int32_t live[kShadowLanes];
+};
+
+// A spot's cone (RenderScene::SpotLight::falloff): its axis and the falloff's scale and offset.
+struct SpotCone {
+  Vec3f direction;
+  float scale, offset;
+};
+
+// Rays to a point light at `position`, or a spot light when `spot` is given.
+void point_light_rays(const ShadingPoints& points, const Vec3f& position, const SpotCone* spot, ShadowRays* out);
+// Rays toward a directional light: `w` is the unit direction to the light (minus the way it travels).
+void directional_light_rays(const ShadingPoints& points, const Vec3f& w, ShadowRays* out);
+
+}  // namespace tessera
