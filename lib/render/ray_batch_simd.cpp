@@ -16,7 +16,7 @@ namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
 void BatchNearestPlanes(const RayBatch& r, size_t n, const PlaneTable& planes, double* tp_out, int32_t* plane_out,
-                        float* tfar_out) {
+                        float* tfar_out, const int32_t* exclude) {
   const hn::ScalableTag<double> dd;
   const hn::Rebind<float, decltype(dd)> df;
   const hn::Rebind<int32_t, decltype(dd)> di;
@@ -29,6 +29,8 @@ void BatchNearestPlanes(const RayBatch& r, size_t n, const PlaneTable& planes, d
                dz = hn::PromoteTo(dd, hn::LoadU(df, r.dz + i));
     auto tp = hn::PromoteTo(dd, hn::LoadU(df, r.tmax + i));
     auto plane = hn::Set(dd, -1.0);
+    // The plane a ray leaves, as a double like `plane` (-1: none).
+    const auto left = exclude ? hn::PromoteTo(dd, hn::LoadU(di, exclude + i)) : plane;
     for (size_t k = 0; k < planes.count; ++k) {
       const double* q = planes.data + 6 * k;
       const auto px = hn::Set(dd, q[0]), py = hn::Set(dd, q[1]), pz = hn::Set(dd, q[2]);
@@ -39,7 +41,8 @@ void BatchNearestPlanes(const RayBatch& r, size_t n, const PlaneTable& planes, d
       const auto num = hn::Add(hn::Add(hn::Mul(hn::Sub(px, ox), nx), hn::Mul(hn::Sub(py, oy), ny)),
                                hn::Mul(hn::Sub(pz, oz), nz));
       const auto t = hn::Div(num, denom);
-      const auto take = hn::And(hn::And(hn::Ne(denom, zero), hn::Gt(t, zero)), hn::Lt(t, tp));
+      const auto take = hn::AndNot(hn::Eq(left, hn::Set(dd, double(k))),
+                                   hn::And(hn::And(hn::Ne(denom, zero), hn::Gt(t, zero)), hn::Lt(t, tp)));
       tp = hn::IfThenElse(take, t, tp);
       plane = hn::IfThenElse(take, hn::Set(dd, double(k)), plane);
     }
@@ -245,8 +248,8 @@ HWY_EXPORT(BatchPlanePoints);
 HWY_EXPORT(BatchSphereHits);
 
 void batch_nearest_planes(const RayBatch& rays, size_t n, const PlaneTable& planes, double* tp, int32_t* plane,
-                          float* tfar) {
-  HWY_DYNAMIC_DISPATCH(BatchNearestPlanes)(rays, n, planes, tp, plane, tfar);
+                          float* tfar, const int32_t* exclude) {
+  HWY_DYNAMIC_DISPATCH(BatchNearestPlanes)(rays, n, planes, tp, plane, tfar, exclude);
 }
 
 void batch_triangle_hits(const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,

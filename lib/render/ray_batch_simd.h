@@ -19,11 +19,12 @@ struct PlaneTable {
   size_t count = 0;
 };
 
-// nearest_plane() for rays from no surface: tp[i] the nearest plane's t in (0, tmax[i]), else
-// tmax[i]; plane[i] its index, else -1; tfar[i] the Embree ray's tfar (intersect(): float(tp)
-// where a plane is met, else tmax).
+// nearest_plane(): tp[i] the nearest plane's t in (0, tmax[i]), else tmax[i]; plane[i] its
+// index, else -1; tfar[i] the Embree ray's tfar (intersect(): float(tp) where a plane is met,
+// else tmax). `exclude`, when given, is the plane each ray leaves (-1: none), never met again
+// (nearest_plane()'s `from`); without it, rays from no surface.
 void batch_nearest_planes(const RayBatch& rays, size_t n, const PlaneTable& planes, double* tp, int32_t* plane,
-                          float* tfar);
+                          float* tfar, const int32_t* exclude = nullptr);
 
 // Where select[i] == which: finish_hit()'s point, normal, material and source for triangle
 // prim[i] of a bucket (3 unshared vertices per triangle in `positions`, 9 floats; `sources` as
