@@ -114,18 +114,19 @@ Rgb direct_sum(const Context& c, const Hit& hit, const Vec3f& n, uint64_t node) 
   return sum;
 }
 
-// What a hit sends on: the reflection (path node 2k) and refraction (2k + 1) rays of a mirror or
-// glass hit, and the Fresnel weight between them. Shared by the scalar and the packet path, so
-// both trace the same rays and weigh them with the same arithmetic.
+// What a hit sends on: whether it sends a reflection (path node 2k) and a refraction (2k + 1)
+// ray, and the Fresnel weight between them. Shared by the scalar and the packet path, so both
+// trace the same rays and weigh them with the same arithmetic.
 struct Secondary {
   bool reflect = false, refract = false;
-  Ray reflected, refracted;
   float R = 0;  // glass: Fresnel reflectance
 };
 
-// Writes into *out (rather than returning a Secondary, two rays large) so that a diffuse hit, the
-// common case, costs two flag stores.
-void plan_secondary(const Context& c, const Ray& ray, const Hit& hit, int depth, Secondary* sec) {
+// Sets *sec, and writes the rays it sends into *reflected and *refracted (left as they are when
+// not sent): the packet path has them written straight into its children's packets, where a
+// copy of a just-written ray cost a store-forwarding stall per lane (measured with perf).
+void plan_secondary(const Context& c, const Ray& ray, const Hit& hit, int depth, Secondary* sec, Ray* reflected,
+                    Ray* refracted) {
   Secondary& out = *sec;
   out.reflect = out.refract = false;
   const Material& m = c.scene.material(hit.material);
@@ -139,7 +140,7 @@ void plan_secondary(const Context& c, const Ray& ray, const Hit& hit, int depth,
     Vec3f w = normalize(reflect(ray.d, n_turn));
     if (hit.smooth) w = keep_side(w, n_facing, true, normalize(reflect(ray.d, n_facing)));
     out.reflect = true;
-    out.reflected = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
+    *reflected = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
     return;
   }
   // Glass. Outside is vacuum/air (index 1).
@@ -151,13 +152,13 @@ void plan_secondary(const Context& c, const Ray& ray, const Hit& hit, int depth,
     Vec3f w = normalize(reflect(ray.d, n_turn));
     if (hit.smooth) w = keep_side(w, n_facing, true, normalize(reflect(ray.d, n_facing)));
     out.reflect = true;
-    out.reflected = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
+    *reflected = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
   }
   if (out.R < 1.0f) {
     Vec3f w = refract(ray.d, n_turn, eta_i / eta_t, cos_i, cos_t);
     if (hit.smooth) w = keep_side(w, n_facing, false, ray.d);
     out.refract = true;
-    out.refracted = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
+    *refracted = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
   }
 }
 
@@ -195,15 +196,16 @@ Rgb radiance(const Context& c, const Ray& ray, const PrimRef& from, int depth, u
   const Vec3f n_facing = dot(ray.d, hit.n) < 0.0f ? hit.n : -hit.n;
   const Rgb direct = diffuse ? direct_sum(c, hit, n_facing, node) : Rgb(0.0f);
   Secondary sec;
-  plan_secondary(c, ray, hit, depth, &sec);
+  Ray reflected_ray, refracted_ray;
+  plan_secondary(c, ray, hit, depth, &sec, &reflected_ray, &refracted_ray);
   Rgb reflected(0.0f), refracted(0.0f);
   if (sec.reflect) {
     ++c.counts->secondary;
-    reflected = radiance(c, sec.reflected, hit.prim, depth + 1, 2 * node);
+    reflected = radiance(c, reflected_ray, hit.prim, depth + 1, 2 * node);
   }
   if (sec.refract) {
     ++c.counts->secondary;
-    refracted = radiance(c, sec.refracted, hit.prim, depth + 1, 2 * node + 1);
+    refracted = radiance(c, refracted_ray, hit.prim, depth + 1, 2 * node + 1);
   }
   return shade(c, ray, hit, direct, sec, reflected, refracted);
 }
@@ -226,14 +228,18 @@ struct PacketFrame {
   Rgb direct[P];
   Secondary sec[P];
   Rgb child_L[2][P];
-  Ray r[P];  // a shadow or child packet's rays, their origin primitives and samplers
+  // The reflection [0] and refraction [1] packets: rays, origin primitives, samplers, lanes.
+  Ray child_r[2][P];
+  PrimRef child_f[2][P];
+  const PixelSampler* child_smp[2][P];
+  int child_lane[2][P];
+  Ray r[P];  // a shadow packet's rays and their origin primitives
   PrimRef f[P];
   Rgb T[P];
   Rgb qa[P];  // an area light's shadow queries' weights a and b, by packet lane
   float qb[P];
   ShadingPoints points;  // the diffuse hits, for the shadow rays' set-up
   ShadowRays shadow;
-  const PixelSampler* smp[P];
   int lane_of[P];
 };
 
@@ -338,28 +344,28 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
     }
   }
 
-  // Children: one packet of the lanes' reflection rays, one of their refraction rays.
+  // Children: one packet of the lanes' reflection rays, one of their refraction rays, each
+  // written by plan_secondary straight into its packet.
   Secondary* sec = fr.sec;
-  for (int k = 0; k < 2; ++k) {
-    Ray* r = fr.r;
-    PrimRef* f = fr.f;
-    const PixelSampler** smp = fr.smp;
-    int* lane_of = fr.lane_of;
-    int m = 0;
-    for (int i = 0; i < n; ++i) {
-      if (!found[i]) continue;
-      if (k == 0) plan_secondary({scene, *samplers[i], counts}, rays[i], hits[i], depth, &sec[i]);
+  int m[2] = {0, 0};
+  for (int i = 0; i < n; ++i) {
+    if (!found[i]) continue;
+    plan_secondary({scene, *samplers[i], counts}, rays[i], hits[i], depth, &sec[i], &fr.child_r[0][m[0]],
+                   &fr.child_r[1][m[1]]);
+    for (int k = 0; k < 2; ++k) {
       if (!(k == 0 ? sec[i].reflect : sec[i].refract)) continue;
-      r[m] = k == 0 ? sec[i].reflected : sec[i].refracted;
-      f[m] = hits[i].prim;
-      smp[m] = samplers[i];
-      lane_of[m++] = i;
+      fr.child_f[k][m[k]] = hits[i].prim;
+      fr.child_smp[k][m[k]] = samplers[i];
+      fr.child_lane[k][m[k]++] = i;
     }
-    if (m == 0) continue;
-    counts->secondary += uint64_t(m);
+  }
+  for (int k = 0; k < 2; ++k) {
+    if (m[k] == 0) continue;
+    counts->secondary += uint64_t(m[k]);
     Rgb L[P];
-    radiance_packet(scene, r, f, smp, m, depth + 1, 2 * node + uint64_t(k), counts, L);
-    for (int j = 0; j < m; ++j) fr.child_L[k][lane_of[j]] = L[j];
+    radiance_packet(scene, fr.child_r[k], fr.child_f[k], fr.child_smp[k], m[k], depth + 1, 2 * node + uint64_t(k),
+                    counts, L);
+    for (int j = 0; j < m[k]; ++j) fr.child_L[k][fr.child_lane[k][j]] = L[j];
   }
 
   for (int i = 0; i < n; ++i) {

@@ -140,11 +140,8 @@ bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double t
         const Vec3d nd = normalize(pd - s.center);
         const Vec3d pr = s.center + nd * s.radius;
         hit->p = Vec3f(pr);
-        hit->p_err = abs(hit->p) * gamma_bound(5) + Vec3f(float(4 * kDoubleEps * (max_component(abs(s.center)) + s.radius)));
         hit->n = Vec3f(nd);
-        hit->material = s.material;
-        hit->prim = {PrimRef::Kind::kSphere, index, uint32_t(k)};
-        hit->u = hit->v = 0.0f;
+        finish_sphere_hit(index, uint32_t(k), hit);
         return true;
       }
     }
@@ -156,12 +153,25 @@ bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double t
   pd = pd - pl.normal * dot(pd - pl.point, pl.normal);  // project onto the plane
   hit->t = float(tp);
   hit->p = Vec3f(pd);
-  hit->p_err = abs(hit->p) * gamma_bound(3) + Vec3f(float(4 * kDoubleEps * max_component(abs(pl.point))));
   hit->n = Vec3f(pl.normal);
+  finish_plane_hit(plane, hit);
+  return true;
+}
+
+void RenderScene::finish_sphere_hit(uint32_t index, uint32_t bucket, Hit* hit) const {
+  const Sphere& s = spheres_[index];
+  hit->p_err = abs(hit->p) * gamma_bound(5) + Vec3f(float(4 * kDoubleEps * (max_component(abs(s.center)) + s.radius)));
+  hit->material = s.material;
+  hit->prim = {PrimRef::Kind::kSphere, index, bucket};
+  hit->u = hit->v = 0.0f;
+}
+
+void RenderScene::finish_plane_hit(int plane, Hit* hit) const {
+  const Plane& pl = planes_[size_t(plane)];
+  hit->p_err = abs(hit->p) * gamma_bound(3) + Vec3f(float(4 * kDoubleEps * max_component(abs(pl.point))));
   hit->material = pl.material;
   hit->prim = {PrimRef::Kind::kPlane, uint32_t(plane), 0};
   hit->u = hit->v = 0.0f;
-  return true;
 }
 
 bool RenderScene::any_hit(const Ray& ray, const PrimRef& from) const {

@@ -198,6 +198,10 @@ class RenderScene {
   // packet versions (render_scene_packet.cpp).
   bool finish_hit(const Vec3d& o, const Vec3d& d, int plane, double tp, uint32_t geom_id, uint32_t prim_id,
                   float u, float v, float tfar, Hit* hit) const;
+  // The rest of finish_hit()'s answer on a sphere or a plane, given its point and normal: the
+  // point's error bound, the material and the primitive. Shared with the packet's SIMD finish.
+  void finish_sphere_hit(uint32_t index, uint32_t bucket, Hit* hit) const;
+  void finish_plane_hit(int plane, Hit* hit) const;
   bool opaque_plane_blocks(const Ray& ray, const PrimRef& from) const;
   Rgb glass_product(const Ray& ray, TraceContext* ctx, GlassHits* glass) const;
 

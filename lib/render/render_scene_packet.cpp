@@ -94,10 +94,52 @@ void RenderScene::intersect_packet(const Ray* rays, const PrimRef* from, int n, 
   ctx.scene = this;
   ctx.from_by_id = from;
   rtcIntersect8(valid, rtc_scene_.get(), &ctx.rtc, &rh);
+  // Sphere and plane hits are finished for all lanes at once (ray_batch_simd.h: finish_hit()'s
+  // double arithmetic, lane for lane), triangles lane by lane (finish_hit()).
+  constexpr uint32_t kPlaneLane = 1, kSphereLane = 2;
+  alignas(64) uint32_t finish[kPacket] = {}, prim[kPacket] = {};
+  uint32_t bucket[kPacket];
+  static thread_local HitBatch simd;  // its 64 Hits are made once per thread, not per packet
+  bool spheres = false, planes_hit = false;
   for (int i = 0; i < n; ++i) {
+    const uint32_t g = rh.hit.geomID[i];
     const float t = t0[i] > 0.0 ? float(t0[i] + double(rh.ray.tfar[i])) : rh.ray.tfar[i];
-    found[i] = finish_hit(Vec3d(rays[i].o), Vec3d(rays[i].d), plane[i], tp[i], rh.hit.geomID[i], rh.hit.primID[i],
-                          rh.hit.u[i], rh.hit.v[i], t, &hits[i]);
+    if (g == RTC_INVALID_GEOMETRY_ID) {
+      found[i] = plane[i] >= 0;
+      finish[i] = found[i] ? kPlaneLane : 0;
+      planes_hit = planes_hit || found[i];
+      continue;
+    }
+    const int k = g == sphere_buckets_[0].geom_id ? 0 : g == sphere_buckets_[1].geom_id ? 1 : -1;
+    if (k >= 0 && spheres_.size() < (size_t(1) << 27)) {  // the SIMD finish reads 10 x index 32-bit words
+      found[i] = true;
+      finish[i] = kSphereLane;
+      prim[i] = sphere_buckets_[k].ids[rh.hit.primID[i]];
+      bucket[i] = uint32_t(k);
+      simd.t[i] = t;
+      spheres = true;
+      continue;
+    }
+    found[i] = finish_hit(Vec3d(rays[i].o), Vec3d(rays[i].d), plane[i], tp[i], g, rh.hit.primID[i], rh.hit.u[i],
+                          rh.hit.v[i], t, &hits[i]);
+  }
+  if (spheres) {
+    const SphereTable table{&spheres_[0].center.x};
+    batch_sphere_hits(rb, finish, kSphereLane, prim, size_t(kPacket), table, &simd);
+  }
+  if (planes_hit) batch_plane_hits(rb, finish, kPlaneLane, tp, plane, size_t(kPacket), planes, &simd);
+  for (int i = 0; i < n; ++i) {
+    if (finish[i] == 0) continue;
+    Hit& h = hits[i];
+    h.t = finish[i] == kSphereLane ? simd.t[i] : float(tp[i]);
+    h.p = {simd.px[i], simd.py[i], simd.pz[i]};
+    h.n = {simd.nx[i], simd.ny[i], simd.nz[i]};
+    h.smooth = false;
+    if (finish[i] == kSphereLane) {
+      finish_sphere_hit(prim[i], bucket[i], &h);
+    } else {
+      finish_plane_hit(plane[i], &h);
+    }
   }
 }
 
