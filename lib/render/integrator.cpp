@@ -30,8 +30,8 @@ struct ShadowQuery {
 };
 
 // The shadow query of area light `li` (one sample, drawn from the pixel sample's stream at `node`)
-// from a diffuse point, if the light is above it: f(query). Shared by the scalar and the packet
-// path.
+// from a diffuse point, if the light is above it: f(query). Lane by lane: it draws from each
+// lane's own sampler.
 template <typename F>
 void area_light_query(const Context& c, const Hit& hit, const Vec3f& n_f, uint64_t node, size_t li, F&& f) {
   const Vec3f ns_f = hit.smooth ? facing(hit.ns, hit.n, n_f) : n_f;
@@ -67,64 +67,16 @@ void area_light_query(const Context& c, const Hit& hit, const Vec3f& n_f, uint64
   f(ShadowQuery{{o, seg / dist, dist * (1.0f - kShadowEpsilon)}, L.emission, cos_t * cos_l / r2 * L.area});
 }
 
-// Calls f(query) for each light that can light the diffuse point, in light order (point, spot,
-// directional, area): the scalar path's. The packet path sets up the same point, spot and
-// directional rays for all its lanes at once (render/shadow_rays.h: the same arithmetic, lane
-// for lane), and calls area_light_query per lane.
-template <typename F>
-void for_each_shadow_query(const Context& c, const Hit& hit, const Vec3f& n, uint64_t node, F&& f) {
-  const RenderScene& s = c.scene;
-  const Vec3f n_f = n;  // faces the viewer
-  // Smooth hits weigh light by their shading normal (shading_normal.h); flat ones by n_f as ever.
-  const Vec3f ns_f = hit.smooth ? facing(hit.ns, hit.n, n_f) : n_f;
-  auto cosine = [&](const Vec3f& w) { return hit.smooth ? smooth_light_cosine(n_f, ns_f, w) : dot(n_f, w); };
-  // Point and spot lights: one shadow ray to the light's position; a spot scales its intensity
-  // by its cone's falloff (points use theirs as is, so their arithmetic is what it always was).
-  auto toward = [&](const Vec3f& position, const Rgb& intensity, const RenderScene::SpotLight* spot) {
-    const Vec3f to = position - hit.p;
-    const float r2 = dot(to, to);
-    const float r = std::sqrt(r2);
-    const Vec3f w = to / r;
-    const float cos_t = cosine(w);
-    if (!(cos_t > 0.0f)) return;
-    const float cone = spot ? spot->falloff(-w) : 1.0f;
-    if (!(cone > 0.0f)) return;
-    const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
-    f(ShadowQuery{{o, w, length(position - o)}, spot ? intensity * cone : intensity, cos_t / r2});
-  };
-  for (const auto& l : s.point_lights()) toward(l.position, l.intensity, nullptr);
-  for (const auto& l : s.spot_lights()) toward(l.position, l.intensity, &l);  // after points: existing scenes unchanged
-  for (const auto& l : s.directional_lights()) {
-    const Vec3f w = -l.direction;
-    const float cos_t = cosine(w);
-    if (!(cos_t > 0.0f)) continue;
-    const Vec3f o = offset_ray_origin(hit.p, hit.p_err, n_f, w);
-    f(ShadowQuery{{o, w}, l.irradiance, cos_t});
-  }
-  for (size_t li = 0; li < s.area_lights().size(); ++li) area_light_query(c, hit, n_f, node, li, f);
-}
-
-// Direct lighting at a diffuse point, before albedo/pi: sum over lights of irradiance * visibility.
-Rgb direct_sum(const Context& c, const Hit& hit, const Vec3f& n, uint64_t node) {
-  Rgb sum(0.0f);
-  for_each_shadow_query(c, hit, n, node, [&](const ShadowQuery& q) {
-    ++c.counts->shadow;
-    sum += c.scene.transmittance(q.ray, hit.prim) * q.a * q.b;
-  });
-  return sum;
-}
-
 // What a hit sends on: whether it sends a reflection (path node 2k) and a refraction (2k + 1)
-// ray, and the Fresnel weight between them. Shared by the scalar and the packet path, so both
-// trace the same rays and weigh them with the same arithmetic.
+// ray, and the Fresnel weight between them.
 struct Secondary {
   bool reflect = false, refract = false;
   float R = 0;  // glass: Fresnel reflectance
 };
 
 // Sets *sec, and writes the rays it sends into *reflected and *refracted (left as they are when
-// not sent): the packet path has them written straight into its children's packets, where a
-// copy of a just-written ray cost a store-forwarding stall per lane (measured with perf).
+// not sent): straight into the children's packets, where a copy of a just-written ray cost a
+// store-forwarding stall per lane (measured with perf).
 void plan_secondary(const Context& c, const Ray& ray, const Hit& hit, int depth, Secondary* sec, Ray* reflected,
                     Ray* refracted) {
   Secondary& out = *sec;
@@ -189,33 +141,12 @@ Rgb shade(const Context& c, const Ray& ray, const Hit& hit, const Rgb& direct, c
   return L;
 }
 
-Rgb radiance(const Context& c, const Ray& ray, const PrimRef& from, int depth, uint64_t node) {
-  Hit hit;
-  if (!c.scene.intersect(ray, from, &hit)) return c.scene.background();
-  const bool diffuse = c.scene.material(hit.material).type == Material::Type::kDiffuse;
-  const Vec3f n_facing = dot(ray.d, hit.n) < 0.0f ? hit.n : -hit.n;
-  const Rgb direct = diffuse ? direct_sum(c, hit, n_facing, node) : Rgb(0.0f);
-  Secondary sec;
-  Ray reflected_ray, refracted_ray;
-  plan_secondary(c, ray, hit, depth, &sec, &reflected_ray, &refracted_ray);
-  Rgb reflected(0.0f), refracted(0.0f);
-  if (sec.reflect) {
-    ++c.counts->secondary;
-    reflected = radiance(c, reflected_ray, hit.prim, depth + 1, 2 * node);
-  }
-  if (sec.refract) {
-    ++c.counts->secondary;
-    refracted = radiance(c, refracted_ray, hit.prim, depth + 1, 2 * node + 1);
-  }
-  return shade(c, ray, hit, direct, sec, reflected, refracted);
-}
-
-// The packet path: n <= P rays of one pixel's samples at the same path node (`node`: 1 for camera
+// The integrator: n <= P rays of one pixel's samples at the same path node (`node`: 1 for camera
 // rays, 2k / 2k + 1 for the reflection / refraction children of node k), traced as one packet.
-// Their shadow rays go in packets per light, and their children in one packet per child node, so
-// a pixel's samples stay together down the tree. Every lane gets exactly the scalar radiance():
-// the same rays (plan_secondary), the same shadow queries and sums in light order, the same
-// shading arithmetic (shade), only traced together.
+// Their shadow rays go in packets, light after light, and their children in one packet per
+// child node, so a pixel's samples stay together down the tree. A lane's result depends only on
+// its own ray and sampler, never on the other lanes (integrator_test.cpp): a single ray is a
+// packet of one, the same code.
 //
 // Its arrays live in one frame per depth, made once per thread: a packet's hits, rays and
 // results are over 3 KB, and zero-filling them on every call (their members have default
@@ -236,7 +167,7 @@ struct PacketFrame {
   Ray r[P];  // a shadow packet's rays and their origin primitives
   PrimRef f[P];
   Rgb T[P];
-  Rgb qa[P];  // an area light's shadow queries' weights a and b, by packet lane
+  Rgb qa[P];  // the queued shadow rays' weights a and b (ShadowQuery's), by packet lane
   float qb[P];
   ShadingPoints points;  // the diffuse hits, for the shadow rays' set-up
   ShadowRays shadow;
@@ -256,12 +187,11 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
   bool* found = fr.found;
   scene.intersect_packet(rays, from, n, hits, found);
 
-  // Direct light at the diffuse hits, light by light in the scalar path's order (point, spot,
-  // directional, area): one light's shadow rays from every lane form one packet (the rays to one
-  // light from the samples of one pixel are coherent), and each lane sums its lights in that
-  // order, exactly as direct_sum does. Point, spot and directional rays are set up for all lanes
-  // at once (render/shadow_rays.h); an area light's, which draw from each lane's sampler, lane
-  // by lane (area_light_query).
+  // Direct light at the diffuse hits, light by light (point, spot, directional, area): the rays
+  // to one light from the samples of one pixel are coherent. Point, spot and directional rays
+  // are set up for all lanes at once (render/shadow_rays.h); an area light's, which draw from
+  // each lane's sampler, lane by lane (area_light_query). Each lane sums its lights in that
+  // order.
   Rgb* direct = fr.direct;
   ShadingPoints& sp = fr.points;
   bool any = false;
@@ -282,66 +212,57 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
     sp.live[i] = diffuse ? 1 : 0;
     any = any || diffuse;
   }
-  // Traces lane_of[0..m)'s rays in fr.r as one packet and adds each lane's light: transmittance
-  // x a x b, with a and b as the scalar ShadowQuery has them.
-  auto trace_shadows = [&](int m, auto&& light_of) {
-    if (m == 0) return;
-    counts->shadow += uint64_t(m);
-    for (int j = 0; j < m; ++j) fr.f[j] = hits[fr.lane_of[j]].prim;
-    scene.transmittance_packet(fr.r, fr.f, m, fr.T);
-    for (int j = 0; j < m; ++j) {
-      Rgb a;
-      float b;
-      light_of(j, &a, &b);
-      direct[fr.lane_of[j]] += fr.T[j] * a * b;
-    }
+  // The queue of shadow rays, light after light: traced whenever it holds a full packet (with
+  // fewer samples a pixel than a packet's lanes, the rays to several lights share one), and each
+  // lane adds its light, transmittance x a x b, in the order its queries were queued.
+  int queued = 0;
+  auto flush = [&] {
+    if (queued == 0) return;
+    counts->shadow += uint64_t(queued);
+    for (int j = 0; j < queued; ++j) fr.f[j] = hits[fr.lane_of[j]].prim;
+    scene.transmittance_packet(fr.r, fr.f, queued, fr.T);
+    for (int j = 0; j < queued; ++j) direct[fr.lane_of[j]] += fr.T[j] * fr.qa[j] * fr.qb[j];
+    queued = 0;
   };
-  // One light's rays set up for all lanes (render/shadow_rays.h): into the packet, lane by lane.
-  auto trace_lanes = [&](const ShadowRays& sr, const Rgb& intensity, bool spot) {
-    int m = 0;
+  auto queue = [&](int lane, const Ray& ray, const Rgb& a, float b) {
+    fr.r[queued] = ray;
+    fr.qa[queued] = a;
+    fr.qb[queued] = b;
+    fr.lane_of[queued++] = lane;
+    if (queued == P) flush();
+  };
+  // One light's rays set up for all lanes at once (render/shadow_rays.h), queued lane by lane.
+  auto queue_lanes = [&](const ShadowRays& sr, const Rgb& intensity, bool spot) {
     for (int i = 0; i < n; ++i) {
       if (!sr.live[i]) continue;
-      fr.r[m] = {{sr.ox[i], sr.oy[i], sr.oz[i]}, {sr.dx[i], sr.dy[i], sr.dz[i]}, sr.tmax[i]};
-      fr.lane_of[m++] = i;
+      queue(i, {{sr.ox[i], sr.oy[i], sr.oz[i]}, {sr.dx[i], sr.dy[i], sr.dz[i]}, sr.tmax[i]},
+            spot ? intensity * sr.cone[i] : intensity, sr.b[i]);
     }
-    trace_shadows(m, [&](int j, Rgb* a, float* b) {
-      const int i = fr.lane_of[j];
-      *a = spot ? intensity * sr.cone[i] : intensity;
-      *b = sr.b[i];
-    });
   };
   if (any) {
     ShadowRays& sr = fr.shadow;
     for (const auto& l : scene.point_lights()) {
       point_light_rays(sp, l.position, nullptr, &sr);
-      trace_lanes(sr, l.intensity, false);
+      queue_lanes(sr, l.intensity, false);
     }
     for (const auto& l : scene.spot_lights()) {
       const SpotCone cone{l.direction, l.cone_scale, l.cone_offset};
       point_light_rays(sp, l.position, &cone, &sr);
-      trace_lanes(sr, l.intensity, true);
+      queue_lanes(sr, l.intensity, true);
     }
     for (const auto& l : scene.directional_lights()) {
       directional_light_rays(sp, -l.direction, &sr);
-      trace_lanes(sr, l.irradiance, false);
+      queue_lanes(sr, l.irradiance, false);
     }
     for (size_t li = 0; li < scene.area_lights().size(); ++li) {
-      int m = 0;
       for (int i = 0; i < n; ++i) {
         if (!sp.live[i]) continue;
         const Context c{scene, *samplers[i], counts};
-        area_light_query(c, hits[i], Vec3f(sp.nx[i], sp.ny[i], sp.nz[i]), node, li, [&](const ShadowQuery& q) {
-          fr.r[m] = q.ray;
-          fr.qa[m] = q.a;
-          fr.qb[m] = q.b;
-          fr.lane_of[m++] = i;
-        });
+        area_light_query(c, hits[i], Vec3f(sp.nx[i], sp.ny[i], sp.nz[i]), node, li,
+                         [&](const ShadowQuery& q) { queue(i, q.ray, q.a, q.b); });
       }
-      trace_shadows(m, [&](int j, Rgb* a, float* b) {
-        *a = fr.qa[j];
-        *b = fr.qb[j];
-      });
     }
+    flush();
   }
 
   // Children: one packet of the lanes' reflection rays, one of their refraction rays, each
@@ -381,8 +302,9 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
 }  // namespace
 
 Rgb trace_radiance(const RenderScene& scene, const Ray& ray, const PixelSampler& sampler, RayCounts* counts) {
-  const Context c{scene, sampler, counts};
-  return radiance(c, ray, PrimRef{}, 0, 1);
+  Rgb out;
+  trace_radiance_packet(scene, &ray, &sampler, 1, counts, &out);
+  return out;
 }
 
 void trace_radiance_packet(const RenderScene& scene, const Ray* rays, const PixelSampler* samplers, int n,

@@ -9,13 +9,15 @@
 
 namespace tessera {
 
-// Radiance arriving at the eye along `ray` for one pixel sample.
+// Radiance arriving at the eye along `ray` for one pixel sample: a packet of one.
 Rgb trace_radiance(const RenderScene& scene, const Ray& ray, const PixelSampler& sampler, RayCounts* counts);
 
 // The same for n <= RenderScene::kPacket camera rays (lane i with samplers[i]), traced as one
-// packet; their shadow rays go in packets per light, and their reflection and refraction rays in
-// one packet per node of the path tree, all the way down. Lane i's result is bit-identical to
-// trace_radiance(rays[i], samplers[i]). Pack rays as a pure function of the pixel (see
+// packet; their shadow rays go in packets, light after light, and their reflection and
+// refraction rays in one packet per node of the path tree, all the way down. The work around
+// Embree's queries runs over the lanes in SIMD where it pays (docs/renderer.md, "Across SIMD
+// widths"). Lane i's result is bit-identical to trace_radiance(rays[i], samplers[i]): it does
+// not depend on the other lanes. Pack rays as a pure function of the pixel (see
 // RenderScene::intersect_packet).
 void trace_radiance_packet(const RenderScene& scene, const Ray* rays, const PixelSampler* samplers, int n,
                            RayCounts* counts, Rgb* out);
