@@ -66,7 +66,7 @@ void RenderScene::intersect_packet(const Ray* rays, const PrimRef* from, int n, 
     left[i] = in && from[i].kind == PrimRef::Kind::kPlane ? int32_t(from[i].id) : -1;
   }
   const PlaneTable planes{plane_table_.data(), plane_ids_.data(), planes_.size()};
-  batch_nearest_planes(rb, kPacket, planes, tp, plane, tfar, left);
+  batch_nearest_planes(rb, size_t(n), planes, tp, plane, tfar, left);  // whole vectors up to lane n
   for (int i = 0; i < kPacket; ++i) {
     valid[i] = 0;
     rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
@@ -125,9 +125,9 @@ void RenderScene::intersect_packet(const Ray* rays, const PrimRef* from, int n, 
   }
   if (spheres) {
     const SphereTable table{&spheres_[0].center.x};
-    batch_sphere_hits(rb, finish, kSphereLane, prim, size_t(kPacket), table, &simd);
+    batch_sphere_hits(rb, finish, kSphereLane, prim, size_t(n), table, &simd);
   }
-  if (planes_hit) batch_plane_hits(rb, finish, kPlaneLane, tp, plane, size_t(kPacket), planes, &simd);
+  if (planes_hit) batch_plane_hits(rb, finish, kPlaneLane, tp, plane, size_t(n), planes, &simd);
   for (int i = 0; i < n; ++i) {
     if (finish[i] == 0) continue;
     Hit& h = hits[i];
