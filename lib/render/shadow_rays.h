@@ -1,15 +1,16 @@
 // The shadow rays of a packet's diffuse hits toward one point, spot or directional light, set up
 // for all lanes at once (structure of arrays, Google Highway at the machine's width, picked at
-// run time). Each lane is the integrator's scalar set-up (integrator.cpp, for_each_shadow_query)
-// operation for operation, IEEE add, subtract, multiply, divide and square root, never fused (the
-// project builds with -ffp-contract=off), so every lane's ray and weight are bit for bit the
-// scalar ones on every target (integrator_test.cpp checks whole frames against the scalar path on
-// each target this machine runs).
+// run time): per lane, the direction and distance to the light, the cosine weight (flat, or the
+// shading normal's with the terminator term of shading_normal.h), a spot's cone falloff and the
+// robust spawn of render/ray.h's offset_ray_origin. Only IEEE add, subtract, multiply, divide and
+// square root, never fused (the project builds with -ffp-contract=off), in the order of the
+// scalar functions named, so a lane's bits do not depend on the vector width (integrator_test.cpp
+// compares frames across every target this machine runs; tile_renderer_test.cpp and
+// gltf_render_test.cpp check the light against analytic values).
 //
 // Why: per lane this set-up is two square roots, four divisions and a robust spawn per light, and
 // done one lane at a time it was the largest single item of a Whitted frame's profile after the
-// packet bookkeeping (docs/performance.md); one light's rays for all lanes also form that
-// light's packet directly, with no per-query list to sort by light.
+// packet bookkeeping (docs/performance.md).
 #pragma once
 
 #include <cstdint>
