@@ -1,8 +1,10 @@
 // Packet versions of RenderScene::intersect and ::transmittance: up to 8 rays in one Embree
 // rtcIntersect8/rtcOccluded8 call (8 lanes = AVX2's width; Embree splits them for narrower
 // ISAs). The camera rays of one pixel's consecutive samples, and the shadow rays from their hit
-// points to one light, are coherent: one traversal serves them all. Everything around the
-// Embree call (planes, hit reconstruction, glass products) is the scalar code, per lane.
+// points to one light, are coherent: one traversal serves them all. Around the Embree call, the
+// planes and the sphere and plane hit points are computed for all lanes at once
+// (render/ray_batch_simd.h, the scalar arithmetic lane for lane); triangle hits and glass
+// products are the scalar code, per lane.
 #include "render/plane.h"
 #include "render/ray_batch.h"
 #include "render/ray_batch_simd.h"
