@@ -21,6 +21,9 @@ CHECK_PKGS+=(openssl clang libclang-rt-14-dev)  # TLS tests make a throwaway CA;
 CHECK_PKGS+=(prometheus chromium chromium-driver python3-selenium)
 # tests/farm/farm_slurm_test: a single-node Slurm on localhost places workers (docker/slurm).
 CHECK_PKGS+=(slurm-wlm munge)
+# python/ and blender/: the Python package's tests (pytest) and the add-on's, headless in Blender
+# (xvfb: one test drives Blender's real UI in a virtual display).
+CHECK_PKGS+=(python3-pytest blender xvfb xauth)
 # Used by the benchmarks in bench/ only (pngquant is a GPL comparator, run, never linked).
 BENCH_PKGS=(bc time pngquant gnuplot-nox povray)
 

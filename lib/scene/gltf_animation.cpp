@@ -108,7 +108,12 @@ GltfAnimation::GltfAnimation(const GltfReader& r, const GltfNodeTree& tree, cons
   if (!(fps > 0 && fps <= GltfOptions::kMaxFps)) {
     throw SceneError(path + ": --fps: must be in (0, " + std::to_string(int(GltfOptions::kMaxFps)) + "], got " + std::to_string(fps));
   }
-  const double frames_d = std::floor(duration * fps + 1e-9) + 1;
+  // Key times are float32 (glTF accessors): an exporter's key at frame 20 of 24 fps is stored as
+  // float32(20/24), and 24 times that is 19.9999995, whose floor would drop the key's own frame.
+  // A relative allowance of 2^-20 covers float32's rounding of the time (2^-24 of it) with room
+  // to spare; at most it counts a key a tenth of a frame short of a frame as reaching it, at
+  // kMaxFrames, which only adds a frame holding the last pose.
+  const double frames_d = std::floor(duration * fps * (1 + 0x1p-20)) + 1;
   if (frames_d > SceneLimits::kMaxFrames) {
     throw SceneError(path + ": the animation lasts " + std::to_string(duration) + " s: more than " +
                      std::to_string(SceneLimits::kMaxFrames) + " frames at --fps " + std::to_string(fps));

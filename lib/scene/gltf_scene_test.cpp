@@ -158,6 +158,22 @@ TEST_F(GltfSceneTest, AnimationBecomesFramesAtTheGivenRate) {
   EXPECT_EQ(load_scene(p, o).frame_count(), 25);
 }
 
+// Blender writes its frame b at time b / fps, as float32: the last key's own frame must exist even
+// where float32(b / fps) * fps rounds below b (it does for 20 of 24 fps).
+TEST_F(GltfSceneTest, TheLastKeyFrameSurvivesFloat32Times) {
+  GltfBuilder b = minimal();
+  const float last = 20.0f / 24.0f;
+  ASSERT_LT(double(last) * 24.0, 20.0);  // the rounding this test is about
+  const int in = b.floats({0, last}, "SCALAR", 1), out = b.floats({0, 0, 0, 1, 0, 0}, "VEC3", 3);
+  b.doc["animations"] = {{{"samplers", {{{"input", in}, {"output", out}}}},
+                          {"channels", {{{"sampler", 0}, {"target", {{"node", 0}, {"path", "translation"}}}}}}}};
+  SceneLoadOptions o;
+  o.gltf.fps = 24;
+  const Scene s = load_scene(write(b), o);
+  EXPECT_EQ(s.frame_count(), 21);
+  EXPECT_EQ((*evaluate_frame(s, 20).transforms[0].matrix)[3], 1.0);
+}
+
 TEST_F(GltfSceneTest, BadFilesGetOneErrorNamingTheFileAndTheGltfPath) {
   {
     GltfBuilder b = minimal();

@@ -69,6 +69,20 @@ TEST_F(RenderCli, RendersTheShowcaseToAFloatExrThatOiiotoolReads) {
   EXPECT_NE(info.output.find("tessera:spp: 4"), std::string::npos) << info.output;
 }
 
+// The README's picture (docs/whitted.png) is what the first command leaves, not an older render:
+// the showcase at its own size and spp, tone-mapped as scripts/showcase.sh does. idiff, an
+// independent reader, allows what another machine's kernels may change (a few edge pixels by a
+// step or two), not a different scene, size, tone map or exposure.
+TEST_F(RenderCli, TheReadmePictureIsTheShowcaseAsRenderedToday) {
+  const std::string out = (dir_ / "whitted.png").string();
+  const CmdResult r = run(kTessera + " render " + kScenes + "/whitted.json -o " + out + " --tonemap aces --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const CmdResult diff = run("idiff -warn 0.02 -warnpercent 0.5 -fail 0.02 -failpercent 0.5 " + out + " " + std::string(TESSERA_SOURCE_DIR) +
+                             "/docs/whitted.png");
+  EXPECT_EQ(diff.status, 0) << "docs/whitted.png differs from today's showcase: render it again with\n  "
+                            << "tessera render scenes/whitted.json -o docs/whitted.png --tonemap aces\n" << diff.output;
+}
+
 TEST_F(RenderCli, TheSameFrameIsBitIdenticalAcrossTileSizesAndThreadCounts) {
   const std::string base = kTessera + " render " + kScenes + "/cornell.json --width 40 --height 40 --spp 3 -q";
   ASSERT_EQ(run(base + " -o " + (dir_ / "a.exr").string() + " --tile 7 --threads 1").status, 0);

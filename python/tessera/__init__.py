@@ -1,0 +1,52 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Tessera render farm client: submit scenes, watch jobs, take frames as numpy arrays, trace rays.
+
+    import tessera
+    with tessera.Farm("127.0.0.1:7878") as farm:
+        job = farm.submit("scenes/whitted.json", spp=16, frames="0-3")
+        for frame in job.frames(progress=print):
+            print(frame.index, frame.rgb.shape, frame.rgb.mean())
+
+It talks gRPC (tessera.v1, proto/tessera/v1/*.proto) to a coordinator (tessera-server) and to
+tessera-rays servers, with stubs generated from the project's .proto files when the project is
+built (python/CMakeLists.txt puts the package in build/python). Frames are bit for bit what
+`tessera render` writes, and bundles hash as the CLI's, so Python and the CLI share uploads.
+See python/README.md.
+"""
+
+from __future__ import annotations
+
+try:
+    from .v1 import client_service_pb2 as _generated  # noqa: F401
+except ImportError as _e:  # the source tree, not the built package
+    raise ImportError(
+        "tessera's gRPC stubs (tessera.v1) are generated when the project is built: run "
+        "`cmake --build build --target tessera_python` and import tessera from build/python "
+        f"(PYTHONPATH=build/python), with Debian's python3-grpcio and python3-numpy ({_e})") from _e
+
+from .bundle import Bundle, make_bundle, scene_dependencies
+from .errors import FarmError, IncompleteFramesError, JobCancelled, JobFailed
+from .farm import Farm, Job, read_token_file
+from .records import BundleInfo, Frame, JobStatus, Progress, RayHits, RayServerInfo, WorkerInfo
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Bundle",
+    "BundleInfo",
+    "Farm",
+    "FarmError",
+    "Frame",
+    "IncompleteFramesError",
+    "Job",
+    "JobCancelled",
+    "JobFailed",
+    "JobStatus",
+    "Progress",
+    "RayHits",
+    "RayServerInfo",
+    "WorkerInfo",
+    "make_bundle",
+    "read_token_file",
+    "scene_dependencies",
+]
