@@ -30,6 +30,7 @@ nlohmann::json job_json(const v1::JobStatus& j) {
           {"name", j.name()},
           {"state", state_name(j.state())},
           {"priority", j.priority()},
+          {"bundle_sha256", j.bundle_sha256()},
           {"first_frame", j.first_frame()},
           {"last_frame", j.last_frame()},
           {"width", j.width()},

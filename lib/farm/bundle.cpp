@@ -2,6 +2,7 @@
 
 #include <openssl/evp.h>
 
+#include <algorithm>
 #include <fstream>
 #include <limits>
 #include <set>
@@ -83,7 +84,12 @@ bool is_safe_bundle_path(std::string_view path) {
 BuiltBundle make_bundle(const fs::path& scene_file, const std::vector<std::string>& dependencies) {
   const fs::path scene_abs = fs::weakly_canonical(fs::absolute(scene_file));
   std::vector<fs::path> files{scene_abs};
-  for (const auto& d : dependencies) files.push_back(fs::weakly_canonical(scene_abs.parent_path() / d));
+  for (const auto& d : dependencies) {
+    // Two spellings of one file ("m/a.obj", "m/../m/a.obj"; two OBJ files naming one library)
+    // are one entry: the loaders read the same bytes through either.
+    const fs::path f = fs::weakly_canonical(scene_abs.parent_path() / d);
+    if (std::find(files.begin(), files.end(), f) == files.end()) files.push_back(f);
+  }
   // Deepest common directory of all files.
   fs::path root = scene_abs.parent_path();
   for (const auto& f : files) {

@@ -276,7 +276,12 @@ def make_bundle(scene: PathLike, dependencies: Optional[list[str]] = None) -> Bu
     if dependencies is None:
         dependencies = scene_dependencies(path)
     scene_abs = _resolved(path)
-    files = [scene_abs] + [_resolved(_join(os.path.dirname(scene_abs), d)) for d in dependencies]
+    files = [scene_abs]
+    for d in dependencies:
+        # Two spellings of one file are one entry, as in the C++ client (lib/farm/bundle.cpp).
+        f = _resolved(_join(os.path.dirname(scene_abs), d))
+        if f not in files:
+            files.append(f)
     # Deepest common directory of all files.
     root = os.path.dirname(scene_abs)
     for f in files:

@@ -49,6 +49,11 @@ def crafted_scenes(root: str) -> dict[str, str]:
         {"type": "mesh", "file": "models/fb.obj"},
         {"type": "mesh", "file": "../shared/up.obj"},
     ])
+    # One file under two spellings: one entry (the CLI refused such a bundle before, "appears twice").
+    out["one mesh under two spellings"] = scenes.json_with(os.path.join(root, "b", "twice.json"), objects=[
+        {"type": "mesh", "file": "models/sq.obj"},
+        {"type": "mesh", "file": "models/../models/sq.obj", "exclude": ["nothing"]},
+    ])
     return out
 
 
@@ -78,6 +83,8 @@ def test_crafted_scenes_hash_as_the_cli_hashes_them(bare_farm, scratch):
     files = tessera.make_bundle(os.path.join(scratch, "b", "scene.json")).files
     assert files == ["b/scene.json", "mat/up.mtl", "shared/up.obj", "b/models/fb.mtl", "b/models/fb.obj",
                      "b/models/sq lib.mtl", "b/models/sq.obj", "b/parts/quad.gltf", "b/parts/quad_b.bin"]
+    assert tessera.make_bundle(os.path.join(scratch, "b", "twice.json")).files == [
+        "twice.json", "models/sq lib.mtl", "models/sq.obj"]
     assert tessera.scene_dependencies(os.path.join(scratch, "a", "edit.json")) == [
         "export/s data.bin", "export/s.gltf", "export/tex one.png"]
 
