@@ -7,7 +7,8 @@
 #   sanitize  build-asan/  the same suite built with AddressSanitizer (and LeakSanitizer); any report
 #                          fails (containers and bench smoke are left out: images and benchmarks are
 #                          not sanitizer builds; so are the Python package's and the Blender
-#                          add-on's). TESSERA_SANITIZERS=address,undefined adds UBSan to the whole suite, which about doubles the stage's build (some 25 minutes
+#                          add-on's). TESSERA_SANITIZERS=address,undefined adds UBSan to the whole
+#                          suite, which about doubles the stage's build (some 25 minutes
 #                          on 2 cores): more than CI can afford beside the other builds. CI has
 #                          UBSan where untrusted bytes are parsed, in the fuzz stage.
 #   fuzz      build-fuzz/  each libFuzzer target for TESSERA_FUZZ_SECONDS (default 20) seconds
