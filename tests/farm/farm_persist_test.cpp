@@ -185,7 +185,10 @@ TEST(FarmPersistence, FullDiskRefusesNewJobsAndRecovers) {
 TEST(FarmPersistence, ServesADataDirWrittenByThePreviousRelease) {
   Farm farm;
   fs::copy(source("tests/data/datadir-previous/data"), farm.data_dir(), fs::copy_options::recursive);
-  farm.start_server();
+  // The recorded jobs ended on the day the data dir was written: with the default retention (24 h)
+  // their unacknowledged frames would leave memory a day later and this test would fail from then
+  // on. The longest retention keeps them for ten years, as a coordinator restarted soon would.
+  farm.start_server({"--retention-hours", "87600"});
   const std::string a = "274c9bcc6306", b = "3c6f8f7123b3", c = "c44b713d704a", d = "5f56229c862f";
   CliResult list = farm.cli({"status", "--json", "--coordinator", farm.address()});
   ASSERT_EQ(list.code, 0) << list.output;
