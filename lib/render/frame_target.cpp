@@ -61,9 +61,7 @@ TileResult render_tile_planned(const RenderScene& scene, const TileRect& rect, c
       const int w = std::min(B, img.width - bx), h = std::min(B, img.height - by);
       std::fill(block, block + B * B, PixelEstimate{});
       RayCounts rays;
-      for (int y = 0; y < h; ++y) {
-        for (int x = 0; x < w; ++x) render_samples(scene, bx + x, by + y, 0, n, &block[y * w + x], &rays);
-      }
+      render_samples(scene, {bx, by, w, h}, 0, n, block, &rays);
       out.rays += rays;
       for (int y = std::max(by, rect.y0); y < std::min(by + h, rect.y0 + rect.height); ++y) {
         for (int x = std::max(bx, rect.x0); x < std::min(bx + w, rect.x0 + rect.width); ++x) {
@@ -106,9 +104,7 @@ FrameResult render_frame_to_target(const RenderScene& scene, int threads,
         const int w = std::min(B, img.width - bx), h = std::min(B, img.height - by);
         PixelEstimate* block = &est[size_t(b) * B * B];
         RayCounts& rays = rays_per_block[size_t(b)];
-        for (int y = 0; y < h; ++y) {
-          for (int x = 0; x < w; ++x) render_samples(scene, bx + x, by + y, from, to, &block[y * w + x], &rays);
-        }
+        render_samples(scene, {bx, by, w, h}, from, to, block, &rays);
         s = updated_stat(s, block_stat(b, block, w, h, to, rays.total(), img.sampler));
         if (progress) progress(samples_done += int64_t(to - from) * w * h, samples_planned);
       });

@@ -8,31 +8,56 @@
 
 namespace tessera {
 
-void render_samples(const RenderScene& scene, int x, int y, uint32_t from, uint32_t to, PixelEstimate* est,
+void render_samples(const RenderScene& scene, const TileRect& pixels, uint32_t from, uint32_t to, PixelEstimate* est,
                     RayCounts* rays) {
+  constexpr int P = RenderScene::kPacket;
+  if (to <= from || pixels.width <= 0 || pixels.height <= 0) return;
   const ImageSettings& img = scene.image();
   const auto& cam = scene.camera();
-  PixelSampler samplers[RenderScene::kPacket];
-  const uint64_t pixel_key = PixelSampler::pixel_key(img.seed, scene.frame(), x, y);
-  const CameraSampler camera(img.sampler, pixel_key, uint32_t(img.spp));
-  for (uint32_t s0 = from; s0 < to;) {
-    const uint32_t packet_end = std::min<uint32_t>(to, (s0 / RenderScene::kPacket + 1) * RenderScene::kPacket);
-    const int n = int(packet_end - s0);
-    Ray r[RenderScene::kPacket];
-    Rgb Ls[RenderScene::kPacket];
-    // Camera rays in two passes: the sampler's integer hashing per lane, then the directions for
-    // all kPacket lanes at once (a fixed trip count the compiler vectorizes: its divisions and
-    // square roots were a sixth of a primary-ray-bound frame). The arithmetic per lane is the
-    // scalar normalize(p0 + du u + dv v), operation for operation.
-    alignas(32) float su[RenderScene::kPacket] = {}, sv[RenderScene::kPacket] = {};
-    for (int i = 0; i < n; ++i) {
-      samplers[i] = PixelSampler(img.sampler, pixel_key, s0 + uint32_t(i), uint32_t(img.spp));
-      camera.pixel_offset(s0 + uint32_t(i), &su[i], &sv[i]);
+  const int64_t count = pixels.pixels();
+  // The next sample to set up: pixel `p` (row-major in `pixels`), sample `s`; its camera sampler
+  // is made once per pixel (the pixel's key and the scramble seeds are most of a sample's hashing).
+  int64_t p = 0;
+  uint32_t s = from;
+  auto key_of = [&](int64_t q) {
+    return PixelSampler::pixel_key(img.seed, scene.frame(), pixels.x0 + int(q % pixels.width),
+                                   pixels.y0 + int(q / pixels.width));
+  };
+  uint64_t key = key_of(0);
+  CameraSampler camera(img.sampler, key, uint32_t(img.spp));
+  PixelSampler samplers[P];
+  int64_t lane_pixel[P];
+  uint32_t lane_sample[P];
+  while (p < count) {
+    // One packet: the next P samples in (pixel, sample) order, across pixels when a pixel has
+    // fewer samples left than lanes, so packets stay full at low sample counts. A lane's result
+    // depends only on its own ray and sampler (integrator.h), so how samples share packets
+    // changes no bit; the estimates still take each pixel's samples in sample order.
+    alignas(32) float su[P] = {}, sv[P] = {}, fx[P] = {}, fy[P] = {};
+    int n = 0;
+    for (; n < P && p < count; ++n) {
+      const int x = pixels.x0 + int(p % pixels.width), y = pixels.y0 + int(p / pixels.width);
+      samplers[n] = PixelSampler(img.sampler, key, s, uint32_t(img.spp));
+      camera.pixel_offset(s, &su[n], &sv[n]);
+      fx[n] = float(x);
+      fy[n] = float(y);
+      lane_pixel[n] = p;
+      lane_sample[n] = s;
+      if (++s == to) {
+        s = from;
+        if (++p < count) {
+          key = key_of(p);
+          camera = CameraSampler(img.sampler, key, uint32_t(img.spp));
+        }
+      }
     }
-    alignas(32) float dx[RenderScene::kPacket], dy[RenderScene::kPacket], dz[RenderScene::kPacket];
-    for (int i = 0; i < RenderScene::kPacket; ++i) {
-      const float u = (float(x) + su[i]) / float(img.width);
-      const float v = (float(y) + sv[i]) / float(img.height);
+    // Camera rays for all P lanes at once (a fixed trip count the compiler vectorizes: its
+    // divisions and square roots were a sixth of a primary-ray-bound frame). The arithmetic per
+    // lane is the scalar normalize(p0 + du u + dv v), operation for operation.
+    alignas(32) float dx[P], dy[P], dz[P];
+    for (int i = 0; i < P; ++i) {
+      const float u = (fx[i] + su[i]) / float(img.width);
+      const float v = (fy[i] + sv[i]) / float(img.height);
       const float px = cam.p0.x + cam.du.x * u + cam.dv.x * v;
       const float py = cam.p0.y + cam.du.y * u + cam.dv.y * v;
       const float pz = cam.p0.z + cam.du.z * u + cam.dv.z * v;
@@ -41,6 +66,8 @@ void render_samples(const RenderScene& scene, int x, int y, uint32_t from, uint3
       dy[i] = py / len;
       dz[i] = pz / len;
     }
+    Ray r[P];
+    Rgb Ls[P];
     for (int i = 0; i < n; ++i) r[i] = {Vec3f(0.0f), Vec3f(dx[i], dy[i], dz[i])};
     rays->camera += uint64_t(n);
     trace_radiance_packet(scene, r, samplers, n, rays, Ls);
@@ -50,9 +77,8 @@ void render_samples(const RenderScene& scene, int x, int y, uint32_t from, uint3
         ++rays->nonfinite_samples;  // never let NaN/Inf reach a pixel; counted, not hidden
         L = Rgb(0.0f);
       }
-      est->add(s0 + uint32_t(i), L);
+      est[lane_pixel[i]].add(lane_sample[i], L);
     }
-    s0 = packet_end;
   }
 }
 

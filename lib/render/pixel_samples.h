@@ -8,15 +8,18 @@
 
 #include "render/pixel_estimate.h"
 #include "render/render_scene.h"
+#include "tile/tile_rect.h"
 #include "tile/tile_result.h"
 
 namespace tessera {
 
-// Renders samples [from, to) of pixel (x, y) into `est`, counting the rays in `rays`. Samples
-// s0 .. s0+7 form one packet (s0 a multiple of 8): which rays share a packet depends on the pixel
-// and sample index only, never on the tile, thread or stopping point, so a pixel rendered to n
-// samples in any number of steps is bit-identical to one rendered to n in one step.
-void render_samples(const RenderScene& scene, int x, int y, uint32_t from, uint32_t to, PixelEstimate* est,
+// Renders samples [from, to) of every pixel of `pixels` into its estimate, est[(y - y0) * width +
+// (x - x0)], counting the rays in `rays`. Samples go into packets in (pixel, sample) order, across
+// pixels where one has fewer samples left than a packet's lanes: a lane's result depends only on
+// its pixel and sample index (integrator.h), never on which samples share its packet, so a pixel
+// rendered to n samples in any number of steps, in any rectangle, tile or thread, is
+// bit-identical to one rendered to n in one step.
+void render_samples(const RenderScene& scene, const TileRect& pixels, uint32_t from, uint32_t to, PixelEstimate* est,
                     RayCounts* rays);
 
 // Stores pixel `i` of `out` (its mean, its variance estimate at the precision tiles carry it, its

@@ -40,9 +40,7 @@ void render_tile_adaptive(const RenderScene& scene, const TileRect& rect, TileRe
       uint32_t done = 0, n = min_spp, prev_n = 0;
       double prev_mse = 0;
       while (true) {
-        for (int y = 0; y < h; ++y) {
-          for (int x = 0; x < w; ++x) render_samples(scene, bx + x, by + y, done, n, &block[size_t(y * B + x)], &out->rays);
-        }
+        render_samples(scene, {bx, by, w, h}, done, n, block.data(), &out->rays);
         done = n;
         if (n >= max_spp) break;
         // The block's estimated variance: per pixel the estimate as stored (tile/bfloat16.h), or for
@@ -51,7 +49,7 @@ void render_tile_adaptive(const RenderScene& scene, const TileRect& rect, TileRe
         double sum = 0;
         for (int y = 0; y < h; ++y) {
           for (int x = 0; x < w; ++x) {
-            const PixelEstimate& e = block[size_t(y * B + x)];
+            const PixelEstimate& e = block[size_t(y * w + x)];
             const double v = double(round_to_bfloat16(float(e.variance(img.sampler))));
             sum += img.sampler == SamplerKind::kSobol ? std::max(v, e.stratified_floor()) : v;
           }
@@ -65,7 +63,7 @@ void render_tile_adaptive(const RenderScene& scene, const TileRect& rect, TileRe
       }
       for (int y = std::max(by, rect.y0); y < std::min(by + h, rect.y0 + rect.height); ++y) {
         for (int x = std::max(bx, rect.x0); x < std::min(bx + w, rect.x0 + rect.width); ++x) {
-          store_pixel(block[size_t((y - by) * B + (x - bx))], img.sampler,
+          store_pixel(block[size_t((y - by) * w + (x - bx))], img.sampler,
                       size_t(y - rect.y0) * size_t(rect.width) + size_t(x - rect.x0), out);
         }
       }
@@ -87,11 +85,13 @@ TileResult render_tile(const RenderScene& scene, const TileRect& rect) {
   if (img.adaptive()) {
     render_tile_adaptive(scene, rect, &out);
   } else {
+    // A row at a time: packets fill across its pixels at low sample counts.
+    std::vector<PixelEstimate> row(size_t(rect.width));
     for (int y = rect.y0; y < rect.y0 + rect.height; ++y) {
-      for (int x = rect.x0; x < rect.x0 + rect.width; ++x) {
-        PixelEstimate est;
-        render_samples(scene, x, y, 0, uint32_t(img.spp), &est, &out.rays);
-        store_pixel(est, img.sampler, size_t(y - rect.y0) * size_t(rect.width) + size_t(x - rect.x0), &out);
+      std::fill(row.begin(), row.end(), PixelEstimate{});
+      render_samples(scene, {rect.x0, y, rect.width, 1}, 0, uint32_t(img.spp), row.data(), &out.rays);
+      for (int x = 0; x < rect.width; ++x) {
+        store_pixel(row[size_t(x)], img.sampler, size_t(y - rect.y0) * size_t(rect.width) + size_t(x), &out);
       }
     }
   }
