@@ -14,41 +14,39 @@ void render_samples(const RenderScene& scene, const TileRect& pixels, uint32_t f
   if (to <= from || pixels.width <= 0 || pixels.height <= 0) return;
   const ImageSettings& img = scene.image();
   const auto& cam = scene.camera();
-  const int64_t count = pixels.pixels();
-  // The next sample to set up: pixel `p` (row-major in `pixels`), sample `s`; its camera sampler
-  // is made once per pixel (the pixel's key and the scramble seeds are most of a sample's hashing).
-  int64_t p = 0;
+  // The next sample to set up: pixel (x, y), sample `s`, the pixel's estimate `e`; its camera
+  // sampler is made once per pixel (the pixel's key and the scramble seeds are most of a
+  // sample's hashing).
+  int x = pixels.x0, y = pixels.y0;
   uint32_t s = from;
-  auto key_of = [&](int64_t q) {
-    return PixelSampler::pixel_key(img.seed, scene.frame(), pixels.x0 + int(q % pixels.width),
-                                   pixels.y0 + int(q / pixels.width));
-  };
-  uint64_t key = key_of(0);
+  PixelEstimate* e = est;
+  uint64_t key = PixelSampler::pixel_key(img.seed, scene.frame(), x, y);
   CameraSampler camera(img.sampler, key, uint32_t(img.spp));
   PixelSampler samplers[P];
-  int64_t lane_pixel[P];
+  PixelEstimate* lane_est[P];
   uint32_t lane_sample[P];
-  while (p < count) {
+  while (y < pixels.y0 + pixels.height) {
     // One packet: the next P samples in (pixel, sample) order, across pixels when a pixel has
     // fewer samples left than lanes, so packets stay full at low sample counts. A lane's result
     // depends only on its own ray and sampler (integrator.h), so how samples share packets
     // changes no bit; the estimates still take each pixel's samples in sample order.
     alignas(32) float su[P] = {}, sv[P] = {}, fx[P] = {}, fy[P] = {};
     int n = 0;
-    for (; n < P && p < count; ++n) {
-      const int x = pixels.x0 + int(p % pixels.width), y = pixels.y0 + int(p / pixels.width);
+    for (; n < P && y < pixels.y0 + pixels.height; ++n) {
       samplers[n] = PixelSampler(img.sampler, key, s, uint32_t(img.spp));
       camera.pixel_offset(s, &su[n], &sv[n]);
       fx[n] = float(x);
       fy[n] = float(y);
-      lane_pixel[n] = p;
+      lane_est[n] = e;
       lane_sample[n] = s;
-      if (++s == to) {
-        s = from;
-        if (++p < count) {
-          key = key_of(p);
-          camera = CameraSampler(img.sampler, key, uint32_t(img.spp));
-        }
+      if (++s < to) continue;
+      // The pixel's last sample: on to the next pixel, row-major.
+      s = from;
+      ++e;
+      if (++x == pixels.x0 + pixels.width) x = pixels.x0, ++y;
+      if (y < pixels.y0 + pixels.height) {
+        key = PixelSampler::pixel_key(img.seed, scene.frame(), x, y);
+        camera = CameraSampler(img.sampler, key, uint32_t(img.spp));
       }
     }
     // Camera rays for all P lanes at once (a fixed trip count the compiler vectorizes: its
@@ -77,7 +75,7 @@ void render_samples(const RenderScene& scene, const TileRect& pixels, uint32_t f
         ++rays->nonfinite_samples;  // never let NaN/Inf reach a pixel; counted, not hidden
         L = Rgb(0.0f);
       }
-      est[lane_pixel[i]].add(lane_sample[i], L);
+      lane_est[i]->add(lane_sample[i], L);
     }
   }
 }
