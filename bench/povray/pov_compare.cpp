@@ -93,7 +93,7 @@ int main(int argc, char** argv) {
   app.add_option("--markdown", markdown);
   std::string pov_settings = "+A0.0 +AM1";
   app.add_option("--pov-settings", pov_settings, "POV-Ray's anti-aliasing flags, for the tables");
-  int target_min_spp = 8;  // --target-rmse's own default: its pilot
+  int target_min_spp = 4;  // --target-rmse's own default: its pilot
   app.add_option("--target-min-spp", target_min_spp, "--min-spp of the target-error renders")->check(CLI::Range(2, 1024));
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::warn);

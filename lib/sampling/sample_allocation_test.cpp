@@ -57,8 +57,8 @@ TEST(SampleAllocation, NoCheaperCountsMeetTheTarget) {
       }
     }
   }
-  // Rounding each block up to whole packets costs at most a packet per block over the optimum.
-  EXPECT_LE(cost, best + 8 * (1.5 + 1 + 3));
+  // Rounding each block up to an even count costs at most two samples per block over the optimum.
+  EXPECT_LE(cost, best + 2 * (1.5 + 1 + 3));
 }
 
 TEST(SampleAllocation, BoundsHold) {
@@ -67,11 +67,11 @@ TEST(SampleAllocation, BoundsHold) {
   EXPECT_EQ(allocate_samples(blocks, {1, 16, 64}), (std::vector<uint32_t>{24, 16, 16}));
   // Out of reach: everything to max_spp.
   EXPECT_EQ(allocate_samples(blocks, {1e-9, 8, 64}), (std::vector<uint32_t>{64, 64, 64}));
-  // A block without error takes nothing more; counts are whole packets and never fall.
+  // A block without error takes nothing more; counts are even (two equal streams) and never fall.
   const std::vector<uint32_t> n = allocate_samples(blocks, {1e-4, 8, 1024});
   EXPECT_EQ(n[1], 8u);
   EXPECT_GE(n[0], 24u);
-  for (uint32_t c : n) EXPECT_EQ(c % 8, 0u);
+  for (uint32_t c : n) EXPECT_EQ(c % 2, 0u);
 }
 
 }  // namespace
