@@ -1,9 +1,14 @@
 #include "render/sampler.h"
 
 #include <gtest/gtest.h>
+#include <hwy/targets.h>
 
+#include <algorithm>
 #include <bit>
+#include <iterator>
+#include <random>
 #include <set>
+#include <string>
 #include <vector>
 
 namespace tessera {
@@ -146,6 +151,91 @@ TEST(Sampler, OwenSobolEqualsItsDefinitionBitForBit) {
       ASSERT_EQ(v, to_unit_float(nested_uniform_scramble(y, uint32_t(h >> 32)))) << index;
     }
   }
+}
+
+// Lane k's inputs, for failure messages.
+std::string lane_inputs(const OwenSobolLanes& lanes, int k) {
+  return "lane " + std::to_string(k) + " index " + std::to_string(lanes.index[k]) + " seeds " +
+         std::to_string(lanes.seed_index[k]) + " " + std::to_string(lanes.seed_x[k]) + " " +
+         std::to_string(lanes.seed_y[k]);
+}
+
+// owen_sobol_2d_lanes against the scalar owen_sobol_2d, every lane, on every SIMD target this
+// machine runs: random indices and seeds, and the edges of both (0, all ones, the top bit, the
+// 16-bit boundary the shuffled index is cut at), each lane given different ones so that a lane
+// that computed a neighbour's point, or reversed its bits in another order, is caught. The
+// outputs start one element past an aligned address: they need no alignment.
+TEST(Sampler, OwenSobolLanesEqualTheScalarPointsOnEveryTarget) {
+  const uint32_t edges[] = {0u, 1u, 2u, 0xffffu, 0x10000u, 0x7fffffffu, 0x80000000u, 0xfffffffeu, 0xffffffffu};
+  std::mt19937 rng(11);
+  auto pick = [&] { return rng() % 3 == 0 ? edges[rng() % std::size(edges)] : uint32_t(rng()); };
+  OwenSobolLanes lanes;
+  alignas(32) float out[2 * kOwenLanes + 1];
+  float* const u = out + 1;
+  float* const v = u + kOwenLanes;
+  const std::vector<int64_t> targets = hwy::SupportedAndGeneratedTargets();
+  ASSERT_FALSE(targets.empty());
+  for (int64_t target : targets) {
+    hwy::SetSupportedTargetsForTest(target);
+    SCOPED_TRACE(hwy::TargetName(target));
+    for (int call = 0; call < 20000; ++call) {
+      for (int k = 0; k < kOwenLanes; ++k) {
+        lanes.index[k] = pick();
+        lanes.seed_index[k] = pick();
+        lanes.seed_x[k] = pick();
+        lanes.seed_y[k] = pick();
+      }
+      owen_sobol_2d_lanes(lanes, u, v);
+      for (int k = 0; k < kOwenLanes; ++k) {
+        OwenSeeds seeds(0);
+        seeds.index = lanes.seed_index[k];
+        seeds.x = lanes.seed_x[k];
+        seeds.y = lanes.seed_y[k];
+        float want_u, want_v;
+        owen_sobol_2d(lanes.index[k], seeds, &want_u, &want_v);
+        ASSERT_EQ(std::bit_cast<uint32_t>(u[k]), std::bit_cast<uint32_t>(want_u)) << lane_inputs(lanes, k);
+        ASSERT_EQ(std::bit_cast<uint32_t>(v[k]), std::bit_cast<uint32_t>(want_v)) << lane_inputs(lanes, k);
+      }
+    }
+  }
+  hwy::SetSupportedTargetsForTest(0);
+}
+
+// The lanes against owen_sobol_2d's definition (the shuffled index's Sobol point from sobol_2d's
+// loop over direction numbers, each coordinate nested-uniform scrambled), for 2^16 consecutive
+// indices of a stream: the shuffle maps them onto all 2^16 shuffled indices the point depends on,
+// so each target's Pascal-matrix dimension (computed, not looked up as the scalar code does) is
+// checked for every one, in every lane.
+TEST(Sampler, OwenSobolLanesEqualTheDefinitionForEveryShuffledIndexOnEveryTarget) {
+  for (int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    hwy::SetSupportedTargetsForTest(target);
+    SCOPED_TRACE(hwy::TargetName(target));
+    for (uint64_t key : {7ull, 0xfedcba9876543210ull}) {
+      const OwenSeeds seeds(key);
+      OwenSobolLanes lanes;
+      std::fill_n(lanes.seed_index, kOwenLanes, seeds.index);
+      std::fill_n(lanes.seed_x, kOwenLanes, seeds.x);
+      std::fill_n(lanes.seed_y, kOwenLanes, seeds.y);
+      std::set<uint32_t> shuffled;
+      for (uint32_t first = 0; first < 0x10000u; first += kOwenLanes) {
+        for (int k = 0; k < kOwenLanes; ++k) lanes.index[k] = first + uint32_t(k);
+        float u[kOwenLanes], v[kOwenLanes];
+        owen_sobol_2d_lanes(lanes, u, v);
+        for (int k = 0; k < kOwenLanes; ++k) {
+          const uint32_t i = nested_uniform_scramble(lanes.index[k], seeds.index) & 0xffffu;
+          shuffled.insert(i);
+          uint32_t x, y;
+          sobol_2d(i, &x, &y);
+          const float want_u = to_unit_float(nested_uniform_scramble(x, seeds.x));
+          const float want_v = to_unit_float(nested_uniform_scramble(y, seeds.y));
+          ASSERT_EQ(std::bit_cast<uint32_t>(u[k]), std::bit_cast<uint32_t>(want_u)) << lane_inputs(lanes, k);
+          ASSERT_EQ(std::bit_cast<uint32_t>(v[k]), std::bit_cast<uint32_t>(want_v)) << lane_inputs(lanes, k);
+        }
+      }
+      EXPECT_EQ(shuffled.size(), 0x10000u);
+    }
+  }
+  hwy::SetSupportedTargetsForTest(0);
 }
 
 TEST(Sampler, CameraSamplerGivesEachSamplersPixelOffsetsBitForBit) {
