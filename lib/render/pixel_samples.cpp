@@ -22,6 +22,8 @@ void render_samples(const RenderScene& scene, const TileRect& pixels, uint32_t f
   PixelEstimate* e = est;
   uint64_t key = PixelSampler::pixel_key(img.seed, scene.frame(), x, y);
   CameraSampler camera(img.sampler, key, uint32_t(img.spp));
+  static_assert(P == kOwenLanes);
+  const bool sobol_lanes = img.sampler == SamplerKind::kSobol;
   PixelSampler samplers[P];
   PixelEstimate* lane_est[P];
   uint32_t lane_sample[P];
@@ -31,10 +33,17 @@ void render_samples(const RenderScene& scene, const TileRect& pixels, uint32_t f
     // depends only on its own ray and sampler (integrator.h), so how samples share packets
     // changes no bit; the estimates still take each pixel's samples in sample order.
     alignas(32) float su[P] = {}, sv[P] = {}, fx[P] = {}, fy[P] = {};
+    OwenSobolLanes sobol = {};
     int n = 0;
     for (; n < P && y < pixels.y0 + pixels.height; ++n) {
       samplers[n] = PixelSampler(img.sampler, key, s, uint32_t(img.spp));
-      camera.pixel_offset(s, &su[n], &sv[n]);
+      if (sobol_lanes) {
+        const OwenSeeds& seeds = camera.seeds(s);
+        sobol.index[n] = stream_index(s);
+        sobol.seed_index[n] = seeds.index, sobol.seed_x[n] = seeds.x, sobol.seed_y[n] = seeds.y;
+      } else {
+        camera.pixel_offset(s, &su[n], &sv[n]);
+      }
       fx[n] = float(x);
       fy[n] = float(y);
       lane_est[n] = e;
@@ -49,6 +58,9 @@ void render_samples(const RenderScene& scene, const TileRect& pixels, uint32_t f
         camera = CameraSampler(img.sampler, key, uint32_t(img.spp));
       }
     }
+    // The default sampler's pixel positions for all lanes at once (render/sampler.h); lanes past
+    // n compute on zeros and are never traced.
+    if (sobol_lanes) owen_sobol_2d_lanes(sobol, su, sv);
     // Camera rays for all P lanes at once (a fixed trip count the compiler vectorizes: its
     // divisions and square roots were a sixth of a primary-ray-bound frame). The arithmetic per
     // lane is the scalar normalize(p0 + du u + dv v), operation for operation.

@@ -39,7 +39,7 @@ TEST(PixelSamples, APixelIsTheSameAloneOrInAnyRectangleAndInAnyNumberOfSteps) {
     // The rectangle in three steps of 3, 1 and 7 samples: packets hold samples of up to 8 pixels.
     std::vector<PixelEstimate> steps(size_t(rect.pixels()));
     RayCounts rays_steps;
-    for (const auto [from, to] : {std::pair{0u, 3u}, {3u, 4u}, {4u, 11u}}) {
+    for (const auto& [from, to] : {std::pair{0u, 3u}, {3u, 4u}, {4u, 11u}}) {
       render_samples(rs, rect, from, to, steps.data(), &rays_steps);
     }
     // Row by row (as uniform tiles render), all 11 at once.

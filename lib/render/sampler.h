@@ -171,6 +171,8 @@ class CameraSampler {
     }
     PixelSampler(kind_, pixel_key_, sample, spp_).pixel_offset(u, v);
   }
+  // For kSobol: the Owen scramble's seeds of the stream `sample` belongs to (owen_sobol_2d_lanes).
+  const OwenSeeds& seeds(uint32_t sample) const { return seeds_[sample_stream(sample)]; }
 
  private:
   SamplerKind kind_;
