@@ -159,6 +159,7 @@ struct PacketFrame {
   Rgb direct[P];
   Secondary sec[P];
   Rgb child_L[2][P];
+  Rgb child_out[P];  // a child packet's results, by its own lanes
   // The reflection [0] and refraction [1] packets: rays, origin primitives, samplers, lanes.
   Ray child_r[2][P];
   PrimRef child_f[2][P];
@@ -283,10 +284,9 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
   for (int k = 0; k < 2; ++k) {
     if (m[k] == 0) continue;
     counts->secondary += uint64_t(m[k]);
-    Rgb L[P];
     radiance_packet(scene, fr.child_r[k], fr.child_f[k], fr.child_smp[k], m[k], depth + 1, 2 * node + uint64_t(k),
-                    counts, L);
-    for (int j = 0; j < m[k]; ++j) fr.child_L[k][fr.child_lane[k][j]] = L[j];
+                    counts, fr.child_out);
+    for (int j = 0; j < m[k]; ++j) fr.child_L[k][fr.child_lane[k][j]] = fr.child_out[j];
   }
 
   for (int i = 0; i < n; ++i) {
