@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "render/fresnel.h"
+#include "render/secondary_rays.h"
 #include "render/shadow_rays.h"
 #include "render/shading_normal.h"
 
@@ -153,7 +154,7 @@ Rgb shade(const Context& c, const Ray& ray, const Hit& hit, const Rgb& direct, c
 // initializers) cost more than the packet's Embree traversal (measured on the Whitted scene).
 struct PacketFrame {
   static constexpr int P = RenderScene::kPacket;
-  static_assert(P == kShadowLanes);
+  static_assert(P == kShadowLanes && P == kTurnLanes);
   Hit hits[P];
   bool found[P];
   Rgb direct[P];
@@ -172,6 +173,8 @@ struct PacketFrame {
   float qb[P];
   ShadingPoints points;  // the diffuse hits, for the shadow rays' set-up
   ShadowRays shadow;
+  TurningPoints turning;  // the flat mirror and glass hits, for their children's set-up
+  SecondaryRays turned;
   int lane_of[P];
 };
 
@@ -266,14 +269,56 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
     flush();
   }
 
-  // Children: one packet of the lanes' reflection rays, one of their refraction rays, each
-  // written by plan_secondary straight into its packet.
+  // Children: one packet of the lanes' reflection rays, one of their refraction rays. The rays of
+  // flat mirror and glass hits are set up for all lanes at once (render/secondary_rays.h, the
+  // arithmetic of plan_secondary); a smooth hit's by plan_secondary, which writes them straight
+  // into their packets.
+  TurningPoints& tp = fr.turning;
+  int flats = 0;
+  const bool deeper = depth < scene.image().max_depth;
+  for (int i = 0; i < P; ++i) {
+    const bool flat = deeper && i < n && found[i] && !hits[i].smooth &&
+                      scene.material(hits[i].material).type != Material::Type::kDiffuse;
+    tp.live[i] = flat ? 1 : 0;
+    flats += flat ? 1 : 0;
+  }
+  // A lone lane costs less through plan_secondary (the same arithmetic, so the same bits).
+  if (flats == 1) std::fill(tp.live, tp.live + P, 0);
+  const bool any_flat = flats > 1;
+  for (int i = 0; any_flat && i < P; ++i) {
+    const Hit& h = hits[i];
+    const bool flat = tp.live[i] != 0;
+    const Material* mat = flat ? &scene.material(h.material) : nullptr;
+    // Other lanes hold zeros: computed on, never used.
+    const bool front = flat && dot(rays[i].d, h.n) < 0.0f;
+    const Vec3f nf = !flat ? Vec3f(0.0f) : front ? h.n : -h.n;
+    const Vec3f p = flat ? h.p : Vec3f(0.0f), e = flat ? h.p_err : Vec3f(0.0f), d = flat ? rays[i].d : Vec3f(0.0f);
+    tp.px[i] = p.x, tp.py[i] = p.y, tp.pz[i] = p.z;
+    tp.ex[i] = e.x, tp.ey[i] = e.y, tp.ez[i] = e.z;
+    tp.nx[i] = nf.x, tp.ny[i] = nf.y, tp.nz[i] = nf.z;
+    tp.dx[i] = d.x, tp.dy[i] = d.y, tp.dz[i] = d.z;
+    const bool glass = flat && mat->type == Material::Type::kGlass;
+    tp.glass[i] = glass ? 1 : 0;
+    // Outside is vacuum/air (index 1).
+    tp.eta_i[i] = !glass ? 1.0f : front ? 1.0f : float(mat->ior);
+    tp.eta_t[i] = !glass ? 1.0f : front ? float(mat->ior) : 1.0f;
+  }
+  const SecondaryRays& tr = fr.turned;
+  if (any_flat) secondary_rays(tp, &fr.turned);
   Secondary* sec = fr.sec;
   int m[2] = {0, 0};
   for (int i = 0; i < n; ++i) {
     if (!found[i]) continue;
-    plan_secondary({scene, *samplers[i], counts}, rays[i], hits[i], depth, &sec[i], &fr.child_r[0][m[0]],
-                   &fr.child_r[1][m[1]]);
+    if (tp.live[i]) {
+      sec[i].reflect = tr.reflect[i] != 0;
+      sec[i].refract = tr.refract[i] != 0;
+      sec[i].R = tr.R[i];  // glass only (shade reads it for glass)
+      if (sec[i].reflect) fr.child_r[0][m[0]] = {{tr.rox[i], tr.roy[i], tr.roz[i]}, {tr.rdx[i], tr.rdy[i], tr.rdz[i]}};
+      if (sec[i].refract) fr.child_r[1][m[1]] = {{tr.tox[i], tr.toy[i], tr.toz[i]}, {tr.tdx[i], tr.tdy[i], tr.tdz[i]}};
+    } else {
+      plan_secondary({scene, *samplers[i], counts}, rays[i], hits[i], depth, &sec[i], &fr.child_r[0][m[0]],
+                     &fr.child_r[1][m[1]]);
+    }
     for (int k = 0; k < 2; ++k) {
       if (!(k == 0 ? sec[i].reflect : sec[i].refract)) continue;
       fr.child_f[k][m[k]] = hits[i].prim;

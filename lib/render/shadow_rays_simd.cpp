@@ -10,70 +10,27 @@
 #include <limits>
 
 #include "render/shadow_rays.h"
+#include "render/simd_vec3-inl.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace tessera {
 namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
-// At most 8 lanes a vector: one vector a packet on AVX2 and AVX-512, two on SSE4.
-using DF = hn::CappedTag<float, kShadowLanes>;
-using V = hn::Vec<DF>;
-using M = hn::Mask<DF>;
-
-struct V3 {
-  V x, y, z;
-};
-
-HWY_INLINE V3 load3(DF df, const float* x, const float* y, const float* z, size_t i) {
-  return {hn::Load(df, x + i), hn::Load(df, y + i), hn::Load(df, z + i)};
-}
-// dot() of vec3.h: a.x b.x + a.y b.y + a.z b.z, left to right.
-HWY_INLINE V dot(const V3& a, const V3& b) {
-  return hn::Add(hn::Add(hn::Mul(a.x, b.x), hn::Mul(a.y, b.y)), hn::Mul(a.z, b.z));
-}
-HWY_INLINE V3 sub(const V3& a, const V3& b) { return {hn::Sub(a.x, b.x), hn::Sub(a.y, b.y), hn::Sub(a.z, b.z)}; }
-
-// next_float_up / next_float_down (math/next_float.h).
-HWY_INLINE V next_up(DF df, V v) {
-  const hn::RebindToUnsigned<DF> du;
-  const auto u = hn::BitCast(du, v);
-  const auto one = hn::Set(du, 1u);
-  auto r = hn::IfThenElse(hn::RebindMask(du, hn::Gt(v, hn::Zero(df))), hn::Add(u, one), hn::Sub(u, one));
-  r = hn::IfThenElse(hn::RebindMask(du, hn::Eq(v, hn::Zero(df))), one, r);
-  return hn::IfThenElse(hn::Eq(v, hn::Set(df, std::numeric_limits<float>::infinity())), v, hn::BitCast(df, r));
-}
-HWY_INLINE V next_down(DF df, V v) {
-  const hn::RebindToUnsigned<DF> du;
-  const auto u = hn::BitCast(du, v);
-  const auto one = hn::Set(du, 1u);
-  auto r = hn::IfThenElse(hn::RebindMask(du, hn::Gt(v, hn::Zero(df))), hn::Sub(u, one), hn::Add(u, one));
-  r = hn::IfThenElse(hn::RebindMask(du, hn::Eq(v, hn::Zero(df))), hn::Set(du, 0x80000001u), r);
-  return hn::IfThenElse(hn::Eq(v, hn::Set(df, -std::numeric_limits<float>::infinity())), v, hn::BitCast(df, r));
-}
+using simd3::DF, simd3::V, simd3::M, simd3::V3, simd3::load3, simd3::dot, simd3::sub;
+static_assert(kShadowLanes == 8);  // simd3's packet
 
 // offset_ray_origin (render/ray.h) of the lanes' points toward w.
 HWY_INLINE V3 offset_origin(DF df, const ShadingPoints& s, size_t i, const V3& w) {
-  const V3 p = load3(df, s.px, s.py, s.pz, i), e = load3(df, s.ex, s.ey, s.ez, i), n = load3(df, s.nx, s.ny, s.nz, i);
-  const V d = dot({hn::Abs(n.x), hn::Abs(n.y), hn::Abs(n.z)}, e);
-  const M flip = hn::Lt(dot(w, n), hn::Zero(df));
-  auto axis = [&](V pc, V nc) {
-    V offset = hn::Mul(nc, d);
-    offset = hn::IfThenElse(flip, hn::Neg(offset), offset);
-    const V po = hn::Add(pc, offset);
-    const V zero = hn::Zero(df);
-    return hn::IfThenElse(hn::Gt(offset, zero), next_up(df, po),
-                          hn::IfThenElse(hn::Lt(offset, zero), next_down(df, po), po));
-  };
-  return {axis(p.x, n.x), axis(p.y, n.y), axis(p.z, n.z)};
+  return simd3::offset_origin(df, load3(df, s.px, s.py, s.pz, i), load3(df, s.ex, s.ey, s.ez, i),
+                              load3(df, s.nx, s.ny, s.nz, i), w);
 }
 
 // The cosine weight of light from w: dot(n, w) at flat lanes; smooth_light_cosine at smooth ones.
 HWY_INLINE V light_cosine(DF df, const ShadingPoints& s, size_t i, const V3& w) {
-  const hn::RebindToSigned<DF> di;
   const V zero = hn::Zero(df);
   const V cos_g = dot(load3(df, s.nx, s.ny, s.nz, i), w);
-  const M smooth = hn::RebindMask(df, hn::Ne(hn::Load(di, s.smooth + i), hn::Zero(di)));
+  const M smooth = simd3::flagged(df, s.smooth, i);
   if (hn::AllFalse(df, smooth)) return cos_g;
   const V cos_s = dot(load3(df, s.sx, s.sy, s.sz, i), w);
   const V q = hn::Div(cos_g, hn::Mul(cos_s, hn::Load(df, s.g_dot_s + i)));
@@ -86,23 +43,15 @@ HWY_INLINE V light_cosine(DF df, const ShadingPoints& s, size_t i, const V3& w) 
 }
 
 HWY_INLINE void store_ray(DF df, const V3& o, const V3& w, V tmax, V cone, V b, M live, size_t i, ShadowRays* out) {
-  const hn::RebindToSigned<DF> di;
-  hn::Store(o.x, df, out->ox + i);
-  hn::Store(o.y, df, out->oy + i);
-  hn::Store(o.z, df, out->oz + i);
-  hn::Store(w.x, df, out->dx + i);
-  hn::Store(w.y, df, out->dy + i);
-  hn::Store(w.z, df, out->dz + i);
+  simd3::store3(df, o, out->ox, out->oy, out->oz, i);
+  simd3::store3(df, w, out->dx, out->dy, out->dz, i);
   hn::Store(tmax, df, out->tmax + i);
   hn::Store(cone, df, out->cone + i);
   hn::Store(b, df, out->b + i);
-  hn::Store(hn::IfThenElseZero(hn::RebindMask(di, live), hn::Set(di, 1)), di, out->live + i);
+  simd3::store_flags(df, live, out->live, i);
 }
 
-HWY_INLINE M live_lanes(DF df, const ShadingPoints& s, size_t i) {
-  const hn::RebindToSigned<DF> di;
-  return hn::RebindMask(df, hn::Ne(hn::Load(di, s.live + i), hn::Zero(di)));
-}
+HWY_INLINE M live_lanes(DF df, const ShadingPoints& s, size_t i) { return simd3::flagged(df, s.live, i); }
 
 void PointLightRays(const ShadingPoints& s, const Vec3f& position, const SpotCone* spot, ShadowRays* out) {
   const DF df;
