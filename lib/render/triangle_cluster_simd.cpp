@@ -8,6 +8,8 @@
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/highway.h>
 
+#include <utility>
+
 #include "render/triangle_cluster.h"
 
 HWY_BEFORE_NAMESPACE();
@@ -54,10 +56,11 @@ HWY_INLINE uint32_t MaybeCrossedChunk(DF df, const TriangleCluster& c, size_t j,
 }
 
 // At most kSize float lanes a vector: 8 on AVX2 and AVX-512 (one vector a cluster), 4 on SSE4.
-HWY_INLINE uint32_t MaybeCrossed(const TriangleCluster& c, const Vec3f& o, const RayShear& s) {
+HWY_INLINE uint32_t MaybeCrossed(const TriangleCluster& c, const ClusterRay& r) {
   const hn::CappedTag<float, TriangleCluster::kSize> df;
   const size_t N = hn::Lanes(df);
-  const auto ox = hn::Set(df, o[s.kx]), oy = hn::Set(df, o[s.ky]), oz = hn::Set(df, o[s.kz]);
+  const RayShear& s = r.s;
+  const auto ox = hn::Set(df, r.ox), oy = hn::Set(df, r.oy), oz = hn::Set(df, r.oz);
   const auto sx = hn::Set(df, s.sx), sy = hn::Set(df, s.sy);
   uint32_t maybe = 0;
   for (size_t j = 0; j < size_t(TriangleCluster::kSize); j += N) maybe |= MaybeCrossedChunk(df, c, j, ox, oy, oz, sx, sy, s);
@@ -66,21 +69,27 @@ HWY_INLINE uint32_t MaybeCrossed(const TriangleCluster& c, const Vec3f& o, const
 
 // Line for line the arithmetic of intersect_triangle_watertight, on Lanes(dd) triangles, for the
 // lanes the float pass above leaves open.
-uint32_t IntersectCluster(const TriangleCluster& c, const Vec3f& o, const RayShear& s, float tnear, float tfar,
-                          int skip, TriangleHit* hit) {
+HWY_INLINE uint32_t IntersectClusterRay(const TriangleCluster& c, const ClusterRay& r, float tnear, float tfar, uint32_t skip,
+                          TriangleHit* hit) {
+  // Which lanes the exact test could accept: all but those a float pass proves it rejects.
+  uint32_t maybe = MaybeCrossed(c, r);
+  maybe &= (1u << c.count) - 1u;
+  if (maybe == 0) return 0;  // the common case: nothing below is needed
+  // The triangle the ray leaves, looked for only among the lanes still open.
+  for (uint32_t m = maybe; m != 0; m &= m - 1) {
+    const int k = __builtin_ctz(m);
+    if (c.tri[k] == skip) maybe &= ~(1u << unsigned(k));
+  }
+  if (maybe == 0) return 0;
+  const RayShear& s = r.s;
   const hn::ScalableTag<double> dd;
   const hn::Rebind<float, decltype(dd)> df;  // as many floats as dd has doubles
   const size_t N = hn::Lanes(dd);
-  const auto ox = hn::Set(df, o[s.kx]), oy = hn::Set(df, o[s.ky]), oz = hn::Set(df, o[s.kz]);
+  const auto ox = hn::Set(df, r.ox), oy = hn::Set(df, r.oy), oz = hn::Set(df, r.oz);
   const auto sx = hn::Set(df, s.sx), sy = hn::Set(df, s.sy), sz = hn::Set(df, s.sz);
   const auto zero = hn::Zero(dd);
   const auto one = hn::Set(dd, 1.0);
   const auto lo = hn::Set(dd, double(tnear)), hi = hn::Set(dd, double(tfar));
-  // Which lanes the exact test could accept: all but those a float pass proves it rejects.
-  uint32_t maybe = MaybeCrossed(c, o, s);
-  maybe &= (1u << c.count) - 1u;
-  if (skip >= 0) maybe &= ~(1u << unsigned(skip));
-  if (maybe == 0) return 0;
   uint32_t mask = 0;
   alignas(64) float t_out[TriangleCluster::kSize], u_out[TriangleCluster::kSize], v_out[TriangleCluster::kSize];
   for (size_t j = 0; j < size_t(TriangleCluster::kSize); j += N) {
@@ -131,6 +140,71 @@ uint32_t IntersectCluster(const TriangleCluster& c, const Vec3f& o, const RayShe
   return mask;
 }
 
+uint32_t IntersectCluster(const TriangleCluster& c, const ClusterRay& r, float tnear, float tfar, uint32_t skip,
+                          TriangleHit* hit) {
+  return IntersectClusterRay(c, r, tnear, tfar, skip, hit);
+}
+
+// cluster_ray() of Lanes(df) lanes of a packet at once, from lane j: the same float compares and
+// divisions as ray_shear(), IEEE-rounded alike in a vector, so the same bits. The axes come out as
+// a per-lane code: kz, and whether x and y are swapped.
+template <class DF>
+HWY_INLINE void PrepareRays(DF df, const ClusterPacket& p, size_t j, ClusterRay* out) {
+  const auto dx = hn::LoadU(df, p.dir_x + j), dy = hn::LoadU(df, p.dir_y + j), dz = hn::LoadU(df, p.dir_z + j);
+  const auto ox = hn::LoadU(df, p.org_x + j), oy = hn::LoadU(df, p.org_y + j), oz = hn::LoadU(df, p.org_z + j);
+  const auto ax = hn::Abs(dx), ay = hn::Abs(dy), az = hn::Abs(dz);
+  // ray_shear(): kz = ax > ay ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2).
+  const auto xy = hn::Gt(ax, ay);
+  const auto kz0 = hn::And(xy, hn::Gt(ax, az));
+  const auto kz1 = hn::AndNot(xy, hn::Gt(ay, az));
+  // kz = 0: (kx, ky) = (1, 2); kz = 1: (2, 0); kz = 2: (0, 1); swapped where d[kz] < 0.
+  const auto pick = [&](auto a0, auto a1, auto a2) { return hn::IfThenElse(kz0, a0, hn::IfThenElse(kz1, a1, a2)); };
+  const auto dkz = pick(dx, dy, dz), dkx0 = pick(dy, dz, dx), dky0 = pick(dz, dx, dy);
+  const auto okz = pick(ox, oy, oz), okx0 = pick(oy, oz, ox), oky0 = pick(oz, ox, oy);
+  const auto swap = hn::Lt(dkz, hn::Zero(df));
+  const auto dkx = hn::IfThenElse(swap, dky0, dkx0), dky = hn::IfThenElse(swap, dkx0, dky0);
+  const auto okx = hn::IfThenElse(swap, oky0, okx0), oky = hn::IfThenElse(swap, okx0, oky0);
+  alignas(64) float sx[16], sy[16], sz[16], rx[16], ry[16], rz[16];
+  hn::Store(hn::Div(dkx, dkz), df, sx);
+  hn::Store(hn::Div(dky, dkz), df, sy);
+  hn::Store(hn::Div(hn::Set(df, 1.0f), dkz), df, sz);
+  hn::Store(okx, df, rx);
+  hn::Store(oky, df, ry);
+  hn::Store(okz, df, rz);
+  uint8_t b0[8] = {}, b1[8] = {}, bs[8] = {};
+  hn::StoreMaskBits(df, kz0, b0);
+  hn::StoreMaskBits(df, kz1, b1);
+  hn::StoreMaskBits(df, swap, bs);
+  const size_t n = hn::Lanes(df);
+  for (size_t i = 0; i < n; ++i) {
+    const int kz = (b0[i / 8] >> (i % 8) & 1) ? 0 : (b1[i / 8] >> (i % 8) & 1) ? 1 : 2;
+    int kx = kz == 2 ? 0 : kz + 1, ky = kx == 2 ? 0 : kx + 1;
+    if (bs[i / 8] >> (i % 8) & 1) std::swap(kx, ky);
+    out[j + i] = {{kx, ky, kz, sx[i], sy[i], sz[i]}, rx[i], ry[i], rz[i]};
+  }
+}
+
+void IntersectClusterPacket(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes, const uint32_t* skip,
+                            uint32_t* masks, TriangleHit (*hit)[TriangleCluster::kSize]) {
+  const hn::CappedTag<float, TriangleCluster::kSize> df;
+  const size_t n = hn::Lanes(df);
+  ClusterRay rays[ClusterPacket::kMaxLanes];
+  if (p.N % n == 0) {
+    for (size_t j = 0; j < p.N; j += n) {
+      if ((lanes >> j) & ((1u << n) - 1u)) PrepareRays(df, p, j, rays);
+    }
+  } else {  // a packet narrower than a vector (Embree's 4-wide on a wider CPU): lane by lane
+    for (uint32_t m = lanes; m != 0; m &= m - 1) {
+      const int i = __builtin_ctz(m);
+      rays[i] = cluster_ray({p.org_x[i], p.org_y[i], p.org_z[i]}, {p.dir_x[i], p.dir_y[i], p.dir_z[i]});
+    }
+  }
+  for (uint32_t m = lanes; m != 0; m &= m - 1) {
+    const int i = __builtin_ctz(m);
+    masks[i] = IntersectClusterRay(c, rays[i], p.tnear[i], p.tfar[i], skip[i], hit[i]);
+  }
+}
+
 }  // namespace HWY_NAMESPACE
 }  // namespace tessera
 HWY_AFTER_NAMESPACE();
@@ -139,10 +213,16 @@ HWY_AFTER_NAMESPACE();
 namespace tessera {
 
 HWY_EXPORT(IntersectCluster);
+HWY_EXPORT(IntersectClusterPacket);
 
-uint32_t intersect_cluster(const TriangleCluster& c, const Vec3f& o, const RayShear& s, float tnear, float tfar,
-                           int skip, TriangleHit hit[TriangleCluster::kSize]) {
-  return HWY_DYNAMIC_DISPATCH(IntersectCluster)(c, o, s, tnear, tfar, skip, hit);
+uint32_t intersect_cluster(const TriangleCluster& c, const ClusterRay& r, float tnear, float tfar, uint32_t skip,
+                           TriangleHit hit[TriangleCluster::kSize]) {
+  return HWY_DYNAMIC_DISPATCH(IntersectCluster)(c, r, tnear, tfar, skip, hit);
+}
+
+void intersect_cluster_packet(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes, const uint32_t* skip,
+                              uint32_t* masks, TriangleHit (*hit)[TriangleCluster::kSize]) {
+  HWY_DYNAMIC_DISPATCH(IntersectClusterPacket)(c, p, lanes, skip, masks, hit);
 }
 
 }  // namespace tessera
