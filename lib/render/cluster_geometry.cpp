@@ -27,26 +27,25 @@ void cluster_bounds(const RTCBoundsFunctionArguments* args) {
   set_padded_bounds(args->bounds_o, c.lower, c.upper, *data->scene);
 }
 
-// The watertight test of a packet's lanes against a cluster (intersect_cluster_packet, one call
-// for all of them): masks[i] the triangles lane i hits, 0 for a lane not valid or masked out. The
-// triangle a ray leaves is left out (a flat primitive cannot be met again: excluded exactly, like
-// planes and spheres).
-void cluster_lanes(const TriangleGeomData* data, const TriangleCluster& c, const TraceContext* ctx, const int* valid,
-                   RTCRayN* ray, unsigned N, uint32_t masks[ClusterPacket::kMaxLanes],
-                   TriangleHit th[ClusterPacket::kMaxLanes][TriangleCluster::kSize]) {
+// The watertight test of a packet's valid lanes against a cluster (intersect_cluster_packet, one
+// call for all of them): returns the lanes that hit, masks[i] the triangles lane i hits (set only
+// for those lanes). The triangle a ray leaves is left out (a flat primitive cannot be met again:
+// excluded exactly, like planes and spheres).
+uint32_t cluster_lanes(const TriangleGeomData* data, const TriangleCluster& c, const TraceContext* ctx, const int* valid,
+                       RTCRayN* ray, unsigned N, uint32_t masks[ClusterPacket::kMaxLanes],
+                       TriangleHit th[ClusterPacket::kMaxLanes][TriangleCluster::kSize]) {
   uint32_t lanes = 0, skip[ClusterPacket::kMaxLanes];
   for (unsigned i = 0; i < N; ++i) {
-    masks[i] = 0;
     if (!valid[i] || !(RTCRayN_mask(ray, N, i) & data->mask)) continue;
     lanes |= 1u << i;
     const PrimRef& from = ctx->from_of(ray, N, i);
     skip[i] = from.kind == PrimRef::Kind::kTriangle && from.geom == data->bucket_index ? from.id : UINT32_MAX;
   }
-  if (lanes == 0) return;
+  if (lanes == 0) return 0;
   const ClusterPacket p{&RTCRayN_org_x(ray, N, 0), &RTCRayN_org_y(ray, N, 0), &RTCRayN_org_z(ray, N, 0),
                         &RTCRayN_dir_x(ray, N, 0), &RTCRayN_dir_y(ray, N, 0), &RTCRayN_dir_z(ray, N, 0),
                         &RTCRayN_tnear(ray, N, 0), &RTCRayN_tfar(ray, N, 0), N};
-  intersect_cluster_packet(c, p, lanes, skip, masks, th);
+  return intersect_cluster_packet(c, p, lanes, skip, masks, th);
 }
 
 void cluster_intersect(const RTCIntersectFunctionNArguments* args) {
@@ -58,8 +57,9 @@ void cluster_intersect(const RTCIntersectFunctionNArguments* args) {
   RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, N);
   uint32_t masks[ClusterPacket::kMaxLanes];
   TriangleHit th[ClusterPacket::kMaxLanes][TriangleCluster::kSize];
-  cluster_lanes(data, c, ctx, args->valid, ray, N, masks, th);
-  for (unsigned i = 0; i < N; ++i) {
+  for (uint32_t hit_lanes = cluster_lanes(data, c, ctx, args->valid, ray, N, masks, th); hit_lanes != 0;
+       hit_lanes &= hit_lanes - 1) {
+    const unsigned i = unsigned(__builtin_ctz(hit_lanes));
     // The cluster's hits in lane order, each as if its triangle were tested alone after the
     // ones before it: nearer than the nearest so far, and on an exact tie (a ray through a
     // shared edge or vertex) to the lower (geometry, triangle) id, so the result depends neither
@@ -88,10 +88,10 @@ void cluster_occluded(const RTCOccludedFunctionNArguments* args) {
   RTCRayN* ray = args->ray;
   uint32_t masks[ClusterPacket::kMaxLanes];
   TriangleHit th[ClusterPacket::kMaxLanes][TriangleCluster::kSize];
-  cluster_lanes(data, c, ctx, args->valid, ray, N, masks, th);
-  for (unsigned i = 0; i < N; ++i) {
+  for (uint32_t hit_lanes = cluster_lanes(data, c, ctx, args->valid, ray, N, masks, th); hit_lanes != 0;
+       hit_lanes &= hit_lanes - 1) {
+    const unsigned i = unsigned(__builtin_ctz(hit_lanes));
     const uint32_t m = masks[i];
-    if (m == 0) continue;
     if (ctx->glass && data->mask == RenderScene::kGlassMask) {
       // A shadow ray collecting glass crossings (see sphere_occluded(), sphere_geometry.cpp):
       // record, go on.

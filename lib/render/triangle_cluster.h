@@ -64,13 +64,13 @@ struct ClusterPacket {
 
 // For each lane i set in `lanes`: masks[i] and hit[i] exactly as
 // intersect_cluster(c, cluster_ray(o_i, d_i), tnear_i, tfar_i, skip[i], hit[i]) gives them; other
-// lanes' entries are left alone.
+// lanes' entries are left alone. Returns the lanes with a hit (bit i: masks[i] != 0).
 //
 // Why a packet call: Embree calls a cluster back once for all the packet's lanes that reach it
 // (on the glTF scene 5.4 on average), and per lane the callback paid the shear (three divisions,
 // an axis choice) and Highway's dispatch (a call into libhwy). Here the lanes' shears are one
 // vector computation and the dispatch is once per callback.
-void intersect_cluster_packet(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes, const uint32_t* skip,
-                              uint32_t* masks, TriangleHit (*hit)[TriangleCluster::kSize]);
+uint32_t intersect_cluster_packet(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes,
+                                  const uint32_t* skip, uint32_t* masks, TriangleHit (*hit)[TriangleCluster::kSize]);
 
 }  // namespace tessera

@@ -8,8 +8,6 @@
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/highway.h>
 
-#include <utility>
-
 #include "render/triangle_cluster.h"
 
 HWY_BEFORE_NAMESPACE();
@@ -145,11 +143,18 @@ uint32_t IntersectCluster(const TriangleCluster& c, const ClusterRay& r, float t
   return IntersectClusterRay(c, r, tnear, tfar, skip, hit);
 }
 
-// cluster_ray() of Lanes(df) lanes of a packet at once, from lane j: the same float compares and
-// divisions as ray_shear(), IEEE-rounded alike in a vector, so the same bits. The axes come out as
-// a per-lane code: kz, and whether x and y are swapped.
+// cluster_ray() of a packet's lanes, as arrays (a ClusterRay is put together only for the lanes
+// tested, so that it stays in registers).
+struct PacketRays {
+  alignas(64) float sx[ClusterPacket::kMaxLanes], sy[ClusterPacket::kMaxLanes], sz[ClusterPacket::kMaxLanes];
+  alignas(64) float ox[ClusterPacket::kMaxLanes], oy[ClusterPacket::kMaxLanes], oz[ClusterPacket::kMaxLanes];
+  uint32_t kz0 = 0, kz1 = 0, swap = 0;  // bit i: lane i's kz is 0; is 1; its x and y are swapped
+};
+
+// Lanes j.. j + Lanes(df) of PacketRays at once: the same float compares and divisions as
+// ray_shear(), IEEE-rounded alike in a vector, so the same bits.
 template <class DF>
-HWY_INLINE void PrepareRays(DF df, const ClusterPacket& p, size_t j, ClusterRay* out) {
+HWY_INLINE void PrepareRays(DF df, const ClusterPacket& p, size_t j, PacketRays* out) {
   const auto dx = hn::LoadU(df, p.dir_x + j), dy = hn::LoadU(df, p.dir_y + j), dz = hn::LoadU(df, p.dir_z + j);
   const auto ox = hn::LoadU(df, p.org_x + j), oy = hn::LoadU(df, p.org_y + j), oz = hn::LoadU(df, p.org_z + j);
   const auto ax = hn::Abs(dx), ay = hn::Abs(dy), az = hn::Abs(dz);
@@ -163,46 +168,53 @@ HWY_INLINE void PrepareRays(DF df, const ClusterPacket& p, size_t j, ClusterRay*
   const auto okz = pick(ox, oy, oz), okx0 = pick(oy, oz, ox), oky0 = pick(oz, ox, oy);
   const auto swap = hn::Lt(dkz, hn::Zero(df));
   const auto dkx = hn::IfThenElse(swap, dky0, dkx0), dky = hn::IfThenElse(swap, dkx0, dky0);
-  const auto okx = hn::IfThenElse(swap, oky0, okx0), oky = hn::IfThenElse(swap, okx0, oky0);
-  alignas(64) float sx[16], sy[16], sz[16], rx[16], ry[16], rz[16];
-  hn::Store(hn::Div(dkx, dkz), df, sx);
-  hn::Store(hn::Div(dky, dkz), df, sy);
-  hn::Store(hn::Div(hn::Set(df, 1.0f), dkz), df, sz);
-  hn::Store(okx, df, rx);
-  hn::Store(oky, df, ry);
-  hn::Store(okz, df, rz);
+  hn::Store(hn::Div(dkx, dkz), df, out->sx + j);
+  hn::Store(hn::Div(dky, dkz), df, out->sy + j);
+  hn::Store(hn::Div(hn::Set(df, 1.0f), dkz), df, out->sz + j);
+  hn::Store(hn::IfThenElse(swap, oky0, okx0), df, out->ox + j);
+  hn::Store(hn::IfThenElse(swap, okx0, oky0), df, out->oy + j);
+  hn::Store(okz, df, out->oz + j);
   uint8_t b0[8] = {}, b1[8] = {}, bs[8] = {};
   hn::StoreMaskBits(df, kz0, b0);
   hn::StoreMaskBits(df, kz1, b1);
   hn::StoreMaskBits(df, swap, bs);
-  const size_t n = hn::Lanes(df);
-  for (size_t i = 0; i < n; ++i) {
-    const int kz = (b0[i / 8] >> (i % 8) & 1) ? 0 : (b1[i / 8] >> (i % 8) & 1) ? 1 : 2;
-    int kx = kz == 2 ? 0 : kz + 1, ky = kx == 2 ? 0 : kx + 1;
-    if (bs[i / 8] >> (i % 8) & 1) std::swap(kx, ky);
-    out[j + i] = {{kx, ky, kz, sx[i], sy[i], sz[i]}, rx[i], ry[i], rz[i]};
-  }
+  out->kz0 |= uint32_t(b0[0]) << j;
+  out->kz1 |= uint32_t(b1[0]) << j;
+  out->swap |= uint32_t(bs[0]) << j;
 }
 
-void IntersectClusterPacket(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes, const uint32_t* skip,
-                            uint32_t* masks, TriangleHit (*hit)[TriangleCluster::kSize]) {
-  const hn::CappedTag<float, TriangleCluster::kSize> df;
+uint32_t IntersectClusterPacket(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes,
+                                const uint32_t* skip, uint32_t* masks, TriangleHit (*hit)[TriangleCluster::kSize]) {
+  const hn::CappedTag<float, TriangleCluster::kSize> df;  // at most 8 lanes: one vector on AVX2
   const size_t n = hn::Lanes(df);
-  ClusterRay rays[ClusterPacket::kMaxLanes];
+  PacketRays rays;
   if (p.N % n == 0) {
     for (size_t j = 0; j < p.N; j += n) {
-      if ((lanes >> j) & ((1u << n) - 1u)) PrepareRays(df, p, j, rays);
+      if ((lanes >> j) & ((1u << n) - 1u)) PrepareRays(df, p, j, &rays);
     }
   } else {  // a packet narrower than a vector (Embree's 4-wide on a wider CPU): lane by lane
     for (uint32_t m = lanes; m != 0; m &= m - 1) {
       const int i = __builtin_ctz(m);
-      rays[i] = cluster_ray({p.org_x[i], p.org_y[i], p.org_z[i]}, {p.dir_x[i], p.dir_y[i], p.dir_z[i]});
+      const ClusterRay r = cluster_ray({p.org_x[i], p.org_y[i], p.org_z[i]}, {p.dir_x[i], p.dir_y[i], p.dir_z[i]});
+      rays.sx[i] = r.s.sx, rays.sy[i] = r.s.sy, rays.sz[i] = r.s.sz;
+      rays.ox[i] = r.ox, rays.oy[i] = r.oy, rays.oz[i] = r.oz;
+      rays.kz0 |= uint32_t(r.s.kz == 0) << i;
+      rays.kz1 |= uint32_t(r.s.kz == 1) << i;
+      rays.swap |= uint32_t(r.s.kx != (r.s.kz == 2 ? 0 : r.s.kz + 1)) << i;
     }
   }
+  // (kx, ky, kz) by kz and swap, as ray_shear() chooses them.
+  static constexpr int kAxes[6][3] = {{1, 2, 0}, {2, 1, 0}, {2, 0, 1}, {0, 2, 1}, {0, 1, 2}, {1, 0, 2}};
+  uint32_t hit_lanes = 0;
   for (uint32_t m = lanes; m != 0; m &= m - 1) {
     const int i = __builtin_ctz(m);
-    masks[i] = IntersectClusterRay(c, rays[i], p.tnear[i], p.tfar[i], skip[i], hit[i]);
+    const int code = 2 * ((rays.kz0 >> i & 1u) ? 0 : (rays.kz1 >> i & 1u) ? 1 : 2) + int(rays.swap >> i & 1u);
+    const int* k = kAxes[code];
+    const ClusterRay r{{k[0], k[1], k[2], rays.sx[i], rays.sy[i], rays.sz[i]}, rays.ox[i], rays.oy[i], rays.oz[i]};
+    masks[i] = IntersectClusterRay(c, r, p.tnear[i], p.tfar[i], skip[i], hit[i]);
+    hit_lanes |= uint32_t(masks[i] != 0) << i;
   }
+  return hit_lanes;
 }
 
 }  // namespace HWY_NAMESPACE
@@ -220,9 +232,9 @@ uint32_t intersect_cluster(const TriangleCluster& c, const ClusterRay& r, float 
   return HWY_DYNAMIC_DISPATCH(IntersectCluster)(c, r, tnear, tfar, skip, hit);
 }
 
-void intersect_cluster_packet(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes, const uint32_t* skip,
-                              uint32_t* masks, TriangleHit (*hit)[TriangleCluster::kSize]) {
-  HWY_DYNAMIC_DISPATCH(IntersectClusterPacket)(c, p, lanes, skip, masks, hit);
+uint32_t intersect_cluster_packet(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes,
+                                  const uint32_t* skip, uint32_t* masks, TriangleHit (*hit)[TriangleCluster::kSize]) {
+  return HWY_DYNAMIC_DISPATCH(IntersectClusterPacket)(c, p, lanes, skip, masks, hit);
 }
 
 }  // namespace tessera

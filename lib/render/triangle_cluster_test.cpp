@@ -187,16 +187,18 @@ TEST(TriangleCluster, PacketLanesEqualTheOneRayTestOnEveryTarget) {
           uint32_t masks[ClusterPacket::kMaxLanes];
           std::fill(std::begin(masks), std::end(masks), 0xdeadbeefu);
           TriangleHit got[ClusterPacket::kMaxLanes][TriangleCluster::kSize];
-          intersect_cluster_packet(c, p, lanes, skip, masks, got);
+          const uint32_t hit_lanes = intersect_cluster_packet(c, p, lanes, skip, masks, got);
           for (unsigned i = 0; i < N; ++i) {
             if (!(lanes >> i & 1u)) {
               EXPECT_EQ(masks[i], 0xdeadbeefu) << "inactive lane " << i << " written";
+              EXPECT_FALSE(hit_lanes >> i & 1u);
               continue;
             }
             const Vec3f o{f[0][i], f[1][i], f[2][i]}, d{f[3][i], f[4][i], f[5][i]};
             TriangleHit want[TriangleCluster::kSize];
             const uint32_t mask = intersect_cluster(c, cluster_ray(o, d), f[6][i], f[7][i], skip[i], want);
             ASSERT_EQ(masks[i], mask) << "N " << N << " packet " << packet << " lane " << i;
+            EXPECT_EQ(bool(hit_lanes >> i & 1u), mask != 0) << "lane " << i;
             for (uint32_t m = mask; m != 0; m &= m - 1) {
               const int k = __builtin_ctz(m);
               ++hits;
