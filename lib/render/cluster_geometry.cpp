@@ -27,25 +27,38 @@ void cluster_bounds(const RTCBoundsFunctionArguments* args) {
   set_padded_bounds(args->bounds_o, c.lower, c.upper, *data->scene);
 }
 
+// What leaving() needs to find the triangle a lane's ray leaves.
+struct LeavingArgs {
+  const TriangleGeomData* data;
+  const TraceContext* ctx;
+  RTCRayN* ray;
+  unsigned N;
+};
+
+// The triangle lane i's ray leaves, if it is one of this bucket's (else UINT32_MAX): left out of
+// the test (a flat primitive cannot be met again: excluded exactly, like planes and spheres).
+uint32_t leaving(const void* user, unsigned i) {
+  const auto* a = static_cast<const LeavingArgs*>(user);
+  const PrimRef& from = a->ctx->from_of(a->ray, a->N, i);
+  return from.kind == PrimRef::Kind::kTriangle && from.geom == a->data->bucket_index ? from.id : UINT32_MAX;
+}
+
 // The watertight test of a packet's valid lanes against a cluster (intersect_cluster_packet, one
 // call for all of them): returns the lanes that hit, masks[i] the triangles lane i hits (set only
-// for those lanes). The triangle a ray leaves is left out (a flat primitive cannot be met again:
-// excluded exactly, like planes and spheres).
-uint32_t cluster_lanes(const TriangleGeomData* data, const TriangleCluster& c, const TraceContext* ctx, const int* valid,
-                       RTCRayN* ray, unsigned N, uint32_t masks[ClusterPacket::kMaxLanes],
+// for those lanes).
+uint32_t cluster_lanes(const TriangleGeomData* data, const TriangleCluster& c, const TraceContext* ctx,
+                       const int* valid, RTCRayN* ray, unsigned N, uint32_t masks[ClusterPacket::kMaxLanes],
                        TriangleHit th[ClusterPacket::kMaxLanes][TriangleCluster::kSize]) {
-  uint32_t lanes = 0, skip[ClusterPacket::kMaxLanes];
+  uint32_t lanes = 0;
   for (unsigned i = 0; i < N; ++i) {
-    if (!valid[i] || !(RTCRayN_mask(ray, N, i) & data->mask)) continue;
-    lanes |= 1u << i;
-    const PrimRef& from = ctx->from_of(ray, N, i);
-    skip[i] = from.kind == PrimRef::Kind::kTriangle && from.geom == data->bucket_index ? from.id : UINT32_MAX;
+    lanes |= uint32_t(valid[i] != 0 && (RTCRayN_mask(ray, N, i) & data->mask) != 0) << i;
   }
   if (lanes == 0) return 0;
+  const LeavingArgs args{data, ctx, ray, N};
   const ClusterPacket p{&RTCRayN_org_x(ray, N, 0), &RTCRayN_org_y(ray, N, 0), &RTCRayN_org_z(ray, N, 0),
                         &RTCRayN_dir_x(ray, N, 0), &RTCRayN_dir_y(ray, N, 0), &RTCRayN_dir_z(ray, N, 0),
-                        &RTCRayN_tnear(ray, N, 0), &RTCRayN_tfar(ray, N, 0), N};
-  return intersect_cluster_packet(c, p, lanes, skip, masks, th);
+                        &RTCRayN_tnear(ray, N, 0), &RTCRayN_tfar(ray, N, 0), N, leaving, &args};
+  return intersect_cluster_packet(c, p, lanes, masks, th);
 }
 
 void cluster_intersect(const RTCIntersectFunctionNArguments* args) {

@@ -67,16 +67,20 @@ HWY_INLINE uint32_t MaybeCrossed(const TriangleCluster& c, const ClusterRay& r) 
 
 // Line for line the arithmetic of intersect_triangle_watertight, on Lanes(dd) triangles, for the
 // lanes the float pass above leaves open.
-HWY_INLINE uint32_t IntersectClusterRay(const TriangleCluster& c, const ClusterRay& r, float tnear, float tfar, uint32_t skip,
-                          TriangleHit* hit) {
+// `skip()` names the triangle the ray leaves (UINT32_MAX: none); it is asked only when the float
+// pass leaves a lane open, which most clusters a ray reaches do not.
+template <class Skip>
+HWY_INLINE uint32_t IntersectClusterRay(const TriangleCluster& c, const ClusterRay& r, float tnear, float tfar,
+                                        const Skip& skip, TriangleHit* hit) {
   // Which lanes the exact test could accept: all but those a float pass proves it rejects.
   uint32_t maybe = MaybeCrossed(c, r);
   maybe &= (1u << c.count) - 1u;
   if (maybe == 0) return 0;  // the common case: nothing below is needed
   // The triangle the ray leaves, looked for only among the lanes still open.
+  const uint32_t leaving = skip();
   for (uint32_t m = maybe; m != 0; m &= m - 1) {
     const int k = __builtin_ctz(m);
-    if (c.tri[k] == skip) maybe &= ~(1u << unsigned(k));
+    if (c.tri[k] == leaving) maybe &= ~(1u << unsigned(k));
   }
   if (maybe == 0) return 0;
   const RayShear& s = r.s;
@@ -140,7 +144,7 @@ HWY_INLINE uint32_t IntersectClusterRay(const TriangleCluster& c, const ClusterR
 
 uint32_t IntersectCluster(const TriangleCluster& c, const ClusterRay& r, float tnear, float tfar, uint32_t skip,
                           TriangleHit* hit) {
-  return IntersectClusterRay(c, r, tnear, tfar, skip, hit);
+  return IntersectClusterRay(c, r, tnear, tfar, [skip] { return skip; }, hit);
 }
 
 // cluster_ray() of a packet's lanes, as arrays (a ClusterRay is put together only for the lanes
@@ -148,7 +152,7 @@ uint32_t IntersectCluster(const TriangleCluster& c, const ClusterRay& r, float t
 struct PacketRays {
   alignas(64) float sx[ClusterPacket::kMaxLanes], sy[ClusterPacket::kMaxLanes], sz[ClusterPacket::kMaxLanes];
   alignas(64) float ox[ClusterPacket::kMaxLanes], oy[ClusterPacket::kMaxLanes], oz[ClusterPacket::kMaxLanes];
-  uint32_t kz0 = 0, kz1 = 0, swap = 0;  // bit i: lane i's kz is 0; is 1; its x and y are swapped
+  alignas(64) int32_t kx[ClusterPacket::kMaxLanes], ky[ClusterPacket::kMaxLanes], kz[ClusterPacket::kMaxLanes];
 };
 
 // Lanes j.. j + Lanes(df) of PacketRays at once: the same float compares and divisions as
@@ -174,17 +178,21 @@ HWY_INLINE void PrepareRays(DF df, const ClusterPacket& p, size_t j, PacketRays*
   hn::Store(hn::IfThenElse(swap, oky0, okx0), df, out->ox + j);
   hn::Store(hn::IfThenElse(swap, okx0, oky0), df, out->oy + j);
   hn::Store(okz, df, out->oz + j);
-  uint8_t b0[8] = {}, b1[8] = {}, bs[8] = {};
-  hn::StoreMaskBits(df, kz0, b0);
-  hn::StoreMaskBits(df, kz1, b1);
-  hn::StoreMaskBits(df, swap, bs);
-  out->kz0 |= uint32_t(b0[0]) << j;
-  out->kz1 |= uint32_t(b1[0]) << j;
-  out->swap |= uint32_t(bs[0]) << j;
+  // The axes too, as ints (picked like the floats above, not decoded lane by lane).
+  const hn::RebindToSigned<DF> di;
+  const auto ipick = [&](int a0, int a1, int a2) {
+    return hn::IfThenElse(hn::RebindMask(di, kz0), hn::Set(di, a0),
+                          hn::IfThenElse(hn::RebindMask(di, kz1), hn::Set(di, a1), hn::Set(di, a2)));
+  };
+  const auto kx0 = ipick(1, 2, 0), ky0 = ipick(2, 0, 1);
+  const auto iswap = hn::RebindMask(di, swap);
+  hn::Store(hn::IfThenElse(iswap, ky0, kx0), di, out->kx + j);
+  hn::Store(hn::IfThenElse(iswap, kx0, ky0), di, out->ky + j);
+  hn::Store(ipick(0, 1, 2), di, out->kz + j);
 }
 
-uint32_t IntersectClusterPacket(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes,
-                                const uint32_t* skip, uint32_t* masks, TriangleHit (*hit)[TriangleCluster::kSize]) {
+uint32_t IntersectClusterPacket(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes, uint32_t* masks,
+                                TriangleHit (*hit)[TriangleCluster::kSize]) {
   const hn::CappedTag<float, TriangleCluster::kSize> df;  // at most 8 lanes: one vector on AVX2
   const size_t n = hn::Lanes(df);
   PacketRays rays;
@@ -198,20 +206,15 @@ uint32_t IntersectClusterPacket(const TriangleCluster& c, const ClusterPacket& p
       const ClusterRay r = cluster_ray({p.org_x[i], p.org_y[i], p.org_z[i]}, {p.dir_x[i], p.dir_y[i], p.dir_z[i]});
       rays.sx[i] = r.s.sx, rays.sy[i] = r.s.sy, rays.sz[i] = r.s.sz;
       rays.ox[i] = r.ox, rays.oy[i] = r.oy, rays.oz[i] = r.oz;
-      rays.kz0 |= uint32_t(r.s.kz == 0) << i;
-      rays.kz1 |= uint32_t(r.s.kz == 1) << i;
-      rays.swap |= uint32_t(r.s.kx != (r.s.kz == 2 ? 0 : r.s.kz + 1)) << i;
+      rays.kx[i] = r.s.kx, rays.ky[i] = r.s.ky, rays.kz[i] = r.s.kz;
     }
   }
-  // (kx, ky, kz) by kz and swap, as ray_shear() chooses them.
-  static constexpr int kAxes[6][3] = {{1, 2, 0}, {2, 1, 0}, {2, 0, 1}, {0, 2, 1}, {0, 1, 2}, {1, 0, 2}};
   uint32_t hit_lanes = 0;
   for (uint32_t m = lanes; m != 0; m &= m - 1) {
     const int i = __builtin_ctz(m);
-    const int code = 2 * ((rays.kz0 >> i & 1u) ? 0 : (rays.kz1 >> i & 1u) ? 1 : 2) + int(rays.swap >> i & 1u);
-    const int* k = kAxes[code];
-    const ClusterRay r{{k[0], k[1], k[2], rays.sx[i], rays.sy[i], rays.sz[i]}, rays.ox[i], rays.oy[i], rays.oz[i]};
-    masks[i] = IntersectClusterRay(c, r, p.tnear[i], p.tfar[i], skip[i], hit[i]);
+    const ClusterRay r{{rays.kx[i], rays.ky[i], rays.kz[i], rays.sx[i], rays.sy[i], rays.sz[i]},
+                       rays.ox[i], rays.oy[i], rays.oz[i]};
+    masks[i] = IntersectClusterRay(c, r, p.tnear[i], p.tfar[i], [&] { return p.leaving(p.user, unsigned(i)); }, hit[i]);
     hit_lanes |= uint32_t(masks[i] != 0) << i;
   }
   return hit_lanes;
@@ -232,9 +235,9 @@ uint32_t intersect_cluster(const TriangleCluster& c, const ClusterRay& r, float 
   return HWY_DYNAMIC_DISPATCH(IntersectCluster)(c, r, tnear, tfar, skip, hit);
 }
 
-uint32_t intersect_cluster_packet(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes,
-                                  const uint32_t* skip, uint32_t* masks, TriangleHit (*hit)[TriangleCluster::kSize]) {
-  return HWY_DYNAMIC_DISPATCH(IntersectClusterPacket)(c, p, lanes, skip, masks, hit);
+uint32_t intersect_cluster_packet(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes, uint32_t* masks,
+                                  TriangleHit (*hit)[TriangleCluster::kSize]) {
+  return HWY_DYNAMIC_DISPATCH(IntersectClusterPacket)(c, p, lanes, masks, hit);
 }
 
 }  // namespace tessera
