@@ -49,16 +49,12 @@ uint32_t leaving(const void* user, unsigned i) {
 uint32_t cluster_lanes(const TriangleGeomData* data, const TriangleCluster& c, const TraceContext* ctx,
                        const int* valid, RTCRayN* ray, unsigned N, uint32_t masks[ClusterPacket::kMaxLanes],
                        TriangleHit th[ClusterPacket::kMaxLanes][TriangleCluster::kSize]) {
-  uint32_t lanes = 0;
-  for (unsigned i = 0; i < N; ++i) {
-    lanes |= uint32_t(valid[i] != 0 && (RTCRayN_mask(ray, N, i) & data->mask) != 0) << i;
-  }
-  if (lanes == 0) return 0;
   const LeavingArgs args{data, ctx, ray, N};
   const ClusterPacket p{&RTCRayN_org_x(ray, N, 0), &RTCRayN_org_y(ray, N, 0), &RTCRayN_org_z(ray, N, 0),
                         &RTCRayN_dir_x(ray, N, 0), &RTCRayN_dir_y(ray, N, 0), &RTCRayN_dir_z(ray, N, 0),
-                        &RTCRayN_tnear(ray, N, 0), &RTCRayN_tfar(ray, N, 0), N, leaving, &args};
-  return intersect_cluster_packet(c, p, lanes, masks, th);
+                        &RTCRayN_tnear(ray, N, 0), &RTCRayN_tfar(ray, N, 0), &RTCRayN_mask(ray, N, 0),
+                        valid, data->mask, N, leaving, &args};
+  return intersect_cluster_packet(c, p, masks, th);
 }
 
 void cluster_intersect(const RTCIntersectFunctionNArguments* args) {

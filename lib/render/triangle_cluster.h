@@ -59,14 +59,17 @@ uint32_t intersect_cluster(const TriangleCluster& c, const ClusterRay& r, float 
 struct ClusterPacket {
   static constexpr unsigned kMaxLanes = 16;  // Embree's widest packet
   const float *org_x, *org_y, *org_z, *dir_x, *dir_y, *dir_z, *tnear, *tfar;
-  unsigned N;  // 1..kMaxLanes
+  const uint32_t* mask;  // the rays' masks
+  const int* valid;      // Embree's valid lanes (non-zero)
+  uint32_t geom_mask;    // the geometry's mask: a lane is tested when valid and its mask meets it
+  unsigned N;            // 1..kMaxLanes
   // The triangle lane i's ray leaves (UINT32_MAX: none): leaving(user, i). Asked only for a lane
   // the float pass leaves open, not for every lane and cluster a traversal reaches.
   uint32_t (*leaving)(const void* user, unsigned lane);
   const void* user;
 };
 
-// For each lane i set in `lanes`: masks[i] and hit[i] exactly as
+// For each lane i to test (valid[i] != 0 and mask[i] & geom_mask != 0): masks[i] and hit[i] exactly as
 // intersect_cluster(c, cluster_ray(o_i, d_i), tnear_i, tfar_i, p.leaving(p.user, i), hit[i])
 // gives them; other lanes' entries are left alone. Returns the lanes with a hit (bit i:
 // masks[i] != 0).
@@ -74,8 +77,8 @@ struct ClusterPacket {
 // Why a packet call: Embree calls a cluster back once for all the packet's lanes that reach it
 // (on the glTF scene 5.4 on average), and per lane the callback paid the shear (three divisions,
 // an axis choice) and Highway's dispatch (a call into libhwy). Here the lanes' shears are one
-// vector computation and the dispatch is once per callback.
-uint32_t intersect_cluster_packet(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes, uint32_t* masks,
+// vector computation, and so are the lanes to test; the dispatch is once per callback.
+uint32_t intersect_cluster_packet(const TriangleCluster& c, const ClusterPacket& p, uint32_t* masks,
                                   TriangleHit (*hit)[TriangleCluster::kSize]);
 
 }  // namespace tessera

@@ -191,18 +191,28 @@ HWY_INLINE void PrepareRays(DF df, const ClusterPacket& p, size_t j, PacketRays*
   hn::Store(ipick(0, 1, 2), di, out->kz + j);
 }
 
-uint32_t IntersectClusterPacket(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes, uint32_t* masks,
+uint32_t IntersectClusterPacket(const TriangleCluster& c, const ClusterPacket& p, uint32_t* masks,
                                 TriangleHit (*hit)[TriangleCluster::kSize]) {
   const hn::CappedTag<float, TriangleCluster::kSize> df;  // at most 8 lanes: one vector on AVX2
+  const hn::RebindToSigned<decltype(df)> di;
+  const hn::RebindToUnsigned<decltype(df)> du;
   const size_t n = hn::Lanes(df);
   PacketRays rays;
+  uint32_t lanes = 0;  // bit i: lane i valid and its ray's mask meets the geometry's
   if (p.N % n == 0) {
     for (size_t j = 0; j < p.N; j += n) {
-      if ((lanes >> j) & ((1u << n) - 1u)) PrepareRays(df, p, j, &rays);
+      const auto valid = hn::Ne(hn::LoadU(di, p.valid + j), hn::Zero(di));
+      const auto meets = hn::Ne(hn::And(hn::LoadU(du, p.mask + j), hn::Set(du, p.geom_mask)), hn::Zero(du));
+      uint8_t bits[8] = {};
+      hn::StoreMaskBits(di, hn::And(valid, hn::RebindMask(di, meets)), bits);
+      if (bits[0] == 0) continue;
+      lanes |= uint32_t(bits[0]) << j;
+      PrepareRays(df, p, j, &rays);
     }
   } else {  // a packet narrower than a vector (Embree's 4-wide on a wider CPU): lane by lane
-    for (uint32_t m = lanes; m != 0; m &= m - 1) {
-      const int i = __builtin_ctz(m);
+    for (unsigned i = 0; i < p.N; ++i) {
+      if (p.valid[i] == 0 || (p.mask[i] & p.geom_mask) == 0) continue;
+      lanes |= 1u << i;
       const ClusterRay r = cluster_ray({p.org_x[i], p.org_y[i], p.org_z[i]}, {p.dir_x[i], p.dir_y[i], p.dir_z[i]});
       rays.sx[i] = r.s.sx, rays.sy[i] = r.s.sy, rays.sz[i] = r.s.sz;
       rays.ox[i] = r.ox, rays.oy[i] = r.oy, rays.oz[i] = r.oz;
@@ -214,7 +224,8 @@ uint32_t IntersectClusterPacket(const TriangleCluster& c, const ClusterPacket& p
     const int i = __builtin_ctz(m);
     const ClusterRay r{{rays.kx[i], rays.ky[i], rays.kz[i], rays.sx[i], rays.sy[i], rays.sz[i]},
                        rays.ox[i], rays.oy[i], rays.oz[i]};
-    masks[i] = IntersectClusterRay(c, r, p.tnear[i], p.tfar[i], [&] { return p.leaving(p.user, unsigned(i)); }, hit[i]);
+    const auto leaving = [&] { return p.leaving(p.user, unsigned(i)); };
+    masks[i] = IntersectClusterRay(c, r, p.tnear[i], p.tfar[i], leaving, hit[i]);
     hit_lanes |= uint32_t(masks[i] != 0) << i;
   }
   return hit_lanes;
@@ -235,9 +246,9 @@ uint32_t intersect_cluster(const TriangleCluster& c, const ClusterRay& r, float 
   return HWY_DYNAMIC_DISPATCH(IntersectCluster)(c, r, tnear, tfar, skip, hit);
 }
 
-uint32_t intersect_cluster_packet(const TriangleCluster& c, const ClusterPacket& p, uint32_t lanes, uint32_t* masks,
+uint32_t intersect_cluster_packet(const TriangleCluster& c, const ClusterPacket& p, uint32_t* masks,
                                   TriangleHit (*hit)[TriangleCluster::kSize]) {
-  return HWY_DYNAMIC_DISPATCH(IntersectClusterPacket)(c, p, lanes, masks, hit);
+  return HWY_DYNAMIC_DISPATCH(IntersectClusterPacket)(c, p, masks, hit);
 }
 
 }  // namespace tessera

@@ -133,9 +133,10 @@ TEST(TriangleCluster, SkipLeavesOutTheLaneHoldingThatTriangle) {
 
 // A packet's lanes, tested in one call, each give exactly what the one-ray test gives that lane's
 // ray alone (so, by the test above, the scalar watertight test's bits), on every SIMD target:
-// packets of 4, 8 and 16 lanes (Embree's widths), some lanes inactive (their entries untouched),
-// directions along every axis and sign (the shear's axis choice made for all lanes at once),
-// with ties between |d| components, zeros of either sign, and lanes leaving one of the triangles.
+// packets of 4, 8 and 16 lanes (Embree's widths), some lanes not valid or masked out (their
+// entries untouched), directions along every axis and sign (the shear's axis choice made for all
+// lanes at once), with ties between |d| components, zeros of either sign, and lanes leaving one of
+// the triangles.
 TEST(TriangleCluster, PacketLanesEqualTheOneRayTestOnEveryTarget) {
   std::mt19937 rng(17);
   std::uniform_real_distribution<float> x(-4, 4);
@@ -164,7 +165,8 @@ TEST(TriangleCluster, PacketLanesEqualTheOneRayTestOnEveryTarget) {
         const TriangleCluster c = cluster_of(mesh, 0, TriangleCluster::kSize);
         for (int packet = 0; packet < 60; ++packet) {
           float f[8][ClusterPacket::kMaxLanes];  // org x y z, dir x y z, tnear, tfar
-          uint32_t lanes = 0, skip[ClusterPacket::kMaxLanes];
+          uint32_t lanes = 0, skip[ClusterPacket::kMaxLanes], ray_mask[ClusterPacket::kMaxLanes];
+          int valid[ClusterPacket::kMaxLanes];
           for (unsigned i = 0; i < N; ++i) {
             const Vec3f o{x(rays), x(rays), x(rays)};
             Vec3f d;
@@ -180,14 +182,17 @@ TEST(TriangleCluster, PacketLanesEqualTheOneRayTestOnEveryTarget) {
             f[6][i] = rays() % 3 == 0 ? 0.5f : 0.0f;
             f[7][i] = rays() % 5 == 0 ? 2.0f : std::numeric_limits<float>::infinity();
             skip[i] = rays() % 4 == 0 ? c.tri[rays() % TriangleCluster::kSize] : UINT32_MAX;
-            if (rays() % 4 != 0) lanes |= 1u << i;  // a quarter of the lanes inactive
+            // A quarter of the lanes not valid, an eighth whose ray mask misses the geometry's (2).
+            valid[i] = rays() % 4 != 0 ? -1 : 0;
+            ray_mask[i] = rays() % 8 == 0 ? 0xFFFFFFFDu : 0xFFFFFFFFu;
+            if (valid[i] != 0 && ray_mask[i] & 2u) lanes |= 1u << i;
           }
           const auto leaving = [](const void* user, unsigned i) { return static_cast<const uint32_t*>(user)[i]; };
-          const ClusterPacket p{f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], N, leaving, skip};
+          const ClusterPacket p{f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], ray_mask, valid, 2u, N, leaving, skip};
           uint32_t masks[ClusterPacket::kMaxLanes];
           std::fill(std::begin(masks), std::end(masks), 0xdeadbeefu);
           TriangleHit got[ClusterPacket::kMaxLanes][TriangleCluster::kSize];
-          const uint32_t hit_lanes = intersect_cluster_packet(c, p, lanes, masks, got);
+          const uint32_t hit_lanes = intersect_cluster_packet(c, p, masks, got);
           for (unsigned i = 0; i < N; ++i) {
             if (!(lanes >> i & 1u)) {
               EXPECT_EQ(masks[i], 0xdeadbeefu) << "inactive lane " << i << " written";
