@@ -76,11 +76,16 @@ HWY_INLINE uint32_t IntersectClusterRay(const TriangleCluster& c, const ClusterR
   uint32_t maybe = MaybeCrossed(c, r);
   maybe &= (1u << c.count) - 1u;
   if (maybe == 0) return 0;  // the common case: nothing below is needed
-  // The triangle the ray leaves, looked for only among the lanes still open.
-  const uint32_t leaving = skip();
-  for (uint32_t m = maybe; m != 0; m &= m - 1) {
-    const int k = __builtin_ctz(m);
-    if (c.tri[k] == leaving) maybe &= ~(1u << unsigned(k));
+  // The triangle the ray leaves, looked for only when lanes are still open: one compare of the
+  // cluster's triangle indices (unused lanes hold UINT32_MAX, "none", but are closed already).
+  {
+    const hn::CappedTag<uint32_t, TriangleCluster::kSize> du;
+    const auto leaving = hn::Set(du, skip());
+    for (size_t j = 0; j < size_t(TriangleCluster::kSize); j += hn::Lanes(du)) {
+      uint8_t bits[8] = {};
+      hn::StoreMaskBits(du, hn::Eq(hn::LoadU(du, c.tri + j), leaving), bits);
+      maybe &= ~(uint32_t(bits[0]) << j);
+    }
   }
   if (maybe == 0) return 0;
   const RayShear& s = r.s;
