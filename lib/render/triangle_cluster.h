@@ -36,11 +36,49 @@ struct alignas(64) TriangleCluster {
 // so the result does not depend on the builder's threads.
 std::vector<TriangleCluster> build_triangle_clusters(const Vec3f* positions, size_t count);
 
-// The cluster's triangles the ray o + t d meets within [tnear, tfar], by the watertight test:
-// bit k of the result set when lane k hits, its t, u, v in hit[k] (exactly what
-// intersect_triangle_watertight returns for that triangle). Lane `skip` (or none: -1) is left
-// out: the triangle the ray leaves.
-uint32_t intersect_cluster(const TriangleCluster& c, const Vec3f& o, const RayShear& s, float tnear, float tfar,
-                           int skip, TriangleHit hit[TriangleCluster::kSize]);
+// A ray as the cluster test takes it: its shear and its origin in the shear's axis order. Both
+// depend on the ray alone; intersect_cluster_packet makes them for a packet's lanes at once.
+struct ClusterRay {
+  RayShear s;
+  float ox, oy, oz;  // o[s.kx], o[s.ky], o[s.kz]
+};
+
+inline ClusterRay cluster_ray(const Vec3f& o, const Vec3f& d) {
+  const RayShear s = ray_shear(d);
+  return {s, o[s.kx], o[s.ky], o[s.kz]};
+}
+
+// The cluster's triangles the ray meets within [tnear, tfar], by the watertight test: bit k of
+// the result set when lane k hits, its t, u, v in hit[k] (exactly what
+// intersect_triangle_watertight returns for that triangle with the ray's shear). The lane whose
+// triangle index is `skip` (UINT32_MAX: none) is left out: the triangle the ray leaves.
+uint32_t intersect_cluster(const TriangleCluster& c, const ClusterRay& r, float tnear, float tfar, uint32_t skip,
+                           TriangleHit hit[TriangleCluster::kSize]);
+
+// A packet of N rays as Embree lays them out for a callback (RTCRayN): lane i's field f at f[i].
+struct ClusterPacket {
+  static constexpr unsigned kMaxLanes = 16;  // Embree's widest packet
+  const float *org_x, *org_y, *org_z, *dir_x, *dir_y, *dir_z, *tnear, *tfar;
+  const uint32_t* mask;  // the rays' masks
+  const int* valid;      // Embree's valid lanes (non-zero)
+  uint32_t geom_mask;    // the geometry's mask: a lane is tested when valid and its mask meets it
+  unsigned N;            // 1..kMaxLanes
+  // The triangle lane i's ray leaves (UINT32_MAX: none): leaving(user, i). Asked only for a lane
+  // the float pass leaves open, not for every lane and cluster a traversal reaches.
+  uint32_t (*leaving)(const void* user, unsigned lane);
+  const void* user;
+};
+
+// For each lane i to test (valid[i] != 0 and mask[i] & geom_mask != 0): masks[i] and hit[i] exactly as
+// intersect_cluster(c, cluster_ray(o_i, d_i), tnear_i, tfar_i, p.leaving(p.user, i), hit[i])
+// gives them; other lanes' entries are left alone. Returns the lanes with a hit (bit i:
+// masks[i] != 0).
+//
+// Why a packet call: Embree calls a cluster back once for all the packet's lanes that reach it
+// (on the glTF scene 5.4 on average), and per lane the callback paid the shear (three divisions,
+// an axis choice) and Highway's dispatch (a call into libhwy). Here the lanes' shears are one
+// vector computation, and so are the lanes to test; the dispatch is once per callback.
+uint32_t intersect_cluster_packet(const TriangleCluster& c, const ClusterPacket& p, uint32_t* masks,
+                                  TriangleHit (*hit)[TriangleCluster::kSize]);
 
 }  // namespace tessera

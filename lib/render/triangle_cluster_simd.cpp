@@ -54,10 +54,11 @@ HWY_INLINE uint32_t MaybeCrossedChunk(DF df, const TriangleCluster& c, size_t j,
 }
 
 // At most kSize float lanes a vector: 8 on AVX2 and AVX-512 (one vector a cluster), 4 on SSE4.
-HWY_INLINE uint32_t MaybeCrossed(const TriangleCluster& c, const Vec3f& o, const RayShear& s) {
+HWY_INLINE uint32_t MaybeCrossed(const TriangleCluster& c, const ClusterRay& r) {
   const hn::CappedTag<float, TriangleCluster::kSize> df;
   const size_t N = hn::Lanes(df);
-  const auto ox = hn::Set(df, o[s.kx]), oy = hn::Set(df, o[s.ky]), oz = hn::Set(df, o[s.kz]);
+  const RayShear& s = r.s;
+  const auto ox = hn::Set(df, r.ox), oy = hn::Set(df, r.oy), oz = hn::Set(df, r.oz);
   const auto sx = hn::Set(df, s.sx), sy = hn::Set(df, s.sy);
   uint32_t maybe = 0;
   for (size_t j = 0; j < size_t(TriangleCluster::kSize); j += N) maybe |= MaybeCrossedChunk(df, c, j, ox, oy, oz, sx, sy, s);
@@ -66,21 +67,36 @@ HWY_INLINE uint32_t MaybeCrossed(const TriangleCluster& c, const Vec3f& o, const
 
 // Line for line the arithmetic of intersect_triangle_watertight, on Lanes(dd) triangles, for the
 // lanes the float pass above leaves open.
-uint32_t IntersectCluster(const TriangleCluster& c, const Vec3f& o, const RayShear& s, float tnear, float tfar,
-                          int skip, TriangleHit* hit) {
+// `skip()` names the triangle the ray leaves (UINT32_MAX: none); it is asked only when the float
+// pass leaves a lane open, which most clusters a ray reaches do not.
+template <class Skip>
+HWY_INLINE uint32_t IntersectClusterRay(const TriangleCluster& c, const ClusterRay& r, float tnear, float tfar,
+                                        const Skip& skip, TriangleHit* hit) {
+  // Which lanes the exact test could accept: all but those a float pass proves it rejects.
+  uint32_t maybe = MaybeCrossed(c, r);
+  maybe &= (1u << c.count) - 1u;
+  if (maybe == 0) return 0;  // the common case: nothing below is needed
+  // The triangle the ray leaves, looked for only when lanes are still open: one compare of the
+  // cluster's triangle indices (unused lanes hold UINT32_MAX, "none", but are closed already).
+  {
+    const hn::CappedTag<uint32_t, TriangleCluster::kSize> du;
+    const auto leaving = hn::Set(du, skip());
+    for (size_t j = 0; j < size_t(TriangleCluster::kSize); j += hn::Lanes(du)) {
+      uint8_t bits[8] = {};
+      hn::StoreMaskBits(du, hn::Eq(hn::LoadU(du, c.tri + j), leaving), bits);
+      maybe &= ~(uint32_t(bits[0]) << j);
+    }
+  }
+  if (maybe == 0) return 0;
+  const RayShear& s = r.s;
   const hn::ScalableTag<double> dd;
   const hn::Rebind<float, decltype(dd)> df;  // as many floats as dd has doubles
   const size_t N = hn::Lanes(dd);
-  const auto ox = hn::Set(df, o[s.kx]), oy = hn::Set(df, o[s.ky]), oz = hn::Set(df, o[s.kz]);
+  const auto ox = hn::Set(df, r.ox), oy = hn::Set(df, r.oy), oz = hn::Set(df, r.oz);
   const auto sx = hn::Set(df, s.sx), sy = hn::Set(df, s.sy), sz = hn::Set(df, s.sz);
   const auto zero = hn::Zero(dd);
   const auto one = hn::Set(dd, 1.0);
   const auto lo = hn::Set(dd, double(tnear)), hi = hn::Set(dd, double(tfar));
-  // Which lanes the exact test could accept: all but those a float pass proves it rejects.
-  uint32_t maybe = MaybeCrossed(c, o, s);
-  maybe &= (1u << c.count) - 1u;
-  if (skip >= 0) maybe &= ~(1u << unsigned(skip));
-  if (maybe == 0) return 0;
   uint32_t mask = 0;
   alignas(64) float t_out[TriangleCluster::kSize], u_out[TriangleCluster::kSize], v_out[TriangleCluster::kSize];
   for (size_t j = 0; j < size_t(TriangleCluster::kSize); j += N) {
@@ -131,6 +147,95 @@ uint32_t IntersectCluster(const TriangleCluster& c, const Vec3f& o, const RayShe
   return mask;
 }
 
+uint32_t IntersectCluster(const TriangleCluster& c, const ClusterRay& r, float tnear, float tfar, uint32_t skip,
+                          TriangleHit* hit) {
+  return IntersectClusterRay(c, r, tnear, tfar, [skip] { return skip; }, hit);
+}
+
+// cluster_ray() of a packet's lanes, as arrays (a ClusterRay is put together only for the lanes
+// tested, so that it stays in registers).
+struct PacketRays {
+  alignas(64) float sx[ClusterPacket::kMaxLanes], sy[ClusterPacket::kMaxLanes], sz[ClusterPacket::kMaxLanes];
+  alignas(64) float ox[ClusterPacket::kMaxLanes], oy[ClusterPacket::kMaxLanes], oz[ClusterPacket::kMaxLanes];
+  alignas(64) int32_t kx[ClusterPacket::kMaxLanes], ky[ClusterPacket::kMaxLanes], kz[ClusterPacket::kMaxLanes];
+};
+
+// Lanes j.. j + Lanes(df) of PacketRays at once: the same float compares and divisions as
+// ray_shear(), IEEE-rounded alike in a vector, so the same bits.
+template <class DF>
+HWY_INLINE void PrepareRays(DF df, const ClusterPacket& p, size_t j, PacketRays* out) {
+  const auto dx = hn::LoadU(df, p.dir_x + j), dy = hn::LoadU(df, p.dir_y + j), dz = hn::LoadU(df, p.dir_z + j);
+  const auto ox = hn::LoadU(df, p.org_x + j), oy = hn::LoadU(df, p.org_y + j), oz = hn::LoadU(df, p.org_z + j);
+  const auto ax = hn::Abs(dx), ay = hn::Abs(dy), az = hn::Abs(dz);
+  // ray_shear(): kz = ax > ay ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2).
+  const auto xy = hn::Gt(ax, ay);
+  const auto kz0 = hn::And(xy, hn::Gt(ax, az));
+  const auto kz1 = hn::AndNot(xy, hn::Gt(ay, az));
+  // kz = 0: (kx, ky) = (1, 2); kz = 1: (2, 0); kz = 2: (0, 1); swapped where d[kz] < 0.
+  const auto pick = [&](auto a0, auto a1, auto a2) { return hn::IfThenElse(kz0, a0, hn::IfThenElse(kz1, a1, a2)); };
+  const auto dkz = pick(dx, dy, dz), dkx0 = pick(dy, dz, dx), dky0 = pick(dz, dx, dy);
+  const auto okz = pick(ox, oy, oz), okx0 = pick(oy, oz, ox), oky0 = pick(oz, ox, oy);
+  const auto swap = hn::Lt(dkz, hn::Zero(df));
+  const auto dkx = hn::IfThenElse(swap, dky0, dkx0), dky = hn::IfThenElse(swap, dkx0, dky0);
+  hn::Store(hn::Div(dkx, dkz), df, out->sx + j);
+  hn::Store(hn::Div(dky, dkz), df, out->sy + j);
+  hn::Store(hn::Div(hn::Set(df, 1.0f), dkz), df, out->sz + j);
+  hn::Store(hn::IfThenElse(swap, oky0, okx0), df, out->ox + j);
+  hn::Store(hn::IfThenElse(swap, okx0, oky0), df, out->oy + j);
+  hn::Store(okz, df, out->oz + j);
+  // The axes too, as ints (picked like the floats above, not decoded lane by lane).
+  const hn::RebindToSigned<DF> di;
+  const auto ipick = [&](int a0, int a1, int a2) {
+    return hn::IfThenElse(hn::RebindMask(di, kz0), hn::Set(di, a0),
+                          hn::IfThenElse(hn::RebindMask(di, kz1), hn::Set(di, a1), hn::Set(di, a2)));
+  };
+  const auto kx0 = ipick(1, 2, 0), ky0 = ipick(2, 0, 1);
+  const auto iswap = hn::RebindMask(di, swap);
+  hn::Store(hn::IfThenElse(iswap, ky0, kx0), di, out->kx + j);
+  hn::Store(hn::IfThenElse(iswap, kx0, ky0), di, out->ky + j);
+  hn::Store(ipick(0, 1, 2), di, out->kz + j);
+}
+
+uint32_t IntersectClusterPacket(const TriangleCluster& c, const ClusterPacket& p, uint32_t* masks,
+                                TriangleHit (*hit)[TriangleCluster::kSize]) {
+  const hn::CappedTag<float, TriangleCluster::kSize> df;  // at most 8 lanes: one vector on AVX2
+  const hn::RebindToSigned<decltype(df)> di;
+  const hn::RebindToUnsigned<decltype(df)> du;
+  const size_t n = hn::Lanes(df);
+  PacketRays rays;
+  uint32_t lanes = 0;  // bit i: lane i valid and its ray's mask meets the geometry's
+  if (p.N % n == 0) {
+    for (size_t j = 0; j < p.N; j += n) {
+      const auto valid = hn::Ne(hn::LoadU(di, p.valid + j), hn::Zero(di));
+      const auto meets = hn::Ne(hn::And(hn::LoadU(du, p.mask + j), hn::Set(du, p.geom_mask)), hn::Zero(du));
+      uint8_t bits[8] = {};
+      hn::StoreMaskBits(di, hn::And(valid, hn::RebindMask(di, meets)), bits);
+      if (bits[0] == 0) continue;
+      lanes |= uint32_t(bits[0]) << j;
+      PrepareRays(df, p, j, &rays);
+    }
+  } else {  // a packet narrower than a vector (Embree's 4-wide on a wider CPU): lane by lane
+    for (unsigned i = 0; i < p.N; ++i) {
+      if (p.valid[i] == 0 || (p.mask[i] & p.geom_mask) == 0) continue;
+      lanes |= 1u << i;
+      const ClusterRay r = cluster_ray({p.org_x[i], p.org_y[i], p.org_z[i]}, {p.dir_x[i], p.dir_y[i], p.dir_z[i]});
+      rays.sx[i] = r.s.sx, rays.sy[i] = r.s.sy, rays.sz[i] = r.s.sz;
+      rays.ox[i] = r.ox, rays.oy[i] = r.oy, rays.oz[i] = r.oz;
+      rays.kx[i] = r.s.kx, rays.ky[i] = r.s.ky, rays.kz[i] = r.s.kz;
+    }
+  }
+  uint32_t hit_lanes = 0;
+  for (uint32_t m = lanes; m != 0; m &= m - 1) {
+    const int i = __builtin_ctz(m);
+    const ClusterRay r{{rays.kx[i], rays.ky[i], rays.kz[i], rays.sx[i], rays.sy[i], rays.sz[i]},
+                       rays.ox[i], rays.oy[i], rays.oz[i]};
+    const auto leaving = [&] { return p.leaving(p.user, unsigned(i)); };
+    masks[i] = IntersectClusterRay(c, r, p.tnear[i], p.tfar[i], leaving, hit[i]);
+    hit_lanes |= uint32_t(masks[i] != 0) << i;
+  }
+  return hit_lanes;
+}
+
 }  // namespace HWY_NAMESPACE
 }  // namespace tessera
 HWY_AFTER_NAMESPACE();
@@ -139,10 +244,16 @@ HWY_AFTER_NAMESPACE();
 namespace tessera {
 
 HWY_EXPORT(IntersectCluster);
+HWY_EXPORT(IntersectClusterPacket);
 
-uint32_t intersect_cluster(const TriangleCluster& c, const Vec3f& o, const RayShear& s, float tnear, float tfar,
-                           int skip, TriangleHit hit[TriangleCluster::kSize]) {
-  return HWY_DYNAMIC_DISPATCH(IntersectCluster)(c, o, s, tnear, tfar, skip, hit);
+uint32_t intersect_cluster(const TriangleCluster& c, const ClusterRay& r, float tnear, float tfar, uint32_t skip,
+                           TriangleHit hit[TriangleCluster::kSize]) {
+  return HWY_DYNAMIC_DISPATCH(IntersectCluster)(c, r, tnear, tfar, skip, hit);
+}
+
+uint32_t intersect_cluster_packet(const TriangleCluster& c, const ClusterPacket& p, uint32_t* masks,
+                                  TriangleHit (*hit)[TriangleCluster::kSize]) {
+  return HWY_DYNAMIC_DISPATCH(IntersectClusterPacket)(c, p, masks, hit);
 }
 
 }  // namespace tessera
