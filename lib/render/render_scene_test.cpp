@@ -152,5 +152,38 @@ TEST_F(RenderSceneTest, PlanesAreExcludedOnlyForRaysLeavingThem) {
   EXPECT_FALSE(rs.intersect({h.p, Vec3f{0, -1, 0}}, h.prim, &h));
 }
 
+// The floor's checker against its definition, in double with divisions: parity of
+// floor(x / s) + floor(-z / s) in the plane's basis (x, -z for an upward floor at the origin), for
+// scales that are powers of two (taken by a multiplication with the exact reciprocal) and scales
+// that are not, at points inside squares and exactly on their edges.
+TEST_F(RenderSceneTest, CheckerParityIsTheDefinitionAtEveryScale) {
+  for (const double scale : {1.0, 0.25, 4.0, 0.5, 0.3, 3.0, 1e-3}) {
+    const std::string materials = R"({"c": {"type": "diffuse", "checker": {"albedo2": [1, 1, 1], "scale": )" +
+                                  std::to_string(scale) + "}}}";
+    const Scene scene = load(R"({"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "c"})", materials);
+    RenderScene rs(scene, 0);
+    const double s = scene.materials[0].checker_scale;
+    int odd = 0, n = 0;
+    for (int i = -3200; i <= 3200; i += 37) {
+      for (int j = -3200; j <= 3200; j += 41) {
+        // World points on a 1/64 grid (exact in float), and multiples of the scale (square edges).
+        for (const auto& [x, z] : {std::pair{i / 64.0, j / 64.0}, std::pair{(i / 64) * s, (j / 64) * s}}) {
+          Hit h;
+          h.p = Vec3f(float(x), 0.0f, float(z - 10.0));  // render space: world minus the eye (0, 0, 10)
+          if (double(h.p.x) != x || double(h.p.z) != z - 10.0) continue;
+          h.prim = {PrimRef::Kind::kPlane, 0, 0};
+          const int want = int(int64_t(std::floor(x / s) + std::floor(-z / s)) & 1);
+          ASSERT_EQ(rs.checker_parity(h, scene.materials[0]), want) << "scale " << scale << " at " << x << ", " << z;
+          odd += want;
+          ++n;
+        }
+      }
+    }
+    EXPECT_GT(n, 20000);
+    EXPECT_GT(odd, n / 4) << "both colours seen";
+    EXPECT_LT(odd, 3 * n / 4);
+  }
+}
+
 }  // namespace
 }  // namespace tessera
