@@ -142,6 +142,47 @@ Rgb shade(const Context& c, const Ray& ray, const Hit& hit, const Rgb& direct, c
   return L;
 }
 
+// The packet's flat mirror and glass hits, for their children's set-up across lanes
+// (render/secondary_rays.h); whether there are any. Other lanes, and a lone flat lane (it costs
+// less through plan_secondary, the same arithmetic, so the same bits), are left to
+// plan_secondary.
+bool turning_points(const RenderScene& scene, const Ray* rays, const Hit* hits, const bool* found, int n, int depth,
+                    TurningPoints* out) {
+  constexpr int P = RenderScene::kPacket;
+  TurningPoints& tp = *out;
+  int flats = 0;
+  const bool deeper = depth < scene.image().max_depth;
+  for (int i = 0; i < P; ++i) {
+    const bool flat = deeper && i < n && found[i] && !hits[i].smooth &&
+                      scene.material(hits[i].material).type != Material::Type::kDiffuse;
+    tp.live[i] = flat ? 1 : 0;
+    flats += flat ? 1 : 0;
+  }
+  if (flats < 2) {
+    std::fill(tp.live, tp.live + P, 0);
+    return false;
+  }
+  for (int i = 0; i < P; ++i) {
+    const Hit& h = hits[i];
+    const bool flat = tp.live[i] != 0;
+    const Material* mat = flat ? &scene.material(h.material) : nullptr;
+    // Other lanes hold zeros: computed on, never used.
+    const bool front = flat && dot(rays[i].d, h.n) < 0.0f;
+    const Vec3f nf = !flat ? Vec3f(0.0f) : front ? h.n : -h.n;
+    const Vec3f p = flat ? h.p : Vec3f(0.0f), e = flat ? h.p_err : Vec3f(0.0f), d = flat ? rays[i].d : Vec3f(0.0f);
+    tp.px[i] = p.x, tp.py[i] = p.y, tp.pz[i] = p.z;
+    tp.ex[i] = e.x, tp.ey[i] = e.y, tp.ez[i] = e.z;
+    tp.nx[i] = nf.x, tp.ny[i] = nf.y, tp.nz[i] = nf.z;
+    tp.dx[i] = d.x, tp.dy[i] = d.y, tp.dz[i] = d.z;
+    const bool glass = flat && mat->type == Material::Type::kGlass;
+    tp.glass[i] = glass ? 1 : 0;
+    // Outside is vacuum/air (index 1).
+    tp.eta_i[i] = !glass ? 1.0f : front ? 1.0f : float(mat->ior);
+    tp.eta_t[i] = !glass ? 1.0f : front ? float(mat->ior) : 1.0f;
+  }
+  return true;
+}
+
 // The integrator: n <= P rays of one pixel's samples at the same path node (`node`: 1 for camera
 // rays, 2k / 2k + 1 for the reflection / refraction children of node k), traced as one packet.
 // Their shadow rays go in packets, light after light, and their children in one packet per
@@ -273,38 +314,9 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
   // flat mirror and glass hits are set up for all lanes at once (render/secondary_rays.h, the
   // arithmetic of plan_secondary); a smooth hit's by plan_secondary, which writes them straight
   // into their packets.
-  TurningPoints& tp = fr.turning;
-  int flats = 0;
-  const bool deeper = depth < scene.image().max_depth;
-  for (int i = 0; i < P; ++i) {
-    const bool flat = deeper && i < n && found[i] && !hits[i].smooth &&
-                      scene.material(hits[i].material).type != Material::Type::kDiffuse;
-    tp.live[i] = flat ? 1 : 0;
-    flats += flat ? 1 : 0;
-  }
-  // A lone lane costs less through plan_secondary (the same arithmetic, so the same bits).
-  if (flats == 1) std::fill(tp.live, tp.live + P, 0);
-  const bool any_flat = flats > 1;
-  for (int i = 0; any_flat && i < P; ++i) {
-    const Hit& h = hits[i];
-    const bool flat = tp.live[i] != 0;
-    const Material* mat = flat ? &scene.material(h.material) : nullptr;
-    // Other lanes hold zeros: computed on, never used.
-    const bool front = flat && dot(rays[i].d, h.n) < 0.0f;
-    const Vec3f nf = !flat ? Vec3f(0.0f) : front ? h.n : -h.n;
-    const Vec3f p = flat ? h.p : Vec3f(0.0f), e = flat ? h.p_err : Vec3f(0.0f), d = flat ? rays[i].d : Vec3f(0.0f);
-    tp.px[i] = p.x, tp.py[i] = p.y, tp.pz[i] = p.z;
-    tp.ex[i] = e.x, tp.ey[i] = e.y, tp.ez[i] = e.z;
-    tp.nx[i] = nf.x, tp.ny[i] = nf.y, tp.nz[i] = nf.z;
-    tp.dx[i] = d.x, tp.dy[i] = d.y, tp.dz[i] = d.z;
-    const bool glass = flat && mat->type == Material::Type::kGlass;
-    tp.glass[i] = glass ? 1 : 0;
-    // Outside is vacuum/air (index 1).
-    tp.eta_i[i] = !glass ? 1.0f : front ? 1.0f : float(mat->ior);
-    tp.eta_t[i] = !glass ? 1.0f : front ? float(mat->ior) : 1.0f;
-  }
+  const TurningPoints& tp = fr.turning;
   const SecondaryRays& tr = fr.turned;
-  if (any_flat) secondary_rays(tp, &fr.turned);
+  if (turning_points(scene, rays, hits, found, n, depth, &fr.turning)) secondary_rays(tp, &fr.turned);
   Secondary* sec = fr.sec;
   int m[2] = {0, 0};
   for (int i = 0; i < n; ++i) {
