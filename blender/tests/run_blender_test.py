@@ -18,7 +18,8 @@ holds what those scripts share); with --ui, Blender runs with its UI under xvfb-
 section as a user would (readme_example.py). A Python traceback anywhere in Blender's output
 fails the test.
 
-Environment in: TESSERA_SERVER, TESSERA_WORKER, TESSERA_CLI (the programs), TESSERA_PYTHONPATH
+Environment in: TESSERA_SERVER_BIN, TESSERA_WORKER_BIN (the programs, for python/tests/harness.py,
+which starts the farm processes), TESSERA_CLI (the CLI, for the scripts in Blender), TESSERA_PYTHONPATH
 (the folder holding the Python package `tessera`), BLENDER (optional; default `blender` on PATH).
 Exit status 77 (CTest's SKIP_RETURN_CODE) when Blender is not installed; TESSERA_TEST_KEEP=1 keeps
 the temporary folder.
@@ -26,7 +27,6 @@ the temporary folder.
 
 import argparse
 import os
-import re
 import shutil
 import signal
 import subprocess
@@ -37,28 +37,28 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 SKIP = 77
 
-
-def need_env(name):
-    value = os.environ.get(name)
-    if not value:
-        sys.exit(f"run_blender_test: {name} is not set (CTest sets it: blender/CMakeLists.txt)")
-    return value
+# The farm processes are started as the Python package's tests start them (one harness for both
+# suites); it finds the programs through TESSERA_SERVER_BIN and TESSERA_WORKER_BIN.
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(HERE)), "python", "tests"))
+import harness  # noqa: E402
 
 
 class Farm:
+    """One --farm: a coordinator and its workers, started by the Python package's test harness
+    (python/tests/harness.py's LocalFarm), with the options the add-on's tests ask for."""
+
     def __init__(self, spec, root):
         name, _, opts = spec.partition(":")
         self.name = name
         self.opts = dict(kv.split("=", 1) for kv in opts.split(",") if kv)
+        self.root = root
         self.dir = os.path.join(root, "farm-" + name)
         os.makedirs(self.dir)
-        self.procs = []
-        self.addr = None
+        self.local = None
         self.token_file = None
 
     def start(self):
-        server = [need_env("TESSERA_SERVER"), "--listen", "127.0.0.1:0", "--data-dir", os.path.join(self.dir, "data"),
-                  "--commit-window-ms", "0", "--heartbeat-ms", "200"]
+        server = ["--commit-window-ms", "0", "--heartbeat-ms", "200"]
         if self.opts.get("token"):
             self.token_file = os.path.join(self.dir, "client.token")
             with open(self.token_file, "w") as f:
@@ -67,59 +67,29 @@ class Farm:
             server += ["--client-token-file", self.token_file]
         if "max_spp" in self.opts:
             server += ["--max-spp", self.opts["max_spp"]]
-        log = os.path.join(self.dir, "server.log")
-        self._spawn(server, log)
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline and self.addr is None:
-            with open(log, errors="replace") as f:
-                m = re.search(r"listening on ([0-9.]+:[0-9]+)", f.read())
-            if m:
-                self.addr = m.group(1)
-            elif self.procs[0].poll() is not None:
-                break
-            else:
-                time.sleep(0.05)
-        if self.addr is None:
-            with open(log, errors="replace") as f:
-                sys.exit(f"run_blender_test: coordinator {self.name} did not start:\n{f.read()}")
+        try:
+            self.local = harness.LocalFarm(self.root, "farm-" + self.name, server)
+        except (RuntimeError, TimeoutError) as e:
+            sys.exit(f"run_blender_test: coordinator {self.name} did not start: {e}")
+        delay = ["--test-delay-ms", self.opts["delay_ms"]] if "delay_ms" in self.opts else []
         for i in range(int(self.opts.get("workers", "1"))):
-            worker = [need_env("TESSERA_WORKER"), "--coordinator", self.addr, "--threads", "1",
-                      "--name", f"{self.name}-{i}", "--cache-dir", os.path.join(self.dir, f"cache{i}")]
-            if "delay_ms" in self.opts:
-                worker += ["--test-delay-ms", self.opts["delay_ms"]]
-            self._spawn(worker, os.path.join(self.dir, f"worker{i}.log"))
+            self.local.add_worker(f"{self.name}-{i}", extra=delay)
         return self
-
-    def _spawn(self, argv, log):
-        with open(log, "wb") as out:
-            self.procs.append(subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT, start_new_session=True))
 
     def env(self):
         key = "TESSERA_TEST_FARM_" + self.name.upper()
-        e = {key: self.addr, key + "_DIR": self.dir}
+        e = {key: self.local.address, key + "_DIR": self.dir}
         if self.token_file:
             e[key + "_TOKEN_FILE"] = self.token_file
         return e
 
     def stop(self):
-        for p in reversed(self.procs):  # workers first, then the coordinator
-            if p.poll() is None:
-                p.send_signal(signal.SIGTERM)
-        deadline = time.monotonic() + 5
-        for p in self.procs:
-            try:
-                p.wait(max(0.1, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+        if self.local:
+            self.local.stop()  # workers first, then the coordinator
 
     def logs(self):
-        out = []
-        for name in sorted(os.listdir(self.dir)):
-            if name.endswith(".log"):
-                with open(os.path.join(self.dir, name), errors="replace") as f:
-                    out.append(f"--- {self.name}/{name} (last 40 lines)\n" + "".join(f.readlines()[-40:]))
-        return "\n".join(out)
+        return "\n".join(f"--- {self.name}/{os.path.basename(p.log_path)} (last 40 lines)\n" +
+                         "\n".join(p.log().splitlines()[-40:]) for p in self.local.processes) if self.local else ""
 
 
 def kill_group(proc):
