@@ -63,40 +63,18 @@ if [ ${#missing[@]} -gt 0 ]; then
   apt-get update -qq
   apt-get install -y -qq $(printf '%s\n' "${missing[@]}" | sort -u) >/dev/null
 fi
-if ! docker info >/dev/null 2>&1; then
-  [ "$(id -u)" -eq 0 ] && command -v dockerd >/dev/null || skip "no Docker engine answers, and starting dockerd needs root"
-  log "starting dockerd (log: /tmp/tessera-dockerd.log)"
-  # Detached from CTest's pipes so the test does not wait for the daemon; it keeps running.
-  (setsid dockerd >/tmp/tessera-dockerd.log 2>&1 </dev/null &)
-  for _ in $(seq 1 60); do docker info >/dev/null 2>&1 && break; sleep 1; done
-  docker info >/dev/null 2>&1 || { tail -20 /tmp/tessera-dockerd.log; skip "dockerd did not start (log above)"; }
-fi
+# shellcheck source=../../scripts/lib/bookworm_image.sh
+. "$src/scripts/lib/bookworm_image.sh"
+docker_engine_up || skip "$bookworm_why"
 compose=(docker-compose)
 command -v idiff >/dev/null || fail "idiff (openimageio-tools) is missing: run scripts/install-deps.sh"
 log "engine $(docker version --format '{{.Server.Version}}'), $("${compose[@]}" version --short 2>/dev/null || echo compose)"
 
 # ---- the base image, made locally when no registry can give it --------------------------------
-# The Debian mirror this machine's apt already installs from (a deb822 .sources stanza or a
-# one-line sources.list entry for bookworm): the image comes from the same place, wherever that is.
-apt_mirror() {
-  local uri
-  uri=$(awk '/^[[:space:]]*$/ {u = ""} /^URIs:/ {u = $2} /^Suites:/ && / bookworm( |$)/ && u != "" {print u; exit}' \
-          /etc/apt/sources.list.d/*.sources 2>/dev/null)
-  [ -n "$uri" ] || uri=$(awk '$1 == "deb" && / bookworm / {for (i = 2; i <= NF; i++) if ($i ~ /^[a-z]+:\/\//) {print $i; exit}}' \
-                           /etc/apt/sources.list /etc/apt/sources.list.d/*.list 2>/dev/null | head -1)
-  echo "$uri"
-}
-if ! docker image inspect debian:bookworm-slim >/dev/null 2>&1; then
-  command -v debootstrap >/dev/null || skip "debian:bookworm-slim is missing and debootstrap is not installed"
-  mirror=$(apt_mirror)
-  [ -n "$mirror" ] || skip "debian:bookworm-slim is missing and apt's sources name no bookworm mirror to debootstrap from"
-  log "making debian:bookworm-slim with debootstrap from $mirror"
-  rootfs=$(mktemp -d /tmp/tessera-bookworm-rootfs.XXXXXX)
-  debootstrap --variant=minbase bookworm "$rootfs" "$mirror" >/tmp/tessera-debootstrap.log 2>&1 ||
-    { tail -20 /tmp/tessera-debootstrap.log; rm -rf "$rootfs"; fail "debootstrap failed (log above)"; }
-  tar -C "$rootfs" -c . | docker import - debian:bookworm-slim >/dev/null
-  rm -rf "$rootfs"
-fi
+rc=0
+bookworm_slim_image || rc=$?
+[ "$rc" -ne 1 ] || skip "$bookworm_why"
+[ "$rc" -eq 0 ] || fail "$bookworm_why"
 
 # ---- one compose project per run, removed on every exit ----------------------------------------
 project="tesseract$$"
