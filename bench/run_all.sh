@@ -197,10 +197,11 @@ if want povray && peer povray povray "POV-Ray 3.7 against Tessera (${PW}x${PH}, 
     wall=$(sed -n 's/.*Trace Time:.*(\([0-9.]*\) seconds).*/\1/p' "$OUT/$name.log" | tail -1)
     cpu=$(sed -n 's/.*thread(s) with \([0-9.]*\) CPU-seconds total.*/\1/p' "$OUT/$name.log" | tail -1)
     samples=$(sed -n 's/.*Samples: *\([0-9]*\).*/\1/p' "$OUT/$name.log" | tail -1)
+    pixels=$(sed -n 's/^Pixels: *\([0-9]*\).*/\1/p' "$OUT/$name.log" | tail -1)
     echo "POV-Ray $settings process: ${process_wall} s wall, ${process_cpu} s CPU (start-up included)" >&2
     [ $k = 0 ] || echo -e "\nPOV-Ray's adaptive anti-aliasing, \`$settings\`:\n" >>"$SUMMARY"
     "$BUILD/bench/povray/pov_compare" --scene scenes/whitted.json --pov-exr "$OUT/${name}_whitted.exr" \
-      --pov-wall "$wall" --pov-cpu "$cpu" --pov-samples "$samples" --pov-spp $((PR * PR)) --reference "$REF" \
+      --pov-wall "$wall" --pov-cpu "$cpu" --pov-samples "$samples" --pov-pixels "$pixels" --pov-spp $((PR * PR)) --reference "$REF" \
       --width $PW --height $PH --threads "$THREADS" --pov-settings "$settings" --markdown "$SUMMARY" >"$OUT/$name.json"
     k=$((k + 1))
   done
