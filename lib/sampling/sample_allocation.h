@@ -30,8 +30,8 @@ struct AllocationBounds {
 // The frame's predicted MSE with block b at counts[b] samples.
 double predicted_frame_mse(const std::vector<BlockStat>& blocks, const std::vector<uint32_t>& counts);
 
-// Sample counts per block (each at least its spp and min_spp, at most max_spp, a multiple of 8:
-// whole packets) of least cost whose predicted frame MSE is at most bounds.frame_mse; every block
+// Sample counts per block (each at least its spp and min_spp, at most max_spp, even: a pixel's
+// two sample streams take the same number) of least cost whose predicted frame MSE is at most bounds.frame_mse; every block
 // at max_spp when even that predicts more.
 std::vector<uint32_t> allocate_samples(const std::vector<BlockStat>& blocks, const AllocationBounds& bounds);
 
