@@ -19,7 +19,7 @@ void add_image_options(CLI::App& cmd, ImageOptions& o) {
                  "Render to a bound on every 8x8 block's estimated RMSE (linear light): each block takes samples "
                  "until it is at most this");
   cmd.add_option("--min-spp", o.overrides.min_spp,
-                 "With --target-rmse or --block-rmse: fewest samples per pixel (default 4 and 16)");
+                 "With --target-rmse or --block-rmse: fewest samples per pixel (default 2 and 16)");
   cmd.add_option("--max-spp", o.overrides.max_spp,
                  "With --target-rmse or --block-rmse: most samples per pixel (default 1024)");
   cmd.add_option("--camera", o.camera, "glTF scenes: the camera to render (camera or node name; default: the first)");

@@ -161,7 +161,7 @@ int main(int argc, char** argv) {
   int width = 320, height = 180, max_spp = 1024, ref_spp = 4096, threads = 0, center_max_spp = 16;
   std::string samplers_arg = "sobol,cmj,independent,center";
   std::string targets_arg = "auto", target_data;
-  int min_spp = 8, block_min_spp = 16, seeds = 3;
+  int min_spp = 2, block_min_spp = 16, seeds = 3;
   double target_rmse = 0.01;
   app.add_option("--scene", scene_path, "Scene JSON")->required()->check(CLI::ExistingFile);
   app.add_option("--width", width)->check(CLI::Range(1, 16384));

@@ -164,14 +164,17 @@ void encode_tile(const TileResult& tile, tessera::v1::TileData* out) {
 
 namespace {
 
-constexpr size_t kBlockStatBytes = 40;
+constexpr size_t kBlockStatBytes = 52;
 
-void put_le64(uint64_t v, char* p) {
-  for (int k = 0; k < 8; ++k) p[k] = char((v >> (8 * k)) & 0xff);
+// Little-endian unsigned integers of any width, whatever the host.
+template <class U>
+void put_le(U v, char* p) {
+  for (size_t k = 0; k < sizeof(U); ++k) p[k] = char((v >> (8 * k)) & 0xff);
 }
-uint64_t le64_at(const char* p) {
-  uint64_t v = 0;
-  for (int k = 0; k < 8; ++k) v |= uint64_t(uint8_t(p[k])) << (8 * k);
+template <class U>
+U le_at(const char* p) {
+  U v = 0;
+  for (size_t k = 0; k < sizeof(U); ++k) v |= U(uint8_t(p[k])) << (8 * k);
   return v;
 }
 
@@ -182,11 +185,12 @@ std::string encode_block_stats(const std::vector<BlockStat>& blocks) {
   for (size_t i = 0; i < blocks.size(); ++i) {
     char* p = out.data() + i * kBlockStatBytes;
     const BlockStat& b = blocks[i];
-    put_le64(uint64_t(b.block), p);
-    put_le64(uint64_t(b.spp) | uint64_t(b.pixels) << 32, p + 8);
-    put_le64(std::bit_cast<uint64_t>(b.mse), p + 16);
-    put_le64(std::bit_cast<uint64_t>(b.shape_mse), p + 24);
-    put_le64(std::bit_cast<uint64_t>(b.cost), p + 32);
+    put_le<uint64_t>(uint64_t(b.block), p);
+    put_le<uint64_t>(uint64_t(b.spp) | uint64_t(b.pixels) << 32, p + 8);
+    put_le<uint64_t>(std::bit_cast<uint64_t>(b.mse), p + 16);
+    put_le<uint64_t>(std::bit_cast<uint64_t>(b.shape_mse), p + 24);
+    put_le<uint64_t>(std::bit_cast<uint64_t>(b.cost), p + 32);
+    for (int c = 0; c < 3; ++c) put_le<uint32_t>(std::bit_cast<uint32_t>(b.mean[size_t(c)]), p + 40 + 4 * c);
   }
   return out;
 }
@@ -200,13 +204,14 @@ std::string decode_block_stats(const std::string& bytes, std::vector<BlockStat>*
   for (size_t i = 0; i < blocks->size(); ++i) {
     const char* p = bytes.data() + i * kBlockStatBytes;
     BlockStat& b = (*blocks)[i];
-    b.block = int64_t(le64_at(p));
-    const uint64_t counts = le64_at(p + 8);
+    b.block = int64_t(le_at<uint64_t>(p));
+    const uint64_t counts = le_at<uint64_t>(p + 8);
     b.spp = uint32_t(counts & 0xffffffffu);
     b.pixels = uint32_t(counts >> 32);
-    b.mse = std::bit_cast<double>(le64_at(p + 16));
-    b.shape_mse = std::bit_cast<double>(le64_at(p + 24));
-    b.cost = std::bit_cast<double>(le64_at(p + 32));
+    b.mse = std::bit_cast<double>(le_at<uint64_t>(p + 16));
+    b.shape_mse = std::bit_cast<double>(le_at<uint64_t>(p + 24));
+    b.cost = std::bit_cast<double>(le_at<uint64_t>(p + 32));
+    for (int c = 0; c < 3; ++c) b.mean[size_t(c)] = std::bit_cast<float>(le_at<uint32_t>(p + 40 + 4 * c));
     const std::string which = "block_stats[" + std::to_string(i) + "] (block " + std::to_string(b.block) + ")";
     if (b.block < 0) return which + ": negative block index";
     if (b.spp == 0 || b.pixels == 0) return which + ": no samples or no pixels";
@@ -214,6 +219,9 @@ std::string decode_block_stats(const std::string& bytes, std::vector<BlockStat>*
       if (!std::isfinite(v) || v < 0) return which + ": " + name + " " + std::to_string(v) + " is not finite and >= 0";
     }
     if (b.shape_mse < b.mse) return which + ": shape_mse is below mse";
+    for (int c = 0; c < 3; ++c) {
+      if (!std::isfinite(b.mean[size_t(c)])) return which + ": mean " + "RGB"[c] + " is not finite";
+    }
     if (!std::isfinite(b.cost) || !(b.cost >= 1)) {
       return which + ": rays per sample " + std::to_string(b.cost) + " is not finite and >= 1";
     }

@@ -23,9 +23,9 @@ void encode_tile(const TileResult& tile, tessera::v1::TileData* out);
 // spp = w*h uint32 or none) and decodes (a uniform_spp fills spp). Returns an empty string
 // on success, else what is wrong (the caller turns it into INVALID_ARGUMENT or a log line).
 std::string decode_tile(const tessera::v1::TileData& in, TileResult* out);
-// Block statistics on the wire (TileData.block_stats): 40 bytes a block, little-endian, every
-// double bit for bit (the coordinator's plan must be the one `tessera render` makes). The rate is
-// not carried (the planner sets it). decode returns "" or what is wrong.
+// Block statistics on the wire (TileData.block_stats): 52 bytes a block, little-endian, every
+// double and float bit for bit (the coordinator's plan must be the one `tessera render` makes).
+// The rate is not carried (the planner sets it). decode returns "" or what is wrong.
 std::string encode_block_stats(const std::vector<BlockStat>& blocks);
 std::string decode_block_stats(const std::string& bytes, std::vector<BlockStat>* blocks);
 

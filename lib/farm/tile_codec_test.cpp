@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <climits>
 #include <cmath>
 #include <cstring>
@@ -181,6 +182,55 @@ TEST(Codec, ValidateRefusesStatisticsNoRenderProduces) {
 // Every field TileData defines survives known_fields_only (set through reflection, so a field
 // added to the message and not to the function fails here); unknown fields, at the top and in
 // the nested messages, do not; the bytes are moved, not copied.
+TEST(Codec, BlockStatisticsCrossTheWireBitForBitAndBadOnesAreNamed) {
+  // The coordinator plans from what workers report: every field the planner reads, bit for bit
+  // (its plan must be the one `tessera render` makes from the same numbers).
+  BlockStat a;
+  a.block = (int64_t(1) << 40) + 3;
+  a.spp = 1024;
+  a.pixels = 4;
+  a.mse = 1.0 / 3.0;
+  a.shape_mse = std::nextafter(a.mse, 1.0);
+  a.cost = 2.75;
+  a.mean = {-0.0f, std::numeric_limits<float>::denorm_min(), 65504.5f};
+  BlockStat b = a;
+  b.block = 0;
+  b.mean = {0.25f, 0.45f, 0.8f};
+  std::vector<BlockStat> back;
+  const std::string bytes = encode_block_stats({a, b});
+  EXPECT_EQ(bytes.size(), 2u * 52u);
+  ASSERT_EQ(decode_block_stats(bytes, &back), "");
+  ASSERT_EQ(back.size(), 2u);
+  for (size_t i = 0; i < 2; ++i) {
+    const BlockStat& want = i == 0 ? a : b;
+    EXPECT_EQ(back[i].block, want.block);
+    EXPECT_EQ(back[i].spp, want.spp);
+    EXPECT_EQ(back[i].pixels, want.pixels);
+    EXPECT_EQ(std::memcmp(&back[i].mse, &want.mse, sizeof(double)), 0);
+    EXPECT_EQ(std::memcmp(&back[i].shape_mse, &want.shape_mse, sizeof(double)), 0);
+    EXPECT_EQ(std::memcmp(&back[i].cost, &want.cost, sizeof(double)), 0);
+    EXPECT_EQ(std::memcmp(back[i].mean.data(), want.mean.data(), sizeof(float) * 3), 0) << i;
+  }
+  EXPECT_TRUE(std::signbit(back[0].mean[0]));
+  // Little-endian whatever the host: the mean's R of block b starts at byte 52 + 40.
+  uint32_t r = 0;
+  for (int k = 0; k < 4; ++k) r |= uint32_t(uint8_t(bytes[52 + 40 + size_t(k)])) << (8 * k);
+  EXPECT_EQ(r, std::bit_cast<uint32_t>(0.25f));
+
+  auto refused = [&](std::function<void(BlockStat&)> spoil, const std::string& why) {
+    BlockStat bad = a;
+    spoil(bad);
+    const std::string err = decode_block_stats(encode_block_stats({b, bad}), &back);
+    EXPECT_NE(err.find("block_stats[1]"), std::string::npos) << err;
+    EXPECT_NE(err.find(why), std::string::npos) << err;
+  };
+  refused([](BlockStat& s) { s.mean[1] = std::numeric_limits<float>::quiet_NaN(); }, "mean G is not finite");
+  refused([](BlockStat& s) { s.mean[2] = std::numeric_limits<float>::infinity(); }, "mean B is not finite");
+  refused([](BlockStat& s) { s.shape_mse = s.mse / 2; }, "shape_mse is below mse");
+  refused([](BlockStat& s) { s.block = -1; }, "negative block index");
+  EXPECT_NE(decode_block_stats(bytes.substr(0, 40), &back).find("not a multiple of 52"), std::string::npos);
+}
+
 TEST(Codec, KnownFieldsOnlyKeepsEveryFieldTileDataDefines) {
   tessera::v1::TileData in;
   std::function<void(google::protobuf::Message*, int)> fill = [&](google::protobuf::Message* m, int seed) {

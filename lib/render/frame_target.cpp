@@ -23,12 +23,15 @@ BlockStat block_stat(int64_t block, const PixelEstimate* pixels, int w, int h, u
   // The estimate as tiles store it (bfloat16) and, for the shape, for stratified samplers the
   // floor below which an edge pixel's estimate is not trusted (PixelEstimate::stratified_floor),
   // whichever is larger; summed in row order.
-  double sum = 0, shape = 0;
+  // Its mean value, for the planner's contrast floor (sampling/pass_plan.cpp).
+  double sum = 0, shape = 0, mean[3] = {0, 0, 0};
   for (int i = 0; i < w * h; ++i) {
     const double v = double(round_to_bfloat16(float(pixels[i].variance(sampler))));
     sum += v;
     shape += sampler == SamplerKind::kSobol ? std::max(v, pixels[i].stratified_floor()) : v;
+    for (int c = 0; c < 3; ++c) mean[c] += double(pixels[i].mean(c));
   }
+  for (int c = 0; c < 3; ++c) s.mean[size_t(c)] = float(mean[c] / double(w * h));
   s.mse = sum / double(s.pixels);
   s.shape_mse = shape / double(s.pixels);
   s.cost = spp > 0 ? double(rays) / (double(spp) * double(s.pixels)) : 1.0;

@@ -152,12 +152,22 @@ TEST(FrameTarget, TilesRenderedByPlanInPassesGiveTheSameFrame) {
 }
 
 TEST(FrameTarget, APlanOfTheWrongShapeIsRefused) {
+  constexpr int B = kAllocationBlock;
   RenderScene rs(target_scene(32, 32, 0.01, 8, 64), 0);
-  EXPECT_THROW(render_tile_planned(rs, {0, 0, 16, 16}, SamplePlan(15, 8)), std::invalid_argument);
-  EXPECT_THROW(render_tile_planned(rs, {0, 0, 16, 16}, SamplePlan(16, 4)), std::invalid_argument);     // < min_spp
-  EXPECT_THROW(render_tile_planned(rs, {0, 0, 16, 16}, SamplePlan(16, 128)), std::invalid_argument);   // > max_spp
-  EXPECT_EQ(render_tile_planned(rs, {4, 4, 8, 8}, SamplePlan(4, 16)).blocks.size(), 4u);
-  EXPECT_EQ(render_tile_planned(rs, {2, 2, 8, 8}, SamplePlan(9, 16)).blocks.size(), 4u);  // origins at 4 and 8
+  const size_t blocks16 = size_t(16 / B) * size_t(16 / B);  // a 16x16 tile at the origin
+  EXPECT_THROW(render_tile_planned(rs, {0, 0, 16, 16}, SamplePlan(blocks16 - 1, 8)), std::invalid_argument);
+  EXPECT_THROW(render_tile_planned(rs, {0, 0, 16, 16}, SamplePlan(blocks16, 4)), std::invalid_argument);    // < min_spp
+  EXPECT_THROW(render_tile_planned(rs, {0, 0, 16, 16}, SamplePlan(blocks16, 128)), std::invalid_argument);  // > max_spp
+  // A tile reports the blocks whose first pixel is its own, counted here pixel by pixel.
+  for (const TileRect rect : {TileRect{B, B, 8, 8}, TileRect{B / 2 + 1, 1, 8, 9}}) {
+    size_t origins = 0;
+    for (int y = rect.y0; y < rect.y0 + rect.height; ++y) {
+      for (int x = rect.x0; x < rect.x0 + rect.width; ++x) origins += x % B == 0 && y % B == 0;
+    }
+    const int cols = (rect.x0 + rect.width + B - 1) / B - rect.x0 / B;
+    const int rows = (rect.y0 + rect.height + B - 1) / B - rect.y0 / B;
+    EXPECT_EQ(render_tile_planned(rs, rect, SamplePlan(size_t(cols * rows), 16)).blocks.size(), origins);
+  }
 }
 
 TEST(FrameTarget, RenderTileRefusesAFrameTarget) {

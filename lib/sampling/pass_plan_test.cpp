@@ -3,21 +3,41 @@
 
 #include <gtest/gtest.h>
 
+#include <set>
+#include <utility>
+
 namespace tessera {
 namespace {
 
 TEST(PassPlan, ATileMeetsTheBlocksItTouchesAndReportsThoseThatStartInIt) {
-  const BlockGrid g(75, 53);  // 19 x 14 blocks, the last column and row clipped
-  EXPECT_EQ(g.cols, 19);
-  EXPECT_EQ(g.rows, 14);
-  const BlockGrid::Range r = g.meeting({7, 2, 12, 12});  // pixels 7..18 x 2..13
-  EXPECT_EQ(r.col0, 1);
-  EXPECT_EQ(r.col1, 5);
-  EXPECT_EQ(r.row0, 0);
-  EXPECT_EQ(r.row1, 4);
-  EXPECT_EQ(g.origins_in({7, 2, 12, 12}), 3 * 3);  // blocks starting at x 8, 12, 16 and y 4, 8, 12
-  EXPECT_EQ(g.origins_in({0, 0, 4, 4}), 1);
-  EXPECT_EQ(g.origins_in({1, 1, 2, 2}), 0);  // inside one block, not at its start
+  constexpr int B = kAllocationBlock;
+  const BlockGrid g(75, 53);  // the last column and row of blocks clipped (75 and 53 are odd)
+  EXPECT_EQ(g.cols, 75 / B + 1);
+  EXPECT_EQ(g.rows, 53 / B + 1);
+  // Counted pixel by pixel: the blocks a rectangle holds a pixel of, and those whose first pixel
+  // (both coordinates multiples of B) it holds.
+  auto brute = [&](const TileRect& t) {
+    std::set<std::pair<int, int>> met;
+    int origins = 0;
+    for (int y = t.y0; y < t.y0 + t.height; ++y) {
+      for (int x = t.x0; x < t.x0 + t.width; ++x) {
+        met.insert({x / B, y / B});
+        origins += x % B == 0 && y % B == 0;
+      }
+    }
+    return std::pair{met, origins};
+  };
+  for (const TileRect t : {TileRect{7, 2, 12, 12}, TileRect{0, 0, 4, 4}, TileRect{1, 1, 1, 1}, TileRect{70, 50, 5, 3}}) {
+    const auto [met, origins] = brute(t);
+    const BlockGrid::Range r = g.meeting(t);
+    EXPECT_EQ(r.count(), int(met.size())) << t.x0 << "," << t.y0;
+    EXPECT_EQ(met.begin()->first, r.col0);
+    EXPECT_EQ(met.begin()->second, r.row0);
+    EXPECT_EQ(met.rbegin()->first, r.col1 - 1);
+    EXPECT_EQ(met.rbegin()->second, r.row1 - 1);
+    EXPECT_EQ(g.origins_in(t), origins) << t.x0 << "," << t.y0;
+  }
+  EXPECT_EQ(g.origins_in({1, 1, 1, 1}), 0);  // inside one block, not at its start
   // Every block is reported by exactly one tile of any tiling.
   for (int tile : {5, 7, 12, 32}) {
     int total = 0;
@@ -56,26 +76,70 @@ TEST(PassPlan, ABlockRecordMeasuresItsRateOnlyWhenItsCountMoves) {
   EXPECT_DOUBLE_EQ(first_rate(SamplerKind::kIndependent), 1.0);
 }
 
-TEST(PassPlan, AFrameThatMeetsItsTargetTakesNoMorePasses) {
-  ImageSettings img;
-  img.width = img.height = 8;
-  img.target_rmse = 0.011;
-  const BlockGrid g(8, 8);
-  std::vector<BlockStat> stats(4);
-  for (int b = 0; b < 4; ++b) {
-    stats[size_t(b)].block = b;
-    stats[size_t(b)].spp = 8;
-    stats[size_t(b)].pixels = 16;
-    stats[size_t(b)].cost = 1;
-    stats[size_t(b)].mse = stats[size_t(b)].shape_mse = b == 3 ? 4e-4 : 1e-5;
+// A frame of 2 x 2 allocation blocks (or `cols` x 1), each with `spp` samples, its own error
+// and shape `mse`, cost 1 and mean value 0.5 grey.
+std::vector<BlockStat> blocks_of(int count, double mse, uint32_t spp = 8) {
+  std::vector<BlockStat> stats(static_cast<size_t>(count));
+  for (int b = 0; b < count; ++b) {
+    BlockStat& s = stats[size_t(b)];
+    s.block = b;
+    s.spp = spp;
+    s.pixels = uint32_t(kAllocationBlock * kAllocationBlock);
+    s.cost = 1;
+    s.mse = s.shape_mse = mse;
+    s.rate = first_rate(SamplerKind::kSobol);
+    s.mean = {0.5f, 0.5f, 0.5f};
   }
+  return stats;
+}
+
+TEST(PassPlan, AFrameThatMeetsItsTargetTakesNoMorePasses) {
+  constexpr int B = kAllocationBlock;
+  ImageSettings img;
+  img.width = img.height = 2 * B;
+  img.target_rmse = 0.011;
+  const BlockGrid g(img.width, img.height);
+  ASSERT_EQ(g.count(), 4);
+  std::vector<BlockStat> stats = blocks_of(4, 1e-5);
+  stats[3].mse = stats[3].shape_mse = 4e-4;
   EXPECT_FALSE(next_pass_counts(stats, g, img, 1).has_value()) << "mean MSE 1.075e-4 <= 1.21e-4: done";
   img.target_rmse = 0.005;
   const auto next = next_pass_counts(stats, g, img, 1);
   ASSERT_TRUE(next.has_value());
   EXPECT_GT((*next)[3], (*next)[0]) << "the noisy block takes the most";
   EXPECT_FALSE(next_pass_counts(stats, g, img, kMaxTargetPasses).has_value()) << "passes are bounded";
-  EXPECT_EQ(tile_plan(g, {4, 0, 4, 8}, *next), (SamplePlan{(*next)[1], (*next)[3]}));
+  EXPECT_EQ(tile_plan(g, {B, 0, B, 2 * B}, *next), (SamplePlan{(*next)[1], (*next)[3]}));
+}
+
+TEST(PassPlan, AnEdgeItsSamplesMissedIsFoundAcrossTheBlockBoundary) {
+  // A row of eight blocks, every one reading the same small error (their samples agree), the
+  // left four sky-blue and the right four black: an edge between blocks 3 and 4 that neither
+  // block's own samples show (the Whitted horizon at a pilot of 2). The two blocks beside it take
+  // more samples than any other; blocks away from it, the same as with no edge at all.
+  constexpr int B = kAllocationBlock;
+  ImageSettings img;
+  img.width = 8 * B;
+  img.height = B;
+  img.target_rmse = 0.002;
+  img.min_spp = 2;
+  const BlockGrid g(img.width, img.height);
+  std::vector<BlockStat> stats = blocks_of(8, 1e-5, 2);
+  const std::vector<BlockStat> flat = stats;
+  for (int b = 0; b < 4; ++b) stats[size_t(b)].mean = {0.25f, 0.45f, 0.8f};
+  for (int b = 4; b < 8; ++b) stats[size_t(b)].mean = {0.0f, 0.0f, 0.0f};
+  const auto next = next_pass_counts(stats, g, img, 1);
+  const auto next_flat = next_pass_counts(flat, g, img, 1);
+  ASSERT_TRUE(next.has_value() && next_flat.has_value());
+  for (int b : {0, 1, 2, 5, 6, 7}) {
+    EXPECT_GT((*next)[3], (*next)[size_t(b)]) << b;
+    EXPECT_GT((*next)[4], (*next)[size_t(b)]) << b;
+  }
+  EXPECT_EQ((*next)[0], (*next)[7]);
+  EXPECT_EQ((*next)[3], (*next)[4]) << "the edge is symmetric";
+  // The floor moves samples; it does not raise the frame's own level: a frame whose blocks' own
+  // error meets the target takes no more passes, edge or no edge.
+  img.target_rmse = 0.004;
+  EXPECT_FALSE(next_pass_counts(stats, g, img, 1).has_value());
 }
 
 }  // namespace

@@ -63,12 +63,13 @@ struct ImageSettings {
   bool frame_target() const { return target_rmse > 0; }
   // The target this render is held to: the frame's RMSE or every block's.
   double target() const { return target_rmse > 0 ? target_rmse : block_rmse; }
-  // The fewest samples a pixel takes in an adaptive render: min_spp, by default 4 for a frame
-  // target (its pilot pass: since packets fill across pixels and counts grow in pairs, 4 reaches
-  // a loose target with 1.3-1.7x fewer samples than 8, its estimate as honest;
-  // docs/performance.md) and 16 for the block bound (a block deciding alone needs 16 to see
-  // small features).
-  int first_spp() const { return min_spp > 0 ? min_spp : frame_target() ? 4 : 16; }
+  // The fewest samples a pixel takes in an adaptive render: min_spp, by default 2 for a frame
+  // target (its pilot pass: the least that gives each pixel two streams and an estimate; edges
+  // its samples miss are found by the planner's contrast floor, sampling/pass_plan.cpp, and 2
+  // reaches the Whitted showcase's loose targets with 1.4x fewer rays than 4, its estimate as
+  // honest; docs/performance.md) and 16 for the block bound (a block deciding alone needs 16 to
+  // see small features).
+  int first_spp() const { return min_spp > 0 ? min_spp : frame_target() ? 2 : 16; }
 };
 
 struct Material {

@@ -4,6 +4,7 @@
 // coordinator gathers a frame's to plan its next pass.
 #pragma once
 
+#include <array>
 #include <cstdint>
 
 namespace tessera {
@@ -18,6 +19,9 @@ struct BlockStat {
   double shape_mse = 0;
   double cost = 0;      // rays traced per sample, averaged over its samples so far (> 0)
   double rate = 1;      // its MSE falls as spp^-rate (set by whoever plans: not carried by tiles)
+  // The mean of its pixels' values (linear RGB): set against its neighbours' by the planner, it
+  // shows an edge that the block's own samples could not (sampling/pass_plan.cpp).
+  std::array<float, 3> mean{};
 };
 
 }  // namespace tessera

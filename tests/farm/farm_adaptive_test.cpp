@@ -127,8 +127,8 @@ TEST(FarmAdaptive, TargetFromTheSceneFileReachesTheWorkersAndWatch) {
 
 TEST(FarmAdaptive, AFrameTargetJobIsBitIdenticalToRenderThroughAWorkerDeath) {
   // --target-rmse on the farm: a pilot pass, then passes planned at the coordinator from the
-  // statistics the workers report (sampling/pass_plan.h), tiles of 12 pixels so that 4x4 blocks
-  // straddle tiles, a worker killed mid-job. The frames, their per-pixel error and sample counts
+  // statistics the workers report (sampling/pass_plan.h), tiles of 11 pixels so that the 2x2
+  // allocation blocks straddle tiles, a worker killed mid-job. The frames, their per-pixel error and sample counts
   // are the bits `tessera render --target-rmse` makes.
   Farm farm;
   farm.start_server({"--lease-timeout-ms", "3000", "--heartbeat-ms", "300"});
@@ -138,7 +138,7 @@ TEST(FarmAdaptive, AFrameTargetJobIsBitIdenticalToRenderThroughAWorkerDeath) {
   fs::create_directories(out);
   const std::vector<std::string> target = {"--target-rmse", "0.006", "--min-spp", "8", "--max-spp", "256"};
   std::vector<std::string> args{"submit", kScene.string(), "--coordinator", farm.address(), "-o",
-                                (out / "frame_####.exr").string(), "--tile", "12", "--frames", "0-1",
+                                (out / "frame_####.exr").string(), "--tile", "11", "--frames", "0-1",
                                 "--error-channels"};
   args.insert(args.end(), target.begin(), target.end());
   auto client = farm.cli_async(args, "submit.log");
@@ -174,7 +174,8 @@ TEST(FarmAdaptive, AWorkerWithoutBlockStatisticsIsRefusedNotPlannedFrom) {
                             (out / "f_####.exr").string(), "--target-rmse", "0.01"});
   EXPECT_NE(sub.code, 0) << sub.output;
   EXPECT_NE(sub.output.find("failed"), std::string::npos) << sub.output;
-  EXPECT_NE(sub.output.find("tile carries 0 block statistics, expected 64 (frame targets need them)"),
+  // A 32x32 tile starts 16 x 16 allocation blocks of 2x2 pixels.
+  EXPECT_NE(sub.output.find("tile carries 0 block statistics, expected 256 (frame targets need them)"),
             std::string::npos)
       << sub.output;
   EXPECT_FALSE(fs::exists(out / "f_0000.exr"));
