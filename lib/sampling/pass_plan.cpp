@@ -32,12 +32,14 @@ constexpr double kFirstRate = 1.5;
 //    side held half the frame's error and 5% of its estimate, and on 2x2 blocks such an edge often
 //    lies between two blocks that each look flat inside. The neighbour across the edge shows what
 //    the block's own samples could not; the floor falls as an edge's error does under the
-//    stratified samplers (spp^-1.5). Measured (docs/performance.md): with it, the frame's
-//    estimate is 0.79-1.08x its measured error at every target; without it, 0.63-0.77x at the
-//    tightest. Weights 0.1-1 spend the same samples for the same measured error; larger ones
-//    make the estimate more honest and the frame overshoot its target more.
+//    stratified samplers (spp^-1.5). Measured (docs/performance.md, 3 seeds a target): without
+//    it, the frame's estimate fell to 0.63-0.77x its measured error at the tightest targets on
+//    Whitted. Weights from 0.1 to 1 spend about the same samples for the same measured error
+//    (within 5-7%); larger ones make the estimate more honest and the frame overshoot its target
+//    more. At 0.25 the Cornell box's estimate was 0.79x at one target of five, at 0.35 0.84x, at
+//    0.5 0.87-1.11x everywhere, for 5-7% more samples on Whitted and the bunny.
 // Only the shares move: the frame's level (the target) stays each block's own error.
-constexpr double kContrastWeight = 0.25;
+constexpr double kContrastWeight = 0.5;
 
 double contrast_floor(const std::vector<BlockStat>& stats, const BlockGrid& grid, int b) {
   const int cx = b % grid.cols, cy = b / grid.cols;
