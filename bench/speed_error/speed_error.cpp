@@ -67,7 +67,12 @@ double cpu_seconds() {
 // number where a few pixels (a bright edge seen through glass) hold most of it, while the
 // estimate is a statement about the expected error: comparing means over seeds compares like
 // with like.
-Point measure(const Scene& base, int threads, const ImageRGB& ref, int seeds) {
+//
+// Each seed's render is timed as the fastest of up to `repeats` runs while a run takes under a
+// CPU-second: the frame is the same bits every time, and on a shared machine other work only
+// ever adds time (renders of 0.04-0.1 s were seen to swing 1.5x between runs of one binary, which
+// is most of a target-error speed-up).
+Point measure(const Scene& base, int threads, const ImageRGB& ref, int seeds, int repeats) {
   Point p;
   p.sampler = sampler_name(base.image.sampler);
   p.spp = base.image.spp;
@@ -77,10 +82,17 @@ Point measure(const Scene& base, int threads, const ImageRGB& ref, int seeds) {
     Scene s = base;
     s.image.seed = base.image.seed + uint64_t(k);
     RenderScene rs(s, 0);
-    const double c0 = cpu_seconds();
+    double c0 = cpu_seconds();
     const FrameResult r = render_frame(rs, 32, threads);
-    p.cpu_seconds += (cpu_seconds() - c0) / seeds;
-    p.seconds += r.seconds / seeds;
+    double best_cpu = cpu_seconds() - c0, best_wall = r.seconds;
+    for (int k2 = 1; k2 < repeats && best_cpu < 1.0; ++k2) {
+      c0 = cpu_seconds();
+      const double wall = render_frame(rs, 32, threads).seconds;
+      best_cpu = std::min(best_cpu, cpu_seconds() - c0);
+      best_wall = std::min(best_wall, wall);
+    }
+    p.cpu_seconds += best_cpu / seeds;
+    p.seconds += best_wall / seeds;
     p.rays += r.rays.total() / uint64_t(seeds);
     const double e = rmse(r.image, ref);
     mse += e * e / seeds;
@@ -161,7 +173,7 @@ int main(int argc, char** argv) {
   int width = 320, height = 180, max_spp = 1024, ref_spp = 4096, threads = 0, center_max_spp = 16;
   std::string samplers_arg = "sobol,cmj,independent,center";
   std::string targets_arg = "auto", target_data;
-  int min_spp = 2, block_min_spp = 16, seeds = 3;
+  int min_spp = 2, block_min_spp = 16, seeds = 3, repeats = 3;
   double target_rmse = 0.01;
   app.add_option("--scene", scene_path, "Scene JSON")->required()->check(CLI::ExistingFile);
   app.add_option("--width", width)->check(CLI::Range(1, 16384));
@@ -176,6 +188,8 @@ int main(int argc, char** argv) {
   app.add_option("--targets", targets_arg,
                  "Target errors for the target-error renders: comma-separated, 'auto' (a ladder between the "
                  "default sampler's uniform errors at 8 spp and at --max-spp/4) or 'none'");
+  app.add_option("--repeats", repeats, "Each render's time: the fastest of this many runs (while a run takes under a CPU-second)")
+      ->check(CLI::Range(1, 16));
   app.add_option("--seeds", seeds, "Renders per point (seeds 1..N): times, errors and estimates are their means")
       ->check(CLI::Range(1, 64));
   app.add_option("--min-spp", min_spp, "Frame-target renders (--target-rmse): fewest samples per pixel")
@@ -248,7 +262,7 @@ int main(int argc, char** argv) {
       s.image.spp = spp;
       s.image.sampler = k;
       s.image.target_rmse = 0;
-      const Point p = measure(s, threads, ref, seeds);
+      const Point p = measure(s, threads, ref, seeds, repeats);
       points.push_back(p);
       std::cerr << "  " << name << " " << p.sampler << " " << spp << " spp: " << p.seconds << " s, rmse " << p.rmse
                 << "\n";
@@ -313,7 +327,7 @@ int main(int argc, char** argv) {
     (mode == "frame" ? s.image.target_rmse : s.image.block_rmse) = t;
     s.image.min_spp = mode == "frame" ? min_spp : block_min_spp;
     s.image.max_spp = max_spp;
-    Point p = measure(s, threads, ref, seeds);
+    Point p = measure(s, threads, ref, seeds, repeats);
     p.mode = mode;
     p.target = t;
     p.spp = 0;
@@ -363,7 +377,8 @@ int main(int argc, char** argv) {
     char buf[512];
     md << "\n#### " << name << " (" << width << "x" << height << ", max_depth " << scene.image.max_depth
        << ", reference " << ref_spp << " spp sobol, its estimated RMSE " << ref_est_rmse << "; every row the mean of "
-       << seeds << " seeds: RMSE and estimate as root mean squares)\n\n";
+       << seeds << " seeds: RMSE and estimate as root mean squares; each render's time the fastest of " << repeats
+       << " runs)\n\n";
     md << "| sampler | spp | time (s) | CPU (s) | Mrays/s | RMSE | relMSE | estimated RMSE | est/RMSE |\n";
     md << "|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for (const Point& p : points) {
