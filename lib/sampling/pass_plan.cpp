@@ -18,12 +18,13 @@ constexpr double kFirstRate = 1.5;
 
 // What the allocation shares samples by, each block's own shape (its error, or its stratified
 // floor if larger) raised to
-//  - its own error averaged half and half with the mean of its 3x3 neighbourhood's shapes. A
-//    block's estimate after the pilot has few degrees of freedom; a block that reads low by
-//    chance would be left at the pilot's count with an estimate that stays low, and the frame's
-//    estimate with it (measured with 4x4 blocks: 0.69-0.73x the measured error at the tightest
-//    targets without this, 0.89-1.02x with it). Edges and glass continue across blocks, so the
-//    neighbours say what a block's own few samples may have missed;
+//  - its own error averaged half and half with the mean over its 3x3 neighbourhood (its own
+//    error and its eight neighbours' shapes). A block's estimate after the pilot has few degrees
+//    of freedom; a block that reads low by chance would be left at the pilot's count with an
+//    estimate that stays low, and the frame's estimate with it (measured with 4x4 blocks:
+//    0.69-0.73x the measured error at the tightest targets without this, 0.89-1.02x with it).
+//    Edges and glass continue across blocks, so the neighbours say what a block's own few
+//    samples may have missed;
 //  - the contrast floor, kContrastWeight d / n^1.5, d the largest mean squared difference between
 //    its mean value and that of a neighbour across an edge (left, right, above, below), n its
 //    samples. Where every sample of a pixel fell on one side of an edge, its two streams agree and
