@@ -170,9 +170,7 @@ bool turning_points(const RenderScene& scene, const Ray* rays, const Hit* hits, 
     const bool front = flat && dot(rays[i].d, h.n) < 0.0f;
     const Vec3f nf = !flat ? Vec3f(0.0f) : front ? h.n : -h.n;
     const Vec3f p = flat ? h.p : Vec3f(0.0f), e = flat ? h.p_err : Vec3f(0.0f), d = flat ? rays[i].d : Vec3f(0.0f);
-    tp.px[i] = p.x, tp.py[i] = p.y, tp.pz[i] = p.z;
-    tp.ex[i] = e.x, tp.ey[i] = e.y, tp.ez[i] = e.z;
-    tp.nx[i] = nf.x, tp.ny[i] = nf.y, tp.nz[i] = nf.z;
+    tp.at.set(i, p, e, nf);
     tp.dx[i] = d.x, tp.dy[i] = d.y, tp.dz[i] = d.z;
     const bool glass = flat && mat->type == Material::Type::kGlass;
     tp.glass[i] = glass ? 1 : 0;
@@ -248,9 +246,7 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
     const Vec3f n_f = !diffuse ? Vec3f(0.0f) : dot(rays[i].d, h.n) < 0.0f ? h.n : -h.n;
     const Vec3f ns_f = diffuse && h.smooth ? facing(h.ns, h.n, n_f) : n_f;
     const Vec3f p = diffuse ? h.p : Vec3f(0.0f), e = diffuse ? h.p_err : Vec3f(0.0f);
-    sp.px[i] = p.x, sp.py[i] = p.y, sp.pz[i] = p.z;
-    sp.ex[i] = e.x, sp.ey[i] = e.y, sp.ez[i] = e.z;
-    sp.nx[i] = n_f.x, sp.ny[i] = n_f.y, sp.nz[i] = n_f.z;
+    sp.at.set(i, p, e, n_f);
     sp.sx[i] = ns_f.x, sp.sy[i] = ns_f.y, sp.sz[i] = ns_f.z;
     sp.g_dot_s[i] = dot(n_f, ns_f);  // smooth_light_cosine's dot(ng_facing, ns_facing)
     sp.smooth[i] = diffuse && h.smooth ? 1 : 0;
@@ -303,7 +299,7 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
       for (int i = 0; i < n; ++i) {
         if (!sp.live[i]) continue;
         const Context c{scene, *samplers[i], counts};
-        area_light_query(c, hits[i], Vec3f(sp.nx[i], sp.ny[i], sp.nz[i]), node, li,
+        area_light_query(c, hits[i], sp.at.n(i), node, li,
                          [&](const ShadowQuery& q) { queue(i, q.ray, q.a, q.b); });
       }
     }

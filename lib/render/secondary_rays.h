@@ -15,15 +15,15 @@
 
 #include <cstdint>
 
+#include "render/spawn_lanes.h"
+
 namespace tessera {
 
-inline constexpr int kTurnLanes = 8;  // RenderScene::kPacket (checked where both are seen)
+inline constexpr int kTurnLanes = kSpawnLanes;
 
 // A packet's flat mirror and glass hits, as arrays of components.
 struct TurningPoints {
-  alignas(32) float px[kTurnLanes], py[kTurnLanes], pz[kTurnLanes];  // Hit::p
-  alignas(32) float ex[kTurnLanes], ey[kTurnLanes], ez[kTurnLanes];  // Hit::p_err
-  alignas(32) float nx[kTurnLanes], ny[kTurnLanes], nz[kTurnLanes];  // geometric normal, facing the ray
+  SpawnLanes at;  // where the rays leave from
   alignas(32) float dx[kTurnLanes], dy[kTurnLanes], dz[kTurnLanes];  // the arriving ray's direction
   alignas(32) float eta_i[kTurnLanes], eta_t[kTurnLanes];            // glass: indices, from and into
   alignas(32) int32_t glass[kTurnLanes];                             // 1: glass; 0: mirror

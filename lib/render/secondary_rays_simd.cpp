@@ -29,8 +29,8 @@ void SecondaryRaysLanes(const TurningPoints& s, SecondaryRays* out) {
       simd3::store_flags(df, live, out->refract, i);
       continue;
     }
-    const V3 p = load3(df, s.px, s.py, s.pz, i), e = load3(df, s.ex, s.ey, s.ez, i);
-    const V3 n = load3(df, s.nx, s.ny, s.nz, i), d = load3(df, s.dx, s.dy, s.dz, i);
+    const V3 p = load3(df, s.at.px, s.at.py, s.at.pz, i), e = load3(df, s.at.ex, s.at.ey, s.at.ez, i);
+    const V3 n = load3(df, s.at.nx, s.at.ny, s.at.nz, i), d = load3(df, s.dx, s.dy, s.dz, i);
     const M glass = hn::And(live, simd3::flagged(df, s.glass, i));
     // reflect(d, n) = d - n (2 dot(d, n)), normalized; the spawn toward it.
     const V dn = dot(d, n);

@@ -16,16 +16,15 @@
 #include <cstdint>
 
 #include "math/vec3.h"
+#include "render/spawn_lanes.h"
 
 namespace tessera {
 
-inline constexpr int kShadowLanes = 8;  // RenderScene::kPacket (checked where both are seen)
+inline constexpr int kShadowLanes = kSpawnLanes;
 
 // Where shadow rays start: a packet's diffuse hits, as arrays of components.
 struct ShadingPoints {
-  alignas(32) float px[kShadowLanes], py[kShadowLanes], pz[kShadowLanes];  // Hit::p
-  alignas(32) float ex[kShadowLanes], ey[kShadowLanes], ez[kShadowLanes];  // Hit::p_err
-  alignas(32) float nx[kShadowLanes], ny[kShadowLanes], nz[kShadowLanes];  // geometric normal, facing the viewer
+  SpawnLanes at;  // where the shadow rays leave from (the normal faces the viewer)
   // Smooth lanes: the shading normal on the viewer's side (shading_normal.h, facing()) and its
   // cosine with the geometric one; flat lanes: ignored.
   alignas(32) float sx[kShadowLanes], sy[kShadowLanes], sz[kShadowLanes];

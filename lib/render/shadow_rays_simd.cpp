@@ -22,14 +22,14 @@ static_assert(kShadowLanes == 8);  // simd3's packet
 
 // offset_ray_origin (render/ray.h) of the lanes' points toward w.
 HWY_INLINE V3 offset_origin(DF df, const ShadingPoints& s, size_t i, const V3& w) {
-  return simd3::offset_origin(df, load3(df, s.px, s.py, s.pz, i), load3(df, s.ex, s.ey, s.ez, i),
-                              load3(df, s.nx, s.ny, s.nz, i), w);
+  return simd3::offset_origin(df, load3(df, s.at.px, s.at.py, s.at.pz, i), load3(df, s.at.ex, s.at.ey, s.at.ez, i),
+                              load3(df, s.at.nx, s.at.ny, s.at.nz, i), w);
 }
 
 // The cosine weight of light from w: dot(n, w) at flat lanes; smooth_light_cosine at smooth ones.
 HWY_INLINE V light_cosine(DF df, const ShadingPoints& s, size_t i, const V3& w) {
   const V zero = hn::Zero(df);
-  const V cos_g = dot(load3(df, s.nx, s.ny, s.nz, i), w);
+  const V cos_g = dot(load3(df, s.at.nx, s.at.ny, s.at.nz, i), w);
   const M smooth = simd3::flagged(df, s.smooth, i);
   if (hn::AllFalse(df, smooth)) return cos_g;
   const V cos_s = dot(load3(df, s.sx, s.sy, s.sz, i), w);
@@ -60,7 +60,7 @@ void PointLightRays(const ShadingPoints& s, const Vec3f& position, const SpotCon
   for (size_t i = 0; i < size_t(kShadowLanes); i += hn::Lanes(df)) {
     M live = live_lanes(df, s, i);
     // to = position - p; r2 = dot(to, to); w = to / sqrt(r2).
-    const V3 to = sub(light, load3(df, s.px, s.py, s.pz, i));
+    const V3 to = sub(light, load3(df, s.at.px, s.at.py, s.at.pz, i));
     const V r2 = dot(to, to);
     const V r = hn::Sqrt(r2);
     const V3 w{hn::Div(to.x, r), hn::Div(to.y, r), hn::Div(to.z, r)};

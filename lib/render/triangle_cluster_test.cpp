@@ -48,20 +48,28 @@ std::vector<Vec3f> fan(float r) {
   return v;
 }
 
-// For every SIMD target this machine runs: each lane of intersect_cluster returns exactly
-// (bit for bit) what the scalar watertight test returns for that triangle alone.
-TEST(TriangleCluster, EveryLaneEqualsTheScalarTestOnEveryTarget) {
-  std::mt19937 rng(7);
+// The meshes both lane tests run over: `count` clusters' worth of random triangles in [-4, 4]^3
+// (seeded), then the fans of radii r1 and r2.
+std::vector<std::vector<Vec3f>> test_meshes(unsigned seed, int count, float r1, float r2) {
+  std::mt19937 rng(seed);
   std::uniform_real_distribution<float> x(-4, 4);
-  std::uniform_int_distribution<int> count_of(1, TriangleCluster::kSize);
   std::vector<std::vector<Vec3f>> meshes;
-  for (int m = 0; m < 40; ++m) {
+  for (int m = 0; m < count; ++m) {
     std::vector<Vec3f> v;
     for (int i = 0; i < 3 * TriangleCluster::kSize; ++i) v.push_back({x(rng), x(rng), x(rng)});
     meshes.push_back(v);
   }
-  meshes.push_back(fan(1.0f));
-  meshes.push_back(fan(3.7f));
+  meshes.push_back(fan(r1));
+  meshes.push_back(fan(r2));
+  return meshes;
+}
+
+// For every SIMD target this machine runs: each lane of intersect_cluster returns exactly
+// (bit for bit) what the scalar watertight test returns for that triangle alone.
+TEST(TriangleCluster, EveryLaneEqualsTheScalarTestOnEveryTarget) {
+  std::uniform_real_distribution<float> x(-4, 4);
+  std::uniform_int_distribution<int> count_of(1, TriangleCluster::kSize);
+  const std::vector<std::vector<Vec3f>> meshes = test_meshes(7, 40, 1.0f, 3.7f);
   const std::vector<int64_t> targets = hwy::SupportedAndGeneratedTargets();
   ASSERT_FALSE(targets.empty());
   for (int64_t target : targets) {
@@ -138,16 +146,8 @@ TEST(TriangleCluster, SkipLeavesOutTheLaneHoldingThatTriangle) {
 // lanes at once), with ties between |d| components, zeros of either sign, and lanes leaving one of
 // the triangles.
 TEST(TriangleCluster, PacketLanesEqualTheOneRayTestOnEveryTarget) {
-  std::mt19937 rng(17);
   std::uniform_real_distribution<float> x(-4, 4);
-  std::vector<std::vector<Vec3f>> meshes;
-  for (int m = 0; m < 12; ++m) {
-    std::vector<Vec3f> v;
-    for (int i = 0; i < 3 * TriangleCluster::kSize; ++i) v.push_back({x(rng), x(rng), x(rng)});
-    meshes.push_back(v);
-  }
-  meshes.push_back(fan(1.0f));
-  meshes.push_back(fan(2.5f));
+  const std::vector<std::vector<Vec3f>> meshes = test_meshes(17, 12, 1.0f, 2.5f);
   // Directions whose axis choice is delicate: on an axis, either sign, zeros of either sign, and
   // equal magnitudes on two or three axes.
   const std::vector<Vec3f> special = {
