@@ -11,13 +11,16 @@
 //   checker is floor(x) + floor(y) + floor(z), shifted by half a unit in y so floor(y) = 0;
 // - glass: ior 1.5, reflection with exact Fresnel (fresnel on), conserve_energy so refraction
 //   gets 1 - R, clear filter (shadow rays pass unrefracted and unattenuated, as in Tessera);
-// - max_trace_level 9 = the camera ray plus Tessera's max_depth 8 bounces; adc_bailout 0;
+// - max_trace_level 9 = the camera ray plus Tessera's max_depth 8 bounces; adc_bailout at
+//   POV-Ray's default, 1/255: POV-Ray stops a ray whose weight falls below it (a hard cut-off),
+//   where Tessera plays Russian roulette below a weight of 0.01 (image.roulette_weight), so both
+//   skip the faint branches of the glass ball's tree as each does by default;
 // - assumed_gamma 1.0 and EXR output: linear light throughout.
 #version 3.7;
 #declare F = 0.001;
 #declare Scale = 1 / (2 * F * F) / pi;
 
-global_settings { assumed_gamma 1.0 max_trace_level 9 adc_bailout 0 ambient_light 0 }
+global_settings { assumed_gamma 1.0 max_trace_level 9 adc_bailout 1 / 255 ambient_light 0 }
 
 camera {
   perspective

@@ -81,10 +81,12 @@ TEST(Render, DirectionalLightIrradianceIsECosTheta) {
   for (float v : r.image.rgb) EXPECT_NEAR(v, expected, 1e-5 * expected);
 }
 
-std::string invisible_sphere_scene(const std::string& material) {
+// `roulette`: the scene's roulette_weight (0: every branch of the tree traced).
+std::string invisible_sphere_scene(const std::string& material, double roulette = 0.01, int spp = 4) {
   return R"({
     "camera": {"position": [0, 0, 4], "look_at": [0, 0, 0], "vfov_deg": 40},
-    "image": {"width": 48, "height": 48, "spp": 4, "max_depth": 64},
+    "image": {"width": 48, "height": 48, "spp": )" + std::to_string(spp) + R"(, "max_depth": 64,
+              "roulette_weight": )" + std::to_string(roulette) + R"(},
     "background": [0.3, 0.6, 0.9],
     "materials": {"m": )" + material + R"(},
     "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m"}]
@@ -112,8 +114,9 @@ TEST(Render, GlassOfIndexOneInUniformBackgroundIsInvisible) {
 TEST(Render, GlassSphereConservesEnergyInUniformBackground) {
   // Any ior: reflection + refraction partition energy exactly (R + T = 1), and every path
   // escapes to the uniform background, so the sphere vanishes up to the tail cut at max_depth
-  // (largest at grazing entry, where the internal reflectance approaches 1).
-  RenderScene rs(scene_from(invisible_sphere_scene(R"({"type": "glass", "ior": 1.5})")), 0);
+  // (largest at grazing entry, where the internal reflectance approaches 1). Every branch is
+  // traced: this is the tree's arithmetic, pixel by pixel (the roulette's average is the next test).
+  RenderScene rs(scene_from(invisible_sphere_scene(R"({"type": "glass", "ior": 1.5})", 0.0)), 0);
   const FrameResult r = render_frame(rs, 16, 2);
   double worst = 0, sum = 0;
   for (size_t i = 0; i < r.image.pixel_count(); ++i) {
@@ -125,6 +128,34 @@ TEST(Render, GlassSphereConservesEnergyInUniformBackground) {
               sum / double(r.image.pixel_count()));
   EXPECT_LT(worst, 2e-3);
   EXPECT_LT(sum / double(r.image.pixel_count()), 1e-5);
+}
+
+TEST(Render, RouletteCutsTheGlassTreeAndKeepsItsAverage) {
+  // The same invisible glass sphere with Russian roulette below a path weight of 0.01 (the
+  // default): single pixels now scatter around the background, but their average must not move
+  // (the roulette is unbiased: a kept branch counts 1/p times), while most of the internal
+  // reflections are no longer traced.
+  const std::string glass = R"({"type": "glass", "ior": 1.5})";
+  RenderScene all(scene_from(invisible_sphere_scene(glass, 0.0, 64)), 0);
+  RenderScene cut(scene_from(invisible_sphere_scene(glass, 0.01, 64)), 0);
+  const FrameResult a = render_frame(all, 16, 2), r = render_frame(cut, 16, 2);
+  const double n = double(r.image.pixel_count());
+  double mean = 0, worst = 0;
+  for (size_t i = 0; i < r.image.pixel_count(); ++i) {
+    const double d = r.image.rgb[3 * i + 1] - 0.6;
+    mean += d / n;
+    worst = std::max(worst, std::abs(d));
+  }
+  double var = 0;
+  for (size_t i = 0; i < r.image.pixel_count(); ++i) var += std::pow(r.image.rgb[3 * i + 1] - 0.6 - mean, 2) / (n - 1);
+  const uint64_t traced = r.rays.secondary, every = a.rays.secondary;
+  std::printf("roulette: %llu of %llu secondary rays, mean deviation %.3g (4 sigma %.3g), worst pixel %.3g\n",
+              (unsigned long long)traced, (unsigned long long)every, mean, 4 * std::sqrt(var / n), worst);
+  EXPECT_LT(double(traced), 0.6 * double(every));
+  EXPECT_GT(worst, 1e-4);  // the roulette did play: some pixel left the background
+  // The average over 2304 independent pixels: within 4 standard errors, plus the tree's own
+  // truncation at max_depth (under 1e-5 relative, the previous test).
+  EXPECT_LT(std::abs(mean), 4 * std::sqrt(var / n) + 0.6e-5);
 }
 
 TEST(Render, NoLightsAndBlackBackgroundIsExactlyBlack) {

@@ -47,6 +47,10 @@ struct ImageSettings {
   int height = 480;
   int spp = 16;       // samples per pixel of a uniform render (target_rmse == 0)
   int max_depth = 8;  // secondary bounces (reflection/refraction) after the camera ray's hit
+  // Russian roulette on reflection and refraction rays whose path weight (the largest channel of
+  // the reflectances, Fresnel factors and transmittances from the camera) is below this; 0
+  // traces every branch of the tree down to max_depth (render/integrator.cpp).
+  double roulette_weight = 0.01;
   uint64_t seed = 0;
   SamplerKind sampler = SamplerKind::kSobol;
   // Rendering to a target error (docs/renderer.md, "Rendering to a target error"), between

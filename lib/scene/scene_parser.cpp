@@ -291,6 +291,7 @@ void read_image(const JsonReader& img, const std::string& path, ImageSettings* s
   if (auto v = img.find("height")) s.height = int(v->integer_in(1, SceneLimits::kMaxResolution));
   if (auto v = img.find("spp")) s.spp = int(v->integer_in(1, SceneLimits::kMaxSpp));
   if (auto v = img.find("max_depth")) s.max_depth = int(v->integer_in(0, SceneLimits::kMaxDepth));
+  if (auto v = img.find("roulette_weight")) s.roulette_weight = v->number_in(0, 1);
   if (auto v = img.find("seed")) s.seed = uint64_t(v->integer_in(0, int64_t(1) << 53));
   if (auto v = img.find("sampler")) {
     s.sampler = *sampler_from_name(v->one_of({"sobol", "stratified", "cmj", "independent", "center"}));

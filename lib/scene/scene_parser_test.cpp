@@ -61,6 +61,17 @@ TEST(SceneParser, TargetErrorSettingsAndTheirErrors) {
   expect_error(with("\"materials\"", "\"image\": {\"min_spp\": 1}, \"materials\""), {"image.min_spp", "[2, 65536]"});
 }
 
+TEST(SceneParser, RouletteWeightDefaultsToAHundredthAndIsAWeightInZeroToOne) {
+  EXPECT_EQ(parse_scene(kMinimal, "ok.json").image.roulette_weight, 0.01);
+  EXPECT_EQ(parse_scene(with("\"materials\"", "\"image\": {\"roulette_weight\": 0}, \"materials\""), "ok.json")
+                .image.roulette_weight,
+            0.0);
+  expect_error(with("\"materials\"", "\"image\": {\"roulette_weight\": 1.5}, \"materials\""),
+               {"image.roulette_weight", "[0, 1]"});
+  expect_error(with("\"materials\"", "\"image\": {\"roulette_weight\": -0.1}, \"materials\""),
+               {"image.roulette_weight"});
+}
+
 TEST(SceneParser, TargetErrorOverridesAreCheckedWithTheFlagsNames) {
   auto apply = [](ImageOverrides o) {
     Scene s = parse_scene(kMinimal, "ok.json");

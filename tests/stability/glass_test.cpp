@@ -4,7 +4,9 @@
 // internal reflection outside; an ior-1 sphere leaves a lit, textured scene unchanged.
 // (Uniform-background invisibility and energy conservation of a glass sphere are in
 // lib/render/tile_renderer_test.cpp; the grazing-angle partial sums are in
-// self_intersection_test.cpp.)
+// self_intersection_test.cpp.) These scenes trace every branch of the tree (roulette_weight 0):
+// their claims are the tree's arithmetic, one path at a time, which the roulette's random cut
+// keeps only on average.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -34,7 +36,7 @@ double fresnel(double cos_i, double n_i, double n_t) {
 std::string slab_scene(double ior, int max_depth) {
   return R"({
     "camera": {"position": [0, 0, 5], "look_at": [0, 0, 0], "vfov_deg": 0.001},
-    "image": {"width": 1, "height": 1, "spp": 1, "sampler": "center", "max_depth": )" +
+    "image": {"width": 1, "height": 1, "spp": 1, "sampler": "center", "roulette_weight": 0, "max_depth": )" +
          std::to_string(max_depth) + R"(},
     "materials": {"g": {"type": "glass", "ior": )" + std::to_string(ior) + R"(},
                   "wall": {"type": "diffuse", "albedo": 0, "emission": 3}},

@@ -132,7 +132,7 @@ TEST_F(SelfIntersection, GlassSphereAtGrazingAnglesGivesTheExactTruncatedSum) {
   for (int D : {3, 8, 64}) {
     RenderScene rs(scene_from(R"({
       "camera": {"position": [0, 0, 0], "look_at": [0, 0, -1]},
-      "image": {"max_depth": )" + std::to_string(D) + R"(},
+      "image": {"max_depth": )" + std::to_string(D) + R"(, "roulette_weight": 0},
       "background": 1,
       "materials": {"g": {"type": "glass", "ior": 1.5}},
       "objects": [{"type": "sphere", "center": [0, 0, -10], "radius": 1, "material": "g"}]})"), 0);
