@@ -225,6 +225,7 @@ class RenderScene {
   TriangleBucket triangles_[2];  // [0] opaque, [1] glass
   SphereBucket sphere_buckets_[2];
   bool has_glass_ = false;
+  bool glass_planes_ = false;  // some plane is glass (glass_product walks the planes)
   std::unique_ptr<UserGeometryData> user_geometry_;
   float bounds_radius_ = 0;    // max |coordinate| of bounded geometry (triangles, spheres), render space
   float triangle_radius_ = 0;  // max |coordinate| of triangle vertices, render space

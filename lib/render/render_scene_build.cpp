@@ -146,7 +146,8 @@ void RenderScene::finish_tables() {
     plane_ids_.insert(plane_ids_.end(), {p.material, p.object});
   }
   has_glass_ = !triangles_[1].material_ids.empty() || !sphere_buckets_[1].ids.empty();
-  for (const Plane& p : planes_) has_glass_ = has_glass_ || is_glass(materials_[p.material]);
+  for (const Plane& p : planes_) glass_planes_ = glass_planes_ || is_glass(materials_[p.material]);
+  has_glass_ = has_glass_ || glass_planes_;
 }
 
 void RenderScene::measure_bounds() {
