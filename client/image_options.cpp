@@ -10,6 +10,9 @@ void add_image_options(CLI::App& cmd, ImageOptions& o) {
   cmd.add_option("--height", o.overrides.height, "Image height (overrides the scene)");
   cmd.add_option("--max-depth", o.overrides.max_depth, "Maximum reflection/refraction depth");
   cmd.add_option("--seed", o.overrides.seed, "Sampler seed");
+  cmd.add_option("--roulette-weight", o.overrides.roulette_weight,
+                 "Russian roulette on reflection/refraction rays below this path weight, in [0, 1] (default: the "
+                 "scene's, 0.01; 0 traces every branch)");
   cmd.add_option("--sampler", o.sampler,
                  "sobol (default; also called stratified), cmj, independent or center");
   cmd.add_option("--target-rmse", o.overrides.target_rmse,

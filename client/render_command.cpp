@@ -54,6 +54,7 @@ ExrAttributes render_attributes(const RenderArgs& a, const Scene& scene, const R
                       {"tessera:scene", std::filesystem::path(a.scene).filename().string()},
                       {"tessera:frame", int64_t(a.frame)},
                       {"tessera:maxDepth", int64_t(scene.image.max_depth)},
+                      {"tessera:rouletteWeight", scene.image.roulette_weight},
                       {"tessera:sampler", std::string(sampler_name(scene.image.sampler))},
                       {"tessera:triangleTest", std::string(triangle_test_name(options.triangles))},
                       {"tessera:seed", std::to_string(scene.image.seed)},

@@ -13,6 +13,7 @@ void to_proto(const ImageOverrides& o, tessera::v1::ImageOverrides* out) {
   if (o.block_rmse) out->set_block_rmse(*o.block_rmse);
   if (o.min_spp) out->set_min_spp(*o.min_spp);
   if (o.max_spp) out->set_max_spp(*o.max_spp);
+  if (o.roulette_weight) out->set_roulette_weight(*o.roulette_weight);
 }
 
 ImageOverrides from_proto(const tessera::v1::ImageOverrides& o) {
@@ -33,6 +34,7 @@ ImageOverrides from_proto(const tessera::v1::ImageOverrides& o) {
   if (o.has_block_rmse()) out.block_rmse = o.block_rmse();
   if (o.has_min_spp()) out.min_spp = o.min_spp();
   if (o.has_max_spp()) out.max_spp = o.max_spp();
+  if (o.has_roulette_weight()) out.roulette_weight = o.roulette_weight();
   return out;
 }
 

@@ -86,6 +86,33 @@ TEST(Codec, GltfOptionsRoundTripAndBadValuesNameTheField) {
   EXPECT_EQ(error(bad), "accepted");
 }
 
+// The roulette's weight crosses the wire as given (0 included: "trace every branch" is a value,
+// not an absent field), and the worker's apply_overrides refuses what the CLI would.
+TEST(Codec, RouletteWeightOverrideRoundTripsAndIsCheckedWhereItIsApplied) {
+  ImageOverrides o;
+  o.roulette_weight = 0.0;
+  tessera::v1::ImageOverrides wire;
+  to_proto(o, &wire);
+  ASSERT_TRUE(wire.has_roulette_weight());
+  const ImageOverrides back = from_proto(wire);
+  ASSERT_TRUE(back.roulette_weight.has_value());
+  EXPECT_EQ(*back.roulette_weight, 0.0);
+  EXPECT_FALSE(from_proto(tessera::v1::ImageOverrides{}).roulette_weight.has_value());
+  Scene s = parse_scene(R"({"camera": {"position": [0, 0, 1], "look_at": [0, 0, 0]}, "materials": {}, "objects": []})",
+                        "ok.json");
+  apply_overrides(s, back);
+  EXPECT_EQ(s.image.roulette_weight, 0.0);
+  for (double bad : {-0.5, 1.5, std::nan("")}) {
+    wire.set_roulette_weight(bad);
+    try {
+      apply_overrides(s, from_proto(wire));
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find("--roulette-weight: must be in [0, 1]"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TileResult rendered_tile(int w, int h, bool uniform_spp) {
   TileResult t;
   t.rect = {8, 4, w, h};

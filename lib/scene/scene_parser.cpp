@@ -559,6 +559,14 @@ void apply_overrides(Scene& scene, const ImageOverrides& o) {
   if (o.spp) { check("spp", *o.spp, 1, SceneLimits::kMaxSpp); scene.image.spp = *o.spp; }
   if (o.max_depth) { check("max-depth", *o.max_depth, 0, SceneLimits::kMaxDepth); scene.image.max_depth = *o.max_depth; }
   if (o.seed) scene.image.seed = *o.seed;
+  if (o.roulette_weight) {
+    // NaN fails both comparisons.
+    if (!(*o.roulette_weight >= 0 && *o.roulette_weight <= 1)) {
+      throw SceneError("--roulette-weight: must be in [0, 1] (a path weight; 0 traces every branch), got " +
+                       std::to_string(*o.roulette_weight));
+    }
+    scene.image.roulette_weight = *o.roulette_weight;
+  }
   if (o.sampler) scene.image.sampler = *o.sampler;
   if (o.target_rmse && o.block_rmse) {
     throw SceneError("--target-rmse and --block-rmse conflict: a render is held to the frame's error or to every "

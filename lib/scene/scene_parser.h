@@ -21,6 +21,7 @@ struct ImageOverrides {
   std::optional<SamplerKind> sampler;
   std::optional<double> target_rmse, block_rmse;
   std::optional<int> min_spp, max_spp;
+  std::optional<double> roulette_weight;
 };
 
 // The scene in a file: a glTF file (.gltf, .glb) as a whole scene (gltf_scene.h), any other as
