@@ -105,7 +105,10 @@ void roulette(const Material& m, float weight, float t, const PixelSampler& samp
   sampler.get_2d(hash_combine(node, kRouletteDim), &u[0], &u[1]);
   for (int k = 0; k < 2; ++k) {
     if (!*sent[k] || !(w[k] < t)) continue;
-    if (u[k] * t < w[k]) {
+    // A weight under t * 2^-24 (the smallest step of u) would survive only on u == 0, with a
+    // scale that can overflow to infinity: such a branch is dropped, a bias of at most that weight
+    // times its radiance (6e-10 of it at t = 0.01).
+    if (w[k] >= t * 0x1p-24f && u[k] * t < w[k]) {
       scale[k] = t / w[k];
       w[k] = t;
     } else {
