@@ -226,6 +226,9 @@ class RenderScene {
   SphereBucket sphere_buckets_[2];
   bool has_glass_ = false;
   bool glass_planes_ = false;  // some plane is glass (glass_product walks the planes)
+  // Whether a shadow ray whose Embree query collected `hits` can have crossed glass: if not,
+  // its transmittance is 1 without glass_product's walk.
+  bool may_cross_glass(const GlassHits& hits) const;
   std::unique_ptr<UserGeometryData> user_geometry_;
   float bounds_radius_ = 0;    // max |coordinate| of bounded geometry (triangles, spheres), render space
   float triangle_radius_ = 0;  // max |coordinate| of triangle vertices, render space

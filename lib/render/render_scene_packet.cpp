@@ -187,9 +187,8 @@ void RenderScene::transmittance_packet(const Ray* rays, const PrimRef* from, int
     if (!open[i]) continue;
     if (valid[i] && r.tfar[i] < 0.0f) {
       T[i] = Rgb(0.0f);
-    } else if (!has_glass_ || (!glass_planes_ && glass[i].count == 0 && !glass[i].overflow)) {
-      // No glass crossed: glass_product's answer, 1, without its set-up (most shadow rays).
-      T[i] = Rgb(1.0f);
+    } else if (!has_glass_ || !may_cross_glass(glass[i])) {
+      T[i] = Rgb(1.0f);  // glass_product's answer, without its set-up (most shadow rays)
     } else {
       TraceContext one;
       rtcInitIntersectContext(&one.rtc);

@@ -54,9 +54,13 @@ Rgb RenderScene::transmittance(const Ray& ray, const PrimRef& from) const {
     rtcOccluded1(rtc_scene_.get(), &ctx.rtc, &r);
     if (r.tfar < 0.0f) return Rgb(0.0f);
   }
-  if (!has_glass_) return Rgb(1.0f);
+  if (!has_glass_ || !may_cross_glass(glass)) return Rgb(1.0f);
   ctx.glass = nullptr;
   return glass_product(ray, &ctx, &glass);
+}
+
+bool RenderScene::may_cross_glass(const GlassHits& hits) const {
+  return glass_planes_ || hits.count > 0 || hits.overflow;
 }
 
 Rgb RenderScene::glass_product(const Ray& ray, TraceContext* ctx, GlassHits* glass_hits) const {
