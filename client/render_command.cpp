@@ -125,6 +125,7 @@ int run_render(const RenderArgs& a) {
     std::cerr << "tessera render: --error-channels needs a float EXR output (-o ending in .exr, no --format)\n";
     return 2;
   }
+  set_exr_threads(a.threads);  // the EXR's compression runs on as many threads as the render
   try {
     if (float_exr) {
       const ErrorChannels channels =

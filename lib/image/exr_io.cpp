@@ -8,17 +8,36 @@
 #include <ImfIntAttribute.h>
 #include <ImfOutputFile.h>
 #include <ImfStringAttribute.h>
+#include <ImfThreading.h>
 #include <Iex.h>
 #include <half.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <cmath>
+#include <mutex>
+#include <thread>
 #include <vector>
 
 namespace tessera {
 
 namespace {
+
+std::mutex exr_threads_mutex;
+int exr_threads_wanted = 0;  // 0: one per hardware thread
+bool exr_threads_set = false;
+
+// OpenEXR's global thread count, set once before the first file this process reads or writes
+// (or again after set_exr_threads changes it): the files then share the pool.
+int exr_threads() {
+  std::lock_guard lock(exr_threads_mutex);
+  const int n = exr_threads_wanted > 0 ? exr_threads_wanted : int(std::max(1u, std::thread::hardware_concurrency()));
+  if (!exr_threads_set) {
+    Imf::setGlobalThreadCount(n);
+    exr_threads_set = true;
+  }
+  return n;
+}
 
 half to_half_clamped(float v) {
   if (std::isnan(v)) return half(0.0f);
@@ -27,6 +46,12 @@ half to_half_clamped(float v) {
 }
 
 }  // namespace
+
+void set_exr_threads(int threads) {
+  std::lock_guard lock(exr_threads_mutex);
+  exr_threads_wanted = std::max(0, threads);
+  exr_threads_set = false;
+}
 
 void write_exr(const std::string& path, const ImageRGB& image, const ExrAttributes& attributes,
                ExrPixelType type, const std::vector<ExrChannel>& extra) {
@@ -88,7 +113,7 @@ void write_exr(const std::string& path, const ImageRGB& image, const ExrAttribut
       fb.insert(c.name, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(c.values->data())),
                                    sizeof(float), sizeof(float) * size_t(image.width)));
     }
-    Imf::OutputFile file(path.c_str(), header);
+    Imf::OutputFile file(path.c_str(), header, exr_threads());
     file.setFrameBuffer(fb);
     file.writePixels(image.height);
   } catch (const ExrError&) {
@@ -100,7 +125,7 @@ void write_exr(const std::string& path, const ImageRGB& image, const ExrAttribut
 
 ImageRGB read_exr(const std::string& path, ExrAttributes* attributes) {
   try {
-    Imf::InputFile file(path.c_str());
+    Imf::InputFile file(path.c_str(), exr_threads());
     const Imath::Box2i dw = file.header().dataWindow();
     const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
     ImageRGB image(w, h);
@@ -135,7 +160,7 @@ ImageRGB read_exr(const std::string& path, ExrAttributes* attributes) {
 
 std::vector<float> read_exr_channel(const std::string& path, const std::string& name) {
   try {
-    Imf::InputFile file(path.c_str());
+    Imf::InputFile file(path.c_str(), exr_threads());
     if (!file.header().channels().findChannel(name)) throw ExrError(path + " has no channel " + name);
     const Imath::Box2i dw = file.header().dataWindow();
     const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;

@@ -4,6 +4,9 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
 
 namespace tessera {
 namespace {
@@ -25,6 +28,33 @@ TEST(ExrIo, FloatRoundTripIsExactAndKeepsAttributes) {
   EXPECT_EQ(std::get<int64_t>(attrs.at("spp")), 16);
   EXPECT_DOUBLE_EQ(std::get<double>(attrs.at("renderTimeSeconds")), 1.25);
   std::filesystem::remove(path);
+}
+
+// Many ZIP line blocks (16 rows each), compressed on one thread and on four: the same bytes, and
+// they read back exactly with either count.
+TEST(ExrIo, TheBytesDoNotDependOnTheThreadCount) {
+  ImageRGB img(61, 203);
+  for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = std::sin(float(i) * 0.37f) * float(i % 97);
+  const std::vector<float> extra(img.pixel_count(), 3.5f);
+  const auto dir = std::filesystem::temp_directory_path();
+  auto bytes = [](const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  std::string written[2];
+  for (int k = 0; k < 2; ++k) {
+    set_exr_threads(k == 0 ? 1 : 4);
+    const auto path = dir / ("tessera_exr_threads_" + std::to_string(k) + ".exr");
+    write_exr(path.string(), img, {{"spp", int64_t(4)}}, ExrPixelType::kFloat, {{"error.Y", &extra}});
+    written[k] = bytes(path);
+    set_exr_threads(k == 0 ? 4 : 1);
+    EXPECT_EQ(read_exr(path.string()).rgb, img.rgb);
+    EXPECT_EQ(read_exr_channel(path.string(), "error.Y"), extra);
+    std::filesystem::remove(path);
+  }
+  set_exr_threads(0);
+  ASSERT_GT(written[0].size(), 1000u);
+  EXPECT_EQ(written[0], written[1]);
 }
 
 TEST(ExrIo, HalfClampsInsteadOfWritingInf) {
