@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "render/fresnel.h"
+#include "render/ray_lanes.h"
 #include "render/secondary_rays.h"
 #include "render/shadow_rays.h"
 #include "render/shading_normal.h"
@@ -117,54 +118,54 @@ void roulette(const Material& m, float weight, float t, const PixelSampler& samp
   }
 }
 
-// Sets *sec, and writes the rays it sends into *reflected and *refracted (left as they are when
-// not sent): straight into the children's packets, where a copy of a just-written ray cost a
-// store-forwarding stall per lane (measured with perf).
-void plan_secondary(const Context& c, const Ray& ray, const Hit& hit, int depth, Secondary* sec, Ray* reflected,
-                    Ray* refracted) {
+// Sets *sec for a hit reached along direction `d`, and writes the rays it sends into lane
+// `lane[0]` of *reflected and `lane[1]` of *refracted (left as they are when not sent): straight
+// into the children's packets.
+void plan_secondary(const Context& c, const Vec3f& d, const Hit& hit, int depth, Secondary* sec, RayLanes* reflected,
+                    RayLanes* refracted, const int lane[2]) {
   Secondary& out = *sec;
   out.reflect = out.refract = false;
   const Material& m = c.scene.material(hit.material);
   if (m.type == Material::Type::kDiffuse || depth >= c.scene.image().max_depth) return;
   // The normal says which side is outside; shading happens on the side the ray came from.
-  const bool front = dot(ray.d, hit.n) < 0.0f;
+  const bool front = dot(d, hit.n) < 0.0f;
   const Vec3f n_facing = front ? hit.n : -hit.n;
   // Mirrors and glass turn rays about this normal, kept on their side of the facet (shading_normal.h).
-  const Vec3f n_turn = hit.smooth ? turning_normal(n_facing, facing(hit.ns, hit.n, n_facing), ray.d) : n_facing;
+  const Vec3f n_turn = hit.smooth ? turning_normal(n_facing, facing(hit.ns, hit.n, n_facing), d) : n_facing;
   if (m.type == Material::Type::kMirror) {
-    Vec3f w = normalize(reflect(ray.d, n_turn));
-    if (hit.smooth) w = keep_side(w, n_facing, true, normalize(reflect(ray.d, n_facing)));
+    Vec3f w = normalize(reflect(d, n_turn));
+    if (hit.smooth) w = keep_side(w, n_facing, true, normalize(reflect(d, n_facing)));
     out.reflect = true;
-    *reflected = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
+    reflected->set(lane[0], offset_ray_origin(hit.p, hit.p_err, n_facing, w), w);
     return;
   }
   // Glass. Outside is vacuum/air (index 1).
   const float eta_i = front ? 1.0f : float(m.ior), eta_t = front ? float(m.ior) : 1.0f;
-  const float cos_i = -dot(ray.d, n_turn);
+  const float cos_i = -dot(d, n_turn);
   float cos_t = 0.0f;
   out.R = fresnel_dielectric(cos_i, eta_i, eta_t, &cos_t);
   if (out.R > 0.0f) {
-    Vec3f w = normalize(reflect(ray.d, n_turn));
-    if (hit.smooth) w = keep_side(w, n_facing, true, normalize(reflect(ray.d, n_facing)));
+    Vec3f w = normalize(reflect(d, n_turn));
+    if (hit.smooth) w = keep_side(w, n_facing, true, normalize(reflect(d, n_facing)));
     out.reflect = true;
-    *reflected = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
+    reflected->set(lane[0], offset_ray_origin(hit.p, hit.p_err, n_facing, w), w);
   }
   if (out.R < 1.0f) {
-    Vec3f w = refract(ray.d, n_turn, eta_i / eta_t, cos_i, cos_t);
-    if (hit.smooth) w = keep_side(w, n_facing, false, ray.d);
+    Vec3f w = refract(d, n_turn, eta_i / eta_t, cos_i, cos_t);
+    if (hit.smooth) w = keep_side(w, n_facing, false, d);
     out.refract = true;
-    *refracted = {offset_ray_origin(hit.p, hit.p_err, n_facing, w), w};
+    refracted->set(lane[1], offset_ray_origin(hit.p, hit.p_err, n_facing, w), w);
   }
 }
 
-// Radiance leaving `hit` back along `ray`, from the hit's direct lighting (diffuse; before
-// albedo/pi) and the radiance its secondary rays brought back (mirror, glass).
-Rgb shade(const Context& c, const Ray& ray, const Hit& hit, const Rgb& direct, const Secondary& sec,
+// Radiance leaving `hit` back along the arriving direction `d`, from the hit's direct lighting
+// (diffuse; before albedo/pi) and the radiance its secondary rays brought back (mirror, glass).
+Rgb shade(const Context& c, const Vec3f& d, const Hit& hit, const Rgb& direct, const Secondary& sec,
           const Rgb& reflected, const Rgb& refracted) {
   const RenderScene& s = c.scene;
   const Material& m = s.material(hit.material);
   // Emitters are seen from their front only.
-  const bool front = dot(ray.d, hit.n) < 0.0f;
+  const bool front = dot(d, hit.n) < 0.0f;
   Rgb L = front ? m.emission : Rgb(0.0f);
   switch (m.type) {
     case Material::Type::kDiffuse: {
@@ -188,7 +189,7 @@ Rgb shade(const Context& c, const Ray& ray, const Hit& hit, const Rgb& direct, c
 // (render/secondary_rays.h); whether there are any. Other lanes, and a lone flat lane (it costs
 // less through plan_secondary, the same arithmetic, so the same bits), are left to
 // plan_secondary.
-bool turning_points(const RenderScene& scene, const Ray* rays, const Hit* hits, const bool* found, int n, int depth,
+bool turning_points(const RenderScene& scene, const RayLanes& rays, const Hit* hits, const bool* found, int n, int depth,
                     TurningPoints* out) {
   constexpr int P = RenderScene::kPacket;
   TurningPoints& tp = *out;
@@ -209,9 +210,10 @@ bool turning_points(const RenderScene& scene, const Ray* rays, const Hit* hits, 
     const bool flat = tp.live[i] != 0;
     const Material* mat = flat ? &scene.material(h.material) : nullptr;
     // Other lanes hold zeros: computed on, never used.
-    const bool front = flat && dot(rays[i].d, h.n) < 0.0f;
+    const Vec3f ray_d = rays.d(i);
+    const bool front = flat && dot(ray_d, h.n) < 0.0f;
     const Vec3f nf = !flat ? Vec3f(0.0f) : front ? h.n : -h.n;
-    const Vec3f p = flat ? h.p : Vec3f(0.0f), e = flat ? h.p_err : Vec3f(0.0f), d = flat ? rays[i].d : Vec3f(0.0f);
+    const Vec3f p = flat ? h.p : Vec3f(0.0f), e = flat ? h.p_err : Vec3f(0.0f), d = flat ? ray_d : Vec3f(0.0f);
     tp.at.set(i, p, e, nf);
     tp.dx[i] = d.x, tp.dy[i] = d.y, tp.dz[i] = d.z;
     const bool glass = flat && mat->type == Material::Type::kGlass;
@@ -235,7 +237,7 @@ bool turning_points(const RenderScene& scene, const Ray* rays, const Hit* hits, 
 // initializers) cost more than the packet's Embree traversal (measured on the Whitted scene).
 struct PacketFrame {
   static constexpr int P = RenderScene::kPacket;
-  static_assert(P == kShadowLanes && P == kTurnLanes);
+  static_assert(P == kShadowLanes && P == kTurnLanes && P == kRayLanes);
   Hit hits[P];
   bool found[P];
   Rgb direct[P];
@@ -243,13 +245,13 @@ struct PacketFrame {
   Rgb child_L[2][P];
   Rgb child_out[P];  // a child packet's results, by its own lanes
   // The reflection [0] and refraction [1] packets: rays, origin primitives, samplers, lanes.
-  Ray child_r[2][P];
+  RayLanes child_r[2];
   PrimRef child_f[2][P];
   const PixelSampler* child_smp[2][P];
   int child_lane[2][P];
   float child_w[2][P];
   float child_scale[2][P];
-  Ray r[P];  // a shadow packet's rays and their origin primitives
+  RayLanes r;  // a shadow packet's rays and their origin primitives
   PrimRef f[P];
   Rgb T[P];
   Rgb qa[P];  // the queued shadow rays' weights a and b (ShadowQuery's), by packet lane
@@ -266,7 +268,7 @@ std::vector<PacketFrame>& packet_frames() {
   return frames;
 }
 
-void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* from, const PixelSampler* const* samplers,
+void radiance_packet(const RenderScene& scene, const RayLanes& rays, const PrimRef* from, const PixelSampler* const* samplers,
                      const float* weight, int n, int depth, uint64_t node, RayCounts* counts, Rgb* out) {
   constexpr int P = RenderScene::kPacket;
   PacketFrame& fr = packet_frames()[size_t(depth)];  // sized by trace_radiance_packet
@@ -287,7 +289,7 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
     const bool diffuse = i < n && found[i] && scene.material(hits[i].material).type == Material::Type::kDiffuse;
     const Hit& h = hits[i];
     // Lanes without a diffuse hit hold zeros: computed on, never traced.
-    const Vec3f n_f = !diffuse ? Vec3f(0.0f) : dot(rays[i].d, h.n) < 0.0f ? h.n : -h.n;
+    const Vec3f n_f = !diffuse ? Vec3f(0.0f) : dot(rays.d(i), h.n) < 0.0f ? h.n : -h.n;
     const Vec3f ns_f = diffuse && h.smooth ? facing(h.ns, h.n, n_f) : n_f;
     const Vec3f p = diffuse ? h.p : Vec3f(0.0f), e = diffuse ? h.p_err : Vec3f(0.0f);
     sp.at.set(i, p, e, n_f);
@@ -310,7 +312,7 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
     queued = 0;
   };
   auto queue = [&](int lane, const Ray& ray, const Rgb& a, float b) {
-    fr.r[queued] = ray;
+    fr.r.set(queued, ray);
     fr.qa[queued] = a;
     fr.qb[queued] = b;
     fr.lane_of[queued++] = lane;
@@ -320,8 +322,11 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
   auto queue_lanes = [&](const ShadowRays& sr, const Rgb& intensity, bool spot) {
     for (int i = 0; i < n; ++i) {
       if (!sr.live[i]) continue;
-      queue(i, {{sr.ox[i], sr.oy[i], sr.oz[i]}, {sr.dx[i], sr.dy[i], sr.dz[i]}, sr.tmax[i]},
-            spot ? intensity * sr.cone[i] : intensity, sr.b[i]);
+      fr.r.set(queued, {sr.ox[i], sr.oy[i], sr.oz[i]}, {sr.dx[i], sr.dy[i], sr.dz[i]}, sr.tmax[i]);
+      fr.qa[queued] = spot ? intensity * sr.cone[i] : intensity;
+      fr.qb[queued] = sr.b[i];
+      fr.lane_of[queued++] = i;
+      if (queued == P) flush();
     }
   };
   if (any) {
@@ -366,11 +371,11 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
       sec[i].reflect = tr.reflect[i] != 0;
       sec[i].refract = tr.refract[i] != 0;
       sec[i].R = tr.R[i];  // glass only (shade reads it for glass)
-      if (sec[i].reflect) fr.child_r[0][m[0]] = {{tr.rox[i], tr.roy[i], tr.roz[i]}, {tr.rdx[i], tr.rdy[i], tr.rdz[i]}};
-      if (sec[i].refract) fr.child_r[1][m[1]] = {{tr.tox[i], tr.toy[i], tr.toz[i]}, {tr.tdx[i], tr.tdy[i], tr.tdz[i]}};
+      if (sec[i].reflect) fr.child_r[0].set(m[0], {tr.rox[i], tr.roy[i], tr.roz[i]}, {tr.rdx[i], tr.rdy[i], tr.rdz[i]});
+      if (sec[i].refract) fr.child_r[1].set(m[1], {tr.tox[i], tr.toy[i], tr.toz[i]}, {tr.tdx[i], tr.tdy[i], tr.tdz[i]});
     } else {
-      plan_secondary({scene, *samplers[i], counts}, rays[i], hits[i], depth, &sec[i], &fr.child_r[0][m[0]],
-                     &fr.child_r[1][m[1]]);
+      plan_secondary({scene, *samplers[i], counts}, rays.d(i), hits[i], depth, &sec[i], &fr.child_r[0], &fr.child_r[1],
+                     m);
     }
     if (!sec[i].reflect && !sec[i].refract) continue;
     float w[2] = {0.0f, 0.0f}, scale[2] = {1.0f, 1.0f};
@@ -401,7 +406,7 @@ void radiance_packet(const RenderScene& scene, const Ray* rays, const PrimRef* f
       continue;
     }
     const Context c{scene, *samplers[i], counts};
-    out[i] = shade(c, rays[i], hits[i], direct[i], sec[i], fr.child_L[0][i], fr.child_L[1][i]);
+    out[i] = shade(c, rays.d(i), hits[i], direct[i], sec[i], fr.child_L[0][i], fr.child_L[1][i]);
   }
 }
 
@@ -414,6 +419,13 @@ Rgb trace_radiance(const RenderScene& scene, const Ray& ray, const PixelSampler&
 }
 
 void trace_radiance_packet(const RenderScene& scene, const Ray* rays, const PixelSampler* samplers, int n,
+                           RayCounts* counts, Rgb* out) {
+  RayLanes lanes;
+  for (int i = 0; i < n; ++i) lanes.set(i, rays[i]);
+  trace_radiance_packet(scene, lanes, samplers, n, counts, out);
+}
+
+void trace_radiance_packet(const RenderScene& scene, const RayLanes& rays, const PixelSampler* samplers, int n,
                            RayCounts* counts, Rgb* out) {
   constexpr int P = RenderScene::kPacket;
   const PrimRef none[P] = {};

@@ -9,6 +9,8 @@
 
 namespace tessera {
 
+struct RayLanes;
+
 // Radiance arriving at the eye along `ray` for one pixel sample: a packet of one.
 Rgb trace_radiance(const RenderScene& scene, const Ray& ray, const PixelSampler& sampler, RayCounts* counts);
 
@@ -20,6 +22,10 @@ Rgb trace_radiance(const RenderScene& scene, const Ray& ray, const PixelSampler&
 // not depend on the other lanes. Pack rays as a pure function of the pixel (see
 // RenderScene::intersect_packet).
 void trace_radiance_packet(const RenderScene& scene, const Ray* rays, const PixelSampler* samplers, int n,
+                           RayCounts* counts, Rgb* out);
+// The same with the rays as arrays of components (render/ray_lanes.h), as the tile renderer
+// makes camera rays: the form every stage reads them in.
+void trace_radiance_packet(const RenderScene& scene, const RayLanes& rays, const PixelSampler* samplers, int n,
                            RayCounts* counts, Rgb* out);
 
 }  // namespace tessera

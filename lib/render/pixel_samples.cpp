@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "render/integrator.h"
+#include "render/ray_lanes.h"
 #include "tile/bfloat16.h"
 
 namespace tessera {
@@ -27,13 +29,18 @@ void render_samples(const RenderScene& scene, const TileRect& pixels, uint32_t f
   PixelSampler samplers[P];
   PixelEstimate* lane_est[P];
   uint32_t lane_sample[P];
+  // Made once, not per packet: lanes past a packet's n keep finite values from earlier packets
+  // (zeros at first), computed on and never traced. Zero-filling them per packet was a tenth of
+  // this function's instructions.
+  alignas(32) float su[P] = {}, sv[P] = {}, fx[P] = {}, fy[P] = {};
+  OwenSobolLanes sobol = {};
+  RayLanes r;  // camera rays: origin 0, tmax infinite
+  std::fill(r.tmax, r.tmax + P, std::numeric_limits<float>::infinity());
   while (y < pixels.y0 + pixels.height) {
     // One packet: the next P samples in (pixel, sample) order, across pixels when a pixel has
     // fewer samples left than lanes, so packets stay full at low sample counts. A lane's result
     // depends only on its own ray and sampler (integrator.h), so how samples share packets
     // changes no bit; the estimates still take each pixel's samples in sample order.
-    alignas(32) float su[P] = {}, sv[P] = {}, fx[P] = {}, fy[P] = {};
-    OwenSobolLanes sobol = {};
     int n = 0;
     for (; n < P && y < pixels.y0 + pixels.height; ++n) {
       samplers[n] = PixelSampler(img.sampler, key, s, uint32_t(img.spp));
@@ -64,7 +71,7 @@ void render_samples(const RenderScene& scene, const TileRect& pixels, uint32_t f
     // Camera rays for all P lanes at once (a fixed trip count the compiler vectorizes: its
     // divisions and square roots were a sixth of a primary-ray-bound frame). The arithmetic per
     // lane is the scalar normalize(p0 + du u + dv v), operation for operation.
-    alignas(32) float dx[P], dy[P], dz[P];
+    // The directions go straight into the packet's arrays (render/ray_lanes.h).
     for (int i = 0; i < P; ++i) {
       const float u = (fx[i] + su[i]) / float(img.width);
       const float v = (fy[i] + sv[i]) / float(img.height);
@@ -72,13 +79,11 @@ void render_samples(const RenderScene& scene, const TileRect& pixels, uint32_t f
       const float py = cam.p0.y + cam.du.y * u + cam.dv.y * v;
       const float pz = cam.p0.z + cam.du.z * u + cam.dv.z * v;
       const float len = std::sqrt(px * px + py * py + pz * pz);
-      dx[i] = px / len;
-      dy[i] = py / len;
-      dz[i] = pz / len;
+      r.dx[i] = px / len;
+      r.dy[i] = py / len;
+      r.dz[i] = pz / len;
     }
-    Ray r[P];
     Rgb Ls[P];
-    for (int i = 0; i < n; ++i) r[i] = {Vec3f(0.0f), Vec3f(dx[i], dy[i], dz[i])};
     rays->camera += uint64_t(n);
     trace_radiance_packet(scene, r, samplers, n, rays, Ls);
     for (int i = 0; i < n; ++i) {

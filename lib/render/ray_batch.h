@@ -21,6 +21,20 @@ struct RayBatch {
   alignas(64) uint8_t skip[kRayBatch];  // 1: not traced (answered elsewhere): a miss here
 };
 
+// A view of rays held as arrays of components: a RayBatch's, or a packet's (render/ray_lanes.h).
+// The SIMD arithmetic of render/ray_batch_simd.h reads rays through it, so the ray service's
+// batches and the integrator's packets share one implementation without copying rays between
+// layouts.
+struct RayArrays {
+  const float *ox, *oy, *oz;
+  const float *dx, *dy, *dz;
+  const float* tmax;
+  RayArrays(const float* ox_, const float* oy_, const float* oz_, const float* dx_, const float* dy_, const float* dz_,
+            const float* tmax_)
+      : ox(ox_), oy(oy_), oz(oz_), dx(dx_), dy(dy_), dz(dz_), tmax(tmax_) {}
+  RayArrays(const RayBatch& b) : RayArrays(b.ox, b.oy, b.oz, b.dx, b.dy, b.dz, b.tmax) {}  // NOLINT: a view of it
+};
+
 // What the ray service reports of a hit, for the rays of a RayBatch.
 struct HitBatch {
   // kMiss: no hit. kAnswered: the arrays hold intersect()'s t, p, n, u, v, material and the

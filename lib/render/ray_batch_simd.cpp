@@ -15,7 +15,7 @@ namespace tessera {
 namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
-void BatchNearestPlanes(const RayBatch& r, size_t n, const PlaneTable& planes, double* tp_out, int32_t* plane_out,
+void BatchNearestPlanes(const RayArrays& r, size_t n, const PlaneTable& planes, double* tp_out, int32_t* plane_out,
                         float* tfar_out, const int32_t* exclude) {
   const hn::ScalableTag<double> dd;
   const hn::Rebind<float, decltype(dd)> df;
@@ -147,7 +147,7 @@ HWY_INLINE void store_analytic_hit(const Tags& g, const Selected& sel, hn::Vec<d
 struct Point64 {
   hn::Vec<decltype(Tags::dd)> x, y, z;
 };
-HWY_INLINE Point64 along(const Tags& g, const RayBatch& r, hn::Vec<decltype(Tags::dd)> t, size_t i) {
+HWY_INLINE Point64 along(const Tags& g, const RayArrays& r, hn::Vec<decltype(Tags::dd)> t, size_t i) {
   auto at = [&](const float* o, const float* d) {
     return hn::Add(hn::PromoteTo(g.dd, hn::LoadU(g.df, o + i)), hn::Mul(hn::PromoteTo(g.dd, hn::LoadU(g.df, d + i)), t));
   };
@@ -160,7 +160,7 @@ struct PlanePoint {
   Point64 p;
   hn::Vec<decltype(Tags::dd)> nx, ny, nz;
 };
-HWY_INLINE PlanePoint plane_point(const Tags& g, const RayBatch& r, const Selected& sel, const int32_t* plane,
+HWY_INLINE PlanePoint plane_point(const Tags& g, const RayArrays& r, const Selected& sel, const int32_t* plane,
                                   hn::Vec<decltype(Tags::dd)> tp, const PlaneTable& planes, size_t i) {
   const auto k = index64(g, sel, plane, i);
   const auto k6 = hn::Add(hn::ShiftLeft<2>(k), hn::ShiftLeft<1>(k));  // 6 doubles a plane
@@ -175,7 +175,7 @@ HWY_INLINE PlanePoint plane_point(const Tags& g, const RayBatch& r, const Select
   return {{hn::Sub(p.x, hn::Mul(nx, s)), hn::Sub(p.y, hn::Mul(ny, s)), hn::Sub(p.z, hn::Mul(nz, s))}, nx, ny, nz};
 }
 
-void BatchPlaneHits(const RayBatch& r, const uint32_t* select, uint32_t which, const double* tp_in,
+void BatchPlaneHits(const RayArrays& r, const uint32_t* select, uint32_t which, const double* tp_in,
                       const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* h) {
   const Tags g;
   const size_t N = hn::Lanes(g.dd);
@@ -192,7 +192,7 @@ void BatchPlaneHits(const RayBatch& r, const uint32_t* select, uint32_t which, c
   }
 }
 
-void BatchPlanePoints(const RayBatch& r, const uint32_t* select, uint32_t which, const double* tp_in,
+void BatchPlanePoints(const RayArrays& r, const uint32_t* select, uint32_t which, const double* tp_in,
                       const int32_t* plane, size_t n, const PlaneTable& planes, float* px, float* py, float* pz) {
   const Tags g;
   const size_t N = hn::Lanes(g.dd);
@@ -207,7 +207,7 @@ void BatchPlanePoints(const RayBatch& r, const uint32_t* select, uint32_t which,
   }
 }
 
-void BatchSphereHits(const RayBatch& r, const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,
+void BatchSphereHits(const RayArrays& r, const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,
                      const SphereTable& spheres, HitBatch* h) {
   const Tags g;
   const size_t N = hn::Lanes(g.dd);
@@ -247,7 +247,7 @@ HWY_EXPORT(BatchPlaneHits);
 HWY_EXPORT(BatchPlanePoints);
 HWY_EXPORT(BatchSphereHits);
 
-void batch_nearest_planes(const RayBatch& rays, size_t n, const PlaneTable& planes, double* tp, int32_t* plane,
+void batch_nearest_planes(const RayArrays& rays, size_t n, const PlaneTable& planes, double* tp, int32_t* plane,
                           float* tfar, const int32_t* exclude) {
   HWY_DYNAMIC_DISPATCH(BatchNearestPlanes)(rays, n, planes, tp, plane, tfar, exclude);
 }
@@ -257,17 +257,17 @@ void batch_triangle_hits(const uint32_t* select, uint32_t which, const uint32_t*
   HWY_DYNAMIC_DISPATCH(BatchTriangleHits)(select, which, prim, n, triangles, hits);
 }
 
-void batch_plane_hits(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
+void batch_plane_hits(const RayArrays& rays, const uint32_t* select, uint32_t which, const double* tp,
                       const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* hits) {
   HWY_DYNAMIC_DISPATCH(BatchPlaneHits)(rays, select, which, tp, plane, n, planes, hits);
 }
 
-void batch_plane_points(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
+void batch_plane_points(const RayArrays& rays, const uint32_t* select, uint32_t which, const double* tp,
                         const int32_t* plane, size_t n, const PlaneTable& planes, float* px, float* py, float* pz) {
   HWY_DYNAMIC_DISPATCH(BatchPlanePoints)(rays, select, which, tp, plane, n, planes, px, py, pz);
 }
 
-void batch_sphere_hits(const RayBatch& rays, const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,
+void batch_sphere_hits(const RayArrays& rays, const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,
                        const SphereTable& spheres, HitBatch* hits) {
   HWY_DYNAMIC_DISPATCH(BatchSphereHits)(rays, select, which, prim, n, spheres, hits);
 }

@@ -2,7 +2,9 @@
 // rays: each function is, lane for lane, the scalar code it names, in the same operations and
 // the same order (the build contracts nothing into FMAs), so every answer is bit for bit the
 // scalar one. Compiled for each SIMD target by Google Highway and picked at run time
-// (ray_batch_simd.cpp). Arrays are kRayBatch long: lanes past n are computed and ignored.
+// (ray_batch_simd.cpp). Arrays reach at least n rounded up to a multiple of 8 (a RayBatch's
+// kRayBatch, a packet's RayLanes): lanes past n are computed and ignored, so they must hold finite
+// values.
 #pragma once
 
 #include <cstddef>
@@ -23,7 +25,7 @@ struct PlaneTable {
 // index, else -1; tfar[i] the Embree ray's tfar (intersect(): float(tp) where a plane is met,
 // else tmax). `exclude`, when given, is the plane each ray leaves (-1: none), never met again
 // (nearest_plane()'s `from`); without it, rays from no surface.
-void batch_nearest_planes(const RayBatch& rays, size_t n, const PlaneTable& planes, double* tp, int32_t* plane,
+void batch_nearest_planes(const RayArrays& rays, size_t n, const PlaneTable& planes, double* tp, int32_t* plane,
                           float* tfar, const int32_t* exclude = nullptr);
 
 // Where select[i] == which: finish_hit()'s point, normal, material and source for triangle
@@ -47,17 +49,17 @@ struct SphereTable {
 // at t = hits->t[i] (Embree's tfar): the point recomputed in double from o + d t and projected
 // onto the sphere, the outward normal, u = v = 0, the material and the object (primitive 0).
 // Other lanes are left as they are.
-void batch_sphere_hits(const RayBatch& rays, const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,
+void batch_sphere_hits(const RayArrays& rays, const uint32_t* select, uint32_t which, const uint32_t* prim, size_t n,
                        const SphereTable& spheres, HitBatch* hits);
 
 // Where select[i] == which: finish_hit()'s answer on plane plane[i] at tp[i]: t, the point
 // (o + d tp in double, projected onto the plane), the normal, u = v = 0, the material and the
 // object (primitive 0). Other lanes are left as they are.
-void batch_plane_hits(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
+void batch_plane_hits(const RayArrays& rays, const uint32_t* select, uint32_t which, const double* tp,
                       const int32_t* plane, size_t n, const PlaneTable& planes, HitBatch* hits);
 // The same lanes' points alone, rounded to float, into px, py, pz: what an occlusion query reads
 // (a plane blocks where its point is within float range).
-void batch_plane_points(const RayBatch& rays, const uint32_t* select, uint32_t which, const double* tp,
+void batch_plane_points(const RayArrays& rays, const uint32_t* select, uint32_t which, const double* tp,
                         const int32_t* plane, size_t n, const PlaneTable& planes, float* px, float* py, float* pz);
 
 }  // namespace tessera

@@ -28,6 +28,7 @@ struct RTCSceneTy;
 namespace tessera {
 
 struct RayBatch;
+struct RayLanes;
 struct HitBatch;
 struct FrameState;
 class Transform;
@@ -50,7 +51,10 @@ class RenderScene {
   // A lane's result depends only on its own ray, except that exact ties between two primitives
   // at the same t may resolve by the packet's traversal order: callers must form packets as a
   // pure function of the pixel (the tile renderer packs one pixel's consecutive samples).
+  // The rays come as arrays of components (render/ray_lanes.h), as the integrator holds them.
   static constexpr int kPacket = 8;
+  void intersect_packet(const RayLanes& rays, const PrimRef* from, int n, Hit* hits, bool* found) const;
+  // The same for rays given a struct each (tests, the ray service's checks): packed into lanes.
   void intersect_packet(const Ray* rays, const PrimRef* from, int n, Hit* hits, bool* found) const;
   // Whether intersect() would find a hit with a finite point, by an any-hit traversal
   // (rtcOccluded1) that stops at the first surface met, glass included: line-of-sight queries of
@@ -60,6 +64,9 @@ class RenderScene {
   // (render_scene_batch.cpp): blocked[i] = 1 or 0, bit for bit any_hit()'s; lanes with skip set
   // are left as they are.
   void any_hit_batch(const RayBatch& rays, size_t n, uint8_t* blocked) const;
+  // transmittance() for n <= kPacket rays at once, one Embree packet (render_scene_packet.cpp);
+  // the Ray overload packs them into lanes.
+  void transmittance_packet(const RayLanes& rays, const PrimRef* from, int n, Rgb* T) const;
   void transmittance_packet(const Ray* rays, const PrimRef* from, int n, Rgb* T) const;
   // Fraction of light arriving along the ray over (0, ray.tmax]: 0 if an opaque surface blocks
   // it, else the product of the transmittances of the glass surfaces crossed (unrefracted).
@@ -226,6 +233,9 @@ class RenderScene {
   SphereBucket sphere_buckets_[2];
   bool has_glass_ = false;
   bool glass_planes_ = false;  // some plane is glass (glass_product walks the planes)
+  // The indices of the opaque planes, ascending: the ones a shadow ray tests (opaque_plane_blocks),
+  // without a material lookup per plane and ray.
+  std::vector<uint32_t> opaque_planes_;
   // Whether a shadow ray whose Embree query collected `hits` can have crossed glass: if not,
   // its transmittance is 1 without glass_product's walk.
   bool may_cross_glass(const GlassHits& hits) const;

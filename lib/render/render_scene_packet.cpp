@@ -8,6 +8,7 @@
 #include "render/plane.h"
 #include "render/ray_batch.h"
 #include "render/ray_batch_simd.h"
+#include "render/ray_lanes.h"
 #include "render/ray_log.h"
 #include "render/render_scene_embree.h"
 
@@ -50,23 +51,18 @@ RTCRay lane_ray(const RTCRay8& r, int lane) {
 
 }  // namespace
 
-void RenderScene::intersect_packet(const Ray* rays, const PrimRef* from, int n, Hit* hits, bool* found) const {
+void RenderScene::intersect_packet(const RayLanes& rays, const PrimRef* from, int n, Hit* hits, bool* found) const {
+  static_assert(kRayLanes == kPacket);
   alignas(32) int valid[kPacket];
   alignas(32) RTCRayHit8 rh;
   // The planes for all lanes at once (render/ray_batch_simd.h: nearest_plane()'s arithmetic, lane
-  // for lane). Lanes past n are zero rays, computed and ignored.
-  RayBatch rb;
+  // for lane), read from the packet's own arrays. Lanes past n are computed and ignored.
+  const RayArrays rb = rays.arrays();
   alignas(64) int32_t plane[kPacket], left[kPacket];
   alignas(64) double tp[kPacket];
   alignas(64) float tfar[kPacket];
   double t0[kPacket];
-  for (int i = 0; i < kPacket; ++i) {
-    const bool in = i < n;
-    rb.ox[i] = in ? rays[i].o.x : 0.0f, rb.oy[i] = in ? rays[i].o.y : 0.0f, rb.oz[i] = in ? rays[i].o.z : 0.0f;
-    rb.dx[i] = in ? rays[i].d.x : 0.0f, rb.dy[i] = in ? rays[i].d.y : 0.0f, rb.dz[i] = in ? rays[i].d.z : 0.0f;
-    rb.tmax[i] = in ? rays[i].tmax : 0.0f;
-    left[i] = in && from[i].kind == PrimRef::Kind::kPlane ? int32_t(from[i].id) : -1;
-  }
+  for (int i = 0; i < kPacket; ++i) left[i] = i < n && from[i].kind == PrimRef::Kind::kPlane ? int32_t(from[i].id) : -1;
   const PlaneTable planes{plane_table_.data(), plane_ids_.data(), planes_.size()};
   batch_nearest_planes(rb, size_t(n), planes, tp, plane, tfar, left);  // whole vectors up to lane n
   RayLog* const log = thread_ray_log();  // once a packet: a thread-local load per lane showed in perf
@@ -81,7 +77,7 @@ void RenderScene::intersect_packet(const Ray* rays, const PrimRef* from, int n, 
       t0[i] = 0.0;
       set_lane(&rh.ray, i, {rb.ox[i], rb.oy[i], rb.oz[i]}, {rb.dx[i], rb.dy[i], rb.dz[i]}, tfar[i], 0xFFFFFFFFu);
     } else {
-      const Ray ray{rays[i].o, rays[i].d, tfar[i]};
+      const Ray ray{rays.o(i), rays.d(i), tfar[i]};
       Ray er = ray;  // embree_ray_from_far() moves the origin and shortens tmax of this copy
       t0[i] = embree_ray_from_far(ray, &er);
       set_lane(&rh.ray, i, er.o, er.d, er.tmax, 0xFFFFFFFFu);
@@ -123,7 +119,7 @@ void RenderScene::intersect_packet(const Ray* rays, const PrimRef* from, int n, 
       spheres = true;
       continue;
     }
-    found[i] = finish_hit(Vec3d(rays[i].o), Vec3d(rays[i].d), plane[i], tp[i], g, rh.hit.primID[i], rh.hit.u[i],
+    found[i] = finish_hit(Vec3d(rays.o(i)), Vec3d(rays.d(i)), plane[i], tp[i], g, rh.hit.primID[i], rh.hit.u[i],
                           rh.hit.v[i], t, &hits[i]);
   }
   if (spheres) {
@@ -146,7 +142,19 @@ void RenderScene::intersect_packet(const Ray* rays, const PrimRef* from, int n, 
   }
 }
 
+void RenderScene::intersect_packet(const Ray* rays, const PrimRef* from, int n, Hit* hits, bool* found) const {
+  RayLanes lanes;
+  for (int i = 0; i < n; ++i) lanes.set(i, rays[i]);
+  intersect_packet(lanes, from, n, hits, found);
+}
+
 void RenderScene::transmittance_packet(const Ray* rays, const PrimRef* from, int n, Rgb* T) const {
+  RayLanes lanes;
+  for (int i = 0; i < n; ++i) lanes.set(i, rays[i]);
+  transmittance_packet(lanes, from, n, T);
+}
+
+void RenderScene::transmittance_packet(const RayLanes& rays, const PrimRef* from, int n, Rgb* T) const {
   alignas(32) int valid[kPacket];
   alignas(32) RTCRay8 r;
   GlassHits glass[kPacket];
@@ -157,17 +165,18 @@ void RenderScene::transmittance_packet(const Ray* rays, const PrimRef* from, int
   for (int i = 0; i < kPacket; ++i) {
     valid[i] = 0;
     if (i >= n) continue;
-    if (opaque_plane_blocks(rays[i], from[i])) {
+    const Ray ray = rays.ray(i);
+    if (opaque_plane_blocks(ray, from[i])) {
       T[i] = Rgb(0.0f);
       continue;
     }
     open[i] = true;
     double t0 = 0.0;  // embree_ray(), lane by lane as in intersect_packet
-    if (starts_near(rays[i].o)) {
-      set_lane(&r, i, rays[i].o, rays[i].d, rays[i].tmax, mask);
+    if (starts_near(ray.o)) {
+      set_lane(&r, i, ray.o, ray.d, ray.tmax, mask);
     } else {
-      Ray er = rays[i];
-      t0 = embree_ray_from_far(rays[i], &er);
+      Ray er = ray;
+      t0 = embree_ray_from_far(ray, &er);
       set_lane(&r, i, er.o, er.d, er.tmax, mask);
     }
     if (log) log->rays.push_back({lane_ray(r, i), from[i], LoggedRay::Kind::kShadow});
@@ -194,7 +203,7 @@ void RenderScene::transmittance_packet(const Ray* rays, const PrimRef* from, int
       rtcInitIntersectContext(&one.rtc);
       one.scene = this;
       one.from = from[i];
-      T[i] = glass_product(rays[i], &one, &glass[i]);
+      T[i] = glass_product(rays.ray(i), &one, &glass[i]);
     }
   }
 }

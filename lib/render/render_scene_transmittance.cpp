@@ -22,11 +22,8 @@ constexpr int kMaxGlassCrossings = 256;
 
 bool RenderScene::opaque_plane_blocks(const Ray& ray, const PrimRef& from) const {
   const Vec3d o(ray.o), d(ray.d);
-  for (size_t i = 0; i < planes_.size(); ++i) {
-    if ((from.kind == PrimRef::Kind::kPlane && from.id == i) ||
-        materials_[planes_[i].material].type == Material::Type::kGlass) {
-      continue;
-    }
+  for (const uint32_t i : opaque_planes_) {
+    if (from.kind == PrimRef::Kind::kPlane && from.id == i) continue;
     const double t = intersect_plane(o, d, planes_[i].point, planes_[i].normal);
     if (t > 0.0 && t < double(ray.tmax)) return true;
   }

@@ -1,0 +1,35 @@
+// A packet's rays as arrays of components (structure of arrays), the form they travel in from
+// the camera through the integrator to Embree's packet queries: the SIMD stages read and write
+// whole vectors of them, and no stage copies rays between a struct per ray and arrays
+// (docs/performance.md, "fifth step": those copies were a tenth of a frame's instructions).
+#pragma once
+
+#include <limits>
+
+#include "render/ray.h"
+#include "render/ray_batch.h"
+
+namespace tessera {
+
+inline constexpr int kRayLanes = 8;  // RenderScene::kPacket (checked where both are seen)
+
+struct RayLanes {
+  // Lanes a packet does not use still hold finite values (zero at first, then earlier rays):
+  // the SIMD stages compute on whole vectors and ignore them.
+  alignas(32) float ox[kRayLanes] = {}, oy[kRayLanes] = {}, oz[kRayLanes] = {};
+  alignas(32) float dx[kRayLanes] = {}, dy[kRayLanes] = {}, dz[kRayLanes] = {};
+  alignas(32) float tmax[kRayLanes] = {};
+
+  Vec3f o(int i) const { return {ox[i], oy[i], oz[i]}; }
+  Vec3f d(int i) const { return {dx[i], dy[i], dz[i]}; }
+  Ray ray(int i) const { return {o(i), d(i), tmax[i]}; }
+  void set(int i, const Vec3f& o, const Vec3f& d, float t = std::numeric_limits<float>::infinity()) {
+    ox[i] = o.x, oy[i] = o.y, oz[i] = o.z;
+    dx[i] = d.x, dy[i] = d.y, dz[i] = d.z;
+    tmax[i] = t;
+  }
+  void set(int i, const Ray& r) { set(i, r.o, r.d, r.tmax); }
+  RayArrays arrays() const { return {ox, oy, oz, dx, dy, dz, tmax}; }
+};
+
+}  // namespace tessera
