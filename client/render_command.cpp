@@ -168,7 +168,8 @@ void register_render_command(CLI::App& app) {
   cmd->add_option("-o,--output", args->output, "Output EXR path; '#' runs become the frame number")->required();
   add_image_options(*cmd, args->image);
   cmd->add_option("--frame", args->frame, "Frame number to render (default 0)");
-  cmd->add_option("--threads", args->threads, "Render threads (default: all cores)")->check(CLI::Range(0, 4096));
+  cmd->add_option("--threads", args->threads, "Render threads, and the EXR's compression threads (default: all cores)")
+      ->check(CLI::Range(0, 4096));
   cmd->add_option("--tile", args->tile, "Tile size in pixels (does not change the image)")->check(CLI::Range(1, 4096));
   cmd->add_flag("-q,--quiet", args->quiet, "No progress display");
   cmd->add_flag("--error-channels", args->error_channels,
