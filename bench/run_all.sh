@@ -185,15 +185,27 @@ if want povray && peer povray povray "POV-Ray 3.7 against Tessera (${PW}x${PH}, 
   k=0
   for settings in "+A0.0 +AM1 +R$PR" "${POV_ADAPTIVE[@]}"; do
     name=povray$([ $k = 0 ] || echo "_adaptive_$k")
-    s=$(date +%s.%N)
-    # shellcheck disable=SC2086  # the settings are several flags
-    /usr/bin/time -f "%U %S" -o "$OUT/$name.cpu" povray +I"$HERE/povray/whitted.pov" +O"$OUT/${name}_whitted.exr" \
-      +FE +W$PW +H$PH $settings -J -D +WT"$THREADS" +V >"$OUT/$name.log" 2>&1
-    e=$(date +%s.%N)
-    process_wall=$(echo "$e - $s" | bc -l)
+    # The fastest of three runs by trace CPU time (one in --smoke), as pov_compare keeps the
+    # fastest of three Tessera renders: one POV-Ray run's time moved by up to 1.45x here.
+    best_cpu=1e9
+    for rep in $(seq 1 $([ $SMOKE = 1 ] && echo 1 || echo 3)); do
+      s=$(date +%s.%N)
+      # shellcheck disable=SC2086  # the settings are several flags
+      /usr/bin/time -f "%U %S" -o "$OUT/$name.try.cpu" povray +I"$HERE/povray/whitted.pov" +O"$OUT/${name}_try.exr" \
+        +FE +W$PW +H$PH $settings -J -D +WT"$THREADS" +V >"$OUT/$name.try.log" 2>&1
+      e=$(date +%s.%N)
+      # POV-Ray's own trace time (wall) and CPU-seconds: like Tessera's render time, they leave out
+      # start-up and parsing (POV-Ray's front end alone takes most of a second).
+      try_cpu=$(sed -n 's/.*thread(s) with \([0-9.]*\) CPU-seconds total.*/\1/p' "$OUT/$name.try.log" | tail -1)
+      if [ -n "$try_cpu" ] && python3 -c 'import sys; sys.exit(0 if float(sys.argv[1]) < float(sys.argv[2]) else 1)' "$try_cpu" "$best_cpu"; then
+        best_cpu=$try_cpu
+        process_wall=$(echo "$e - $s" | bc -l)
+        mv "$OUT/$name.try.log" "$OUT/$name.log"
+        mv "$OUT/$name.try.cpu" "$OUT/$name.cpu"
+        mv "$OUT/${name}_try.exr" "$OUT/${name}_whitted.exr"
+      fi
+    done
     process_cpu=$(awk '{printf "%.3f", $1 + $2}' "$OUT/$name.cpu")
-    # POV-Ray's own trace time (wall) and CPU-seconds: like Tessera's render time, they leave out
-    # start-up and parsing (POV-Ray's front end alone takes most of a second).
     wall=$(sed -n 's/.*Trace Time:.*(\([0-9.]*\) seconds).*/\1/p' "$OUT/$name.log" | tail -1)
     cpu=$(sed -n 's/.*thread(s) with \([0-9.]*\) CPU-seconds total.*/\1/p' "$OUT/$name.log" | tail -1)
     samples=$(sed -n 's/.*Samples: *\([0-9]*\).*/\1/p' "$OUT/$name.log" | tail -1)
@@ -211,18 +223,44 @@ if want cycles && peer blender blender "Blender's Cycles against Tessera on whit
     "Cycles (Blender 3.4) on tests/data/gltf/whitted_a.glb (${BW}x${BH}, $THREADS threads)"; then
   # Blender renders in its own process; only the render's time counts (start-up and the glTF
   # import left out, as Tessera's render time leaves out loading).
-  blender -b --factory-startup --python "$HERE/cycles/cycles_render.py" -- tests/data/gltf/whitted_a.glb \
-    "$OUT/cycles_whitted_a.exr" $BW $BH $BSPP 8 "$THREADS" >"$OUT/cycles.log" 2>&1
-  result=$(sed -n 's/^CYCLES_RESULT //p' "$OUT/cycles.log" | tail -1)
-  if [ -z "$result" ]; then
-    echo "run_all.sh: Cycles gave no result (see $OUT/cycles.log)" >&2
-    exit 1
-  fi
+  # Twice, the faster (CPU) counts, as cycles_compare keeps the fastest of three Tessera renders:
+  # one render's time moves by up to 1.5x on a shared machine.
+  result= best_cpu=1e9
+  for rep in 1 2; do
+    blender -b --factory-startup --python "$HERE/cycles/cycles_render.py" -- tests/data/gltf/whitted_a.glb \
+      "$OUT/cycles_whitted_a_try.exr" $BW $BH $BSPP 8 "$THREADS" >"$OUT/cycles_try.log" 2>&1
+    try=$(sed -n 's/^CYCLES_RESULT //p' "$OUT/cycles_try.log" | tail -1)
+    if [ -z "$try" ]; then
+      echo "run_all.sh: Cycles gave no result (see $OUT/cycles_try.log)" >&2
+      exit 1
+    fi
+    try_cpu=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["cpu_s"])' "$try")
+    if python3 -c 'import sys; sys.exit(0 if float(sys.argv[1]) < float(sys.argv[2]) else 1)' "$try_cpu" "$best_cpu"; then
+      best_cpu=$try_cpu result=$try
+      mv "$OUT/cycles_whitted_a_try.exr" "$OUT/cycles_whitted_a.exr"
+      mv "$OUT/cycles_try.log" "$OUT/cycles.log"
+    fi
+  done
   # Cycles at the reference's spp too: the two references differ where the models do.
   blender -b --factory-startup --python "$HERE/cycles/cycles_render.py" -- tests/data/gltf/whitted_a.glb \
     "$OUT/cycles_whitted_a_ref.exr" $BW $BH $BREF 8 "$THREADS" >"$OUT/cycles_ref.log" 2>&1
   wall=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["wall_s"])' "$result")
   cpu=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["cpu_s"])' "$result")
+  # Cycles' timed render includes its scene synchronization, BVH build and EXR write, which
+  # Tessera's time leaves out: the same render at 1 spp, twice (the faster counts), lets
+  # cycles_compare estimate that fixed cost and take it out of Cycles' times.
+  one_wall=1e9 one_cpu=1e9
+  for rep in 1 2; do
+    blender -b --factory-startup --python "$HERE/cycles/cycles_render.py" -- tests/data/gltf/whitted_a.glb \
+      "$OUT/cycles_whitted_a_1spp.exr" $BW $BH 1 8 "$THREADS" >"$OUT/cycles_1spp.log" 2>&1
+    one=$(sed -n 's/^CYCLES_RESULT //p' "$OUT/cycles_1spp.log" | tail -1)
+    if [ -z "$one" ]; then
+      echo "run_all.sh: Cycles gave no result at 1 spp (see $OUT/cycles_1spp.log)" >&2
+      exit 1
+    fi
+    one_wall=$(python3 -c 'import json,sys; print(min(float(sys.argv[2]), json.loads(sys.argv[1])["wall_s"]))' "$one" "$one_wall")
+    one_cpu=$(python3 -c 'import json,sys; print(min(float(sys.argv[2]), json.loads(sys.argv[1])["cpu_s"]))' "$one" "$one_cpu")
+  done
   # Cycles' adaptive sampling (noise threshold BNOISE, at most BREF spp) against Tessera's frame
   # target, each at equal error against its own reference.
   blender -b --factory-startup --python "$HERE/cycles/cycles_render.py" -- tests/data/gltf/whitted_a.glb \
@@ -234,7 +272,7 @@ if want cycles && peer blender blender "Blender's Cycles against Tessera on whit
     --cycles-reference-exr "$OUT/cycles_whitted_a_ref.exr" \
     --cycles-adaptive-exr "$OUT/cycles_whitted_a_adaptive.exr" --cycles-adaptive-wall "$awall" \
     --cycles-adaptive-cpu "$acpu" --cycles-adaptive-threshold $BNOISE --cycles-adaptive-max-spp $BREF \
-    --cycles-wall "$wall" --cycles-cpu "$cpu" --spp $BSPP --ref-spp $BREF --max-depth 8 --width $BW --height $BH \
+    --cycles-wall "$wall" --cycles-cpu "$cpu" --cycles-one-spp-wall "$one_wall" --cycles-one-spp-cpu "$one_cpu" --spp $BSPP --ref-spp $BREF --max-depth 8 --width $BW --height $BH \
     --threads "$THREADS" --markdown "$SUMMARY" >"$OUT/cycles.json"
 fi
 
