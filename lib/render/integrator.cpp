@@ -322,11 +322,8 @@ void radiance_packet(const RenderScene& scene, const RayLanes& rays, const PrimR
   auto queue_lanes = [&](const ShadowRays& sr, const Rgb& intensity, bool spot) {
     for (int i = 0; i < n; ++i) {
       if (!sr.live[i]) continue;
-      fr.r.set(queued, {sr.ox[i], sr.oy[i], sr.oz[i]}, {sr.dx[i], sr.dy[i], sr.dz[i]}, sr.tmax[i]);
-      fr.qa[queued] = spot ? intensity * sr.cone[i] : intensity;
-      fr.qb[queued] = sr.b[i];
-      fr.lane_of[queued++] = i;
-      if (queued == P) flush();
+      queue(i, {{sr.ox[i], sr.oy[i], sr.oz[i]}, {sr.dx[i], sr.dy[i], sr.dz[i]}, sr.tmax[i]},
+            spot ? intensity * sr.cone[i] : intensity, sr.b[i]);
     }
   };
   if (any) {
@@ -420,9 +417,7 @@ Rgb trace_radiance(const RenderScene& scene, const Ray& ray, const PixelSampler&
 
 void trace_radiance_packet(const RenderScene& scene, const Ray* rays, const PixelSampler* samplers, int n,
                            RayCounts* counts, Rgb* out) {
-  RayLanes lanes;
-  for (int i = 0; i < n; ++i) lanes.set(i, rays[i]);
-  trace_radiance_packet(scene, lanes, samplers, n, counts, out);
+  trace_radiance_packet(scene, RayLanes::of(rays, n), samplers, n, counts, out);
 }
 
 void trace_radiance_packet(const RenderScene& scene, const RayLanes& rays, const PixelSampler* samplers, int n,

@@ -148,7 +148,7 @@ void RenderScene::finish_tables() {
   has_glass_ = !triangles_[1].material_ids.empty() || !sphere_buckets_[1].ids.empty();
   for (const Plane& p : planes_) glass_planes_ = glass_planes_ || is_glass(materials_[p.material]);
   for (size_t i = 0; i < planes_.size(); ++i) {
-    if (materials_[planes_[i].material].type != Material::Type::kGlass) opaque_planes_.push_back(uint32_t(i));
+    if (!is_glass(materials_[planes_[i].material])) opaque_planes_.push_back(uint32_t(i));
   }
   has_glass_ = has_glass_ || glass_planes_;
 }

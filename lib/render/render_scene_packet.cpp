@@ -143,15 +143,11 @@ void RenderScene::intersect_packet(const RayLanes& rays, const PrimRef* from, in
 }
 
 void RenderScene::intersect_packet(const Ray* rays, const PrimRef* from, int n, Hit* hits, bool* found) const {
-  RayLanes lanes;
-  for (int i = 0; i < n; ++i) lanes.set(i, rays[i]);
-  intersect_packet(lanes, from, n, hits, found);
+  intersect_packet(RayLanes::of(rays, n), from, n, hits, found);
 }
 
 void RenderScene::transmittance_packet(const Ray* rays, const PrimRef* from, int n, Rgb* T) const {
-  RayLanes lanes;
-  for (int i = 0; i < n; ++i) lanes.set(i, rays[i]);
-  transmittance_packet(lanes, from, n, T);
+  transmittance_packet(RayLanes::of(rays, n), from, n, T);
 }
 
 void RenderScene::transmittance_packet(const RayLanes& rays, const PrimRef* from, int n, Rgb* T) const {
