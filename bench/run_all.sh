@@ -47,6 +47,9 @@ want() { [[ ",$ONLY," == *",$1,"* ]]; }
 # A peer renderer's section: its heading on stderr and in the summary; false (after saying so in
 # both) when the peer's program is not installed, so CI machines without it skip cleanly.
 # Usage: peer PROGRAM DEBIAN_PACKAGE "stderr heading" "summary heading"
+# Whether the number $1 is below $2 (floats, as the benchmarks print them).
+less_than() { python3 -c 'import sys; sys.exit(0 if float(sys.argv[1]) < float(sys.argv[2]) else 1)' "$1" "$2"; }
+
 peer() {
   echo "== $3" >&2
   echo -e "\n### $4\n" >>"$SUMMARY"
@@ -197,7 +200,7 @@ if want povray && peer povray povray "POV-Ray 3.7 against Tessera (${PW}x${PH}, 
       # POV-Ray's own trace time (wall) and CPU-seconds: like Tessera's render time, they leave out
       # start-up and parsing (POV-Ray's front end alone takes most of a second).
       try_cpu=$(sed -n 's/.*thread(s) with \([0-9.]*\) CPU-seconds total.*/\1/p' "$OUT/$name.try.log" | tail -1)
-      if [ -n "$try_cpu" ] && python3 -c 'import sys; sys.exit(0 if float(sys.argv[1]) < float(sys.argv[2]) else 1)' "$try_cpu" "$best_cpu"; then
+      if [ -n "$try_cpu" ] && less_than "$try_cpu" "$best_cpu"; then
         best_cpu=$try_cpu
         process_wall=$(echo "$e - $s" | bc -l)
         mv "$OUT/$name.try.log" "$OUT/$name.log"
@@ -223,51 +226,50 @@ if want cycles && peer blender blender "Blender's Cycles against Tessera on whit
     "Cycles (Blender 3.4) on tests/data/gltf/whitted_a.glb (${BW}x${BH}, $THREADS threads)"; then
   # Blender renders in its own process; only the render's time counts (start-up and the glTF
   # import left out, as Tessera's render time leaves out loading).
+  # One Cycles render of the scene: cycles_render.py's spp (and noise threshold, if given) into
+  # EXR, its log into LOG; prints its CYCLES_RESULT JSON, or stops the run naming the log.
+  cycles_render() {  # EXR LOG SPP [NOISE]
+    blender -b --factory-startup --python "$HERE/cycles/cycles_render.py" -- tests/data/gltf/whitted_a.glb \
+      "$1" $BW $BH "$3" 8 "$THREADS" ${4:-} >"$2" 2>&1
+    local r
+    r=$(sed -n 's/^CYCLES_RESULT //p' "$2" | tail -1)
+    if [ -z "$r" ]; then
+      echo "run_all.sh: Cycles gave no result (see $2)" >&2
+      return 1
+    fi
+    echo "$r"
+  }
+  field() { python3 -c 'import json,sys; print(json.loads(sys.argv[1])[sys.argv[2]])' "$1" "$2"; }
   # Twice, the faster (CPU) counts, as cycles_compare keeps the fastest of three Tessera renders:
   # one render's time moves by up to 1.5x on a shared machine.
   result= best_cpu=1e9
   for rep in 1 2; do
-    blender -b --factory-startup --python "$HERE/cycles/cycles_render.py" -- tests/data/gltf/whitted_a.glb \
-      "$OUT/cycles_whitted_a_try.exr" $BW $BH $BSPP 8 "$THREADS" >"$OUT/cycles_try.log" 2>&1
-    try=$(sed -n 's/^CYCLES_RESULT //p' "$OUT/cycles_try.log" | tail -1)
-    if [ -z "$try" ]; then
-      echo "run_all.sh: Cycles gave no result (see $OUT/cycles_try.log)" >&2
-      exit 1
-    fi
-    try_cpu=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["cpu_s"])' "$try")
-    if python3 -c 'import sys; sys.exit(0 if float(sys.argv[1]) < float(sys.argv[2]) else 1)' "$try_cpu" "$best_cpu"; then
+    try=$(cycles_render "$OUT/cycles_whitted_a_try.exr" "$OUT/cycles_try.log" $BSPP)
+    try_cpu=$(field "$try" cpu_s)
+    if less_than "$try_cpu" "$best_cpu"; then
       best_cpu=$try_cpu result=$try
       mv "$OUT/cycles_whitted_a_try.exr" "$OUT/cycles_whitted_a.exr"
       mv "$OUT/cycles_try.log" "$OUT/cycles.log"
     fi
   done
+  wall=$(field "$result" wall_s)
+  cpu=$(field "$result" cpu_s)
   # Cycles at the reference's spp too: the two references differ where the models do.
-  blender -b --factory-startup --python "$HERE/cycles/cycles_render.py" -- tests/data/gltf/whitted_a.glb \
-    "$OUT/cycles_whitted_a_ref.exr" $BW $BH $BREF 8 "$THREADS" >"$OUT/cycles_ref.log" 2>&1
-  wall=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["wall_s"])' "$result")
-  cpu=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["cpu_s"])' "$result")
+  cycles_render "$OUT/cycles_whitted_a_ref.exr" "$OUT/cycles_ref.log" $BREF >/dev/null
   # Cycles' timed render includes its scene synchronization, BVH build and EXR write, which
   # Tessera's time leaves out: the same render at 1 spp, twice (the faster counts), lets
   # cycles_compare estimate that fixed cost and take it out of Cycles' times.
   one_wall=1e9 one_cpu=1e9
   for rep in 1 2; do
-    blender -b --factory-startup --python "$HERE/cycles/cycles_render.py" -- tests/data/gltf/whitted_a.glb \
-      "$OUT/cycles_whitted_a_1spp.exr" $BW $BH 1 8 "$THREADS" >"$OUT/cycles_1spp.log" 2>&1
-    one=$(sed -n 's/^CYCLES_RESULT //p' "$OUT/cycles_1spp.log" | tail -1)
-    if [ -z "$one" ]; then
-      echo "run_all.sh: Cycles gave no result at 1 spp (see $OUT/cycles_1spp.log)" >&2
-      exit 1
-    fi
-    one_wall=$(python3 -c 'import json,sys; print(min(float(sys.argv[2]), json.loads(sys.argv[1])["wall_s"]))' "$one" "$one_wall")
-    one_cpu=$(python3 -c 'import json,sys; print(min(float(sys.argv[2]), json.loads(sys.argv[1])["cpu_s"]))' "$one" "$one_cpu")
+    one=$(cycles_render "$OUT/cycles_whitted_a_1spp.exr" "$OUT/cycles_1spp.log" 1)
+    if less_than "$(field "$one" wall_s)" "$one_wall"; then one_wall=$(field "$one" wall_s); fi
+    if less_than "$(field "$one" cpu_s)" "$one_cpu"; then one_cpu=$(field "$one" cpu_s); fi
   done
   # Cycles' adaptive sampling (noise threshold BNOISE, at most BREF spp) against Tessera's frame
   # target, each at equal error against its own reference.
-  blender -b --factory-startup --python "$HERE/cycles/cycles_render.py" -- tests/data/gltf/whitted_a.glb \
-    "$OUT/cycles_whitted_a_adaptive.exr" $BW $BH $BREF 8 "$THREADS" $BNOISE >"$OUT/cycles_adaptive.log" 2>&1
-  adaptive=$(sed -n 's/^CYCLES_RESULT //p' "$OUT/cycles_adaptive.log" | tail -1)
-  awall=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["wall_s"])' "$adaptive")
-  acpu=$(python3 -c 'import json,sys; print(json.loads(sys.argv[1])["cpu_s"])' "$adaptive")
+  adaptive=$(cycles_render "$OUT/cycles_whitted_a_adaptive.exr" "$OUT/cycles_adaptive.log" $BREF $BNOISE)
+  awall=$(field "$adaptive" wall_s)
+  acpu=$(field "$adaptive" cpu_s)
   "$BUILD/bench/cycles/cycles_compare" --scene tests/data/gltf/whitted_a.glb --cycles-exr "$OUT/cycles_whitted_a.exr" \
     --cycles-reference-exr "$OUT/cycles_whitted_a_ref.exr" \
     --cycles-adaptive-exr "$OUT/cycles_whitted_a_adaptive.exr" --cycles-adaptive-wall "$awall" \
