@@ -236,6 +236,11 @@ class RenderScene {
   // The indices of the opaque planes, ascending: the ones a shadow ray tests (opaque_plane_blocks),
   // without a material lookup per plane and ray.
   std::vector<uint32_t> opaque_planes_;
+  // The same planes as a table for SIMD (plane_table_'s layout), and each plane's index in it
+  // (-1: glass): a packet's shadow rays test them all at once (transmittance_packet).
+  std::vector<double> opaque_plane_table_;
+  std::vector<uint32_t> opaque_plane_ids_;
+  std::vector<int32_t> opaque_index_;
   // Whether a shadow ray whose Embree query collected `hits` can have crossed glass: if not,
   // its transmittance is 1 without glass_product's walk.
   bool may_cross_glass(const GlassHits& hits) const;

@@ -147,8 +147,14 @@ void RenderScene::finish_tables() {
   }
   has_glass_ = !triangles_[1].material_ids.empty() || !sphere_buckets_[1].ids.empty();
   for (const Plane& p : planes_) glass_planes_ = glass_planes_ || is_glass(materials_[p.material]);
+  opaque_index_.assign(planes_.size(), -1);
   for (size_t i = 0; i < planes_.size(); ++i) {
-    if (!is_glass(materials_[planes_[i].material])) opaque_planes_.push_back(uint32_t(i));
+    if (is_glass(materials_[planes_[i].material])) continue;
+    opaque_index_[i] = int32_t(opaque_planes_.size());
+    opaque_planes_.push_back(uint32_t(i));
+    opaque_plane_table_.insert(opaque_plane_table_.end(), plane_table_.begin() + 6 * long(i),
+                               plane_table_.begin() + 6 * long(i + 1));
+    opaque_plane_ids_.insert(opaque_plane_ids_.end(), {planes_[i].material, planes_[i].object});
   }
   has_glass_ = has_glass_ || glass_planes_;
 }

@@ -16,11 +16,13 @@
 #include <cstdint>
 
 #include "math/vec3.h"
+#include "render/ray_lanes.h"
 #include "render/spawn_lanes.h"
 
 namespace tessera {
 
 inline constexpr int kShadowLanes = kSpawnLanes;
+static_assert(kShadowLanes == kRayLanes);
 
 // Where shadow rays start: a packet's diffuse hits, as arrays of components.
 struct ShadingPoints {
@@ -37,9 +39,9 @@ struct ShadingPoints {
 // light is above its surface (and, for a spot, inside the cone); its direct light is then
 // transmittance x intensity (x cone, for spots) x b.
 struct ShadowRays {
-  alignas(32) float ox[kShadowLanes], oy[kShadowLanes], oz[kShadowLanes];
-  alignas(32) float dx[kShadowLanes], dy[kShadowLanes], dz[kShadowLanes];
-  alignas(32) float tmax[kShadowLanes];
+  // The rays as a packet takes them: a light's rays from a full packet of diffuse hits go to
+  // Embree from here, with no copy (integrator.cpp).
+  RayLanes rays;
   alignas(32) float cone[kShadowLanes];  // spot lights: the cone's falloff; else 1
   alignas(32) float b[kShadowLanes];     // point, spot: cos(theta) / r^2; directional: cos(theta)
   alignas(32) int32_t live[kShadowLanes];

@@ -43,9 +43,9 @@ HWY_INLINE V light_cosine(DF df, const ShadingPoints& s, size_t i, const V3& w) 
 }
 
 HWY_INLINE void store_ray(DF df, const V3& o, const V3& w, V tmax, V cone, V b, M live, size_t i, ShadowRays* out) {
-  simd3::store3(df, o, out->ox, out->oy, out->oz, i);
-  simd3::store3(df, w, out->dx, out->dy, out->dz, i);
-  hn::Store(tmax, df, out->tmax + i);
+  simd3::store3(df, o, out->rays.ox, out->rays.oy, out->rays.oz, i);
+  simd3::store3(df, w, out->rays.dx, out->rays.dy, out->rays.dz, i);
+  hn::Store(tmax, df, out->rays.tmax + i);
   hn::Store(cone, df, out->cone + i);
   hn::Store(b, df, out->b + i);
   simd3::store_flags(df, live, out->live, i);
