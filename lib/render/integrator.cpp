@@ -324,9 +324,9 @@ void radiance_packet(const RenderScene& scene, const RayLanes& rays, const PrimR
   // the queue would make, in its order, with the same products: the same bits, without the
   // copies.
   auto queue_lanes = [&](const ShadowRays& sr, const Rgb& intensity, bool spot) {
-    bool whole = queued == 0 && n == P;
-    for (int i = 0; i < P; ++i) whole = whole && sr.live[i] != 0;
-    if (whole) {
+    int32_t lit = 1;
+    for (int i = 0; i < P; ++i) lit &= sr.live[i];  // live: 0 or 1
+    if (queued == 0 && n == P && lit != 0) {
       counts->shadow += uint64_t(P);
       for (int j = 0; j < P; ++j) fr.f[j] = hits[j].prim;
       scene.transmittance_packet(sr.rays, fr.f, P, fr.T);

@@ -144,7 +144,9 @@ class RenderScene {
   static constexpr uint32_t kOpaqueMask = 1, kGlassMask = 2;
 
  private:
-  struct Plane { Vec3d point; Vec3d normal; Vec3f b1, b2; uint32_t material; uint32_t object; };
+  // b1, b2: the plane's own basis (its checker's axes), float values held in double, as the
+  // checker reads them.
+  struct Plane { Vec3d point; Vec3d normal; Vec3d b1, b2; uint32_t material; uint32_t object; };
   // The geometry id of a bucket not in the Embree scene: Embree's RTC_INVALID_GEOMETRY_ID
   // (render_scene_embree.h checks that they agree).
   static constexpr uint32_t kNoGeometry = UINT32_MAX;
@@ -219,6 +221,10 @@ class RenderScene {
   Rgb background_;
   RenderOptions options_;
   std::vector<Material> materials_;
+  // Per material: 1 / checker_scale where the scale is a power of two (the checker's coordinate
+  // is then a multiplication, the division's bits), else 0 (render_scene_texture.cpp).
+  std::vector<double> checker_inverse_;
+  static double checker_inverse(double scale);
   std::vector<Texture> textures_;
   std::vector<PointLight> point_lights_;
   std::vector<DirectionalLight> directional_lights_;

@@ -79,7 +79,9 @@ void RenderScene::add_objects(const Scene& scene, const FrameState& state) {
         Plane p;
         p.point = xf.point(obj.point) - origin_;
         p.normal = normalize(xf.normal(obj.normal));
-        orthonormal_basis(Vec3f(p.normal), p.b1, p.b2);
+        Vec3f b1, b2;
+        orthonormal_basis(Vec3f(p.normal), b1, b2);
+        p.b1 = Vec3d(b1), p.b2 = Vec3d(b2);
         p.material = uint32_t(obj.material);
         p.object = uint32_t(oi);
         planes_.push_back(p);
@@ -133,6 +135,7 @@ void RenderScene::add_mesh(const Mesh& mesh, uint32_t object, const Transform& x
 // What is complete only once every object is in: per-triangle tables padded to every triangle,
 // area-light CDFs normalized, the planes' SIMD table, whether any glass is in the scene.
 void RenderScene::finish_tables() {
+  for (const Material& m : materials_) checker_inverse_.push_back(checker_inverse(m.checker_scale));
   for (TriangleBucket& b : triangles_) {
     if (!b.uvs.empty()) b.uvs.resize(6 * b.material_ids.size(), 0.0f);
     if (!b.normals.empty()) b.normals.resize(9 * b.material_ids.size(), 0.0f);

@@ -15,39 +15,34 @@ Rgb RenderScene::textured_albedo(const Hit& hit, const Material& m) const {
   return m.albedo * sample_texture(textures_[size_t(m.albedo_texture)], u, v);
 }
 
-namespace {
-
-// x / s, the checker's coordinate: by a multiplication where s is a power of two, a division
-// otherwise. For s = 2^k the reciprocal 2^-k is exact and x * 2^-k is the same real number as
-// x / 2^k, rounded once either way, so the bits are the division's; the divisions were two thirds
-// of the checker's time on the Whitted showcase (perf annotate), whose scale is 1.
-struct CheckerScale {
-  double s, inv = 0;  // inv: 1/s where s is a power of two, else 0
-  explicit CheckerScale(double scale) : s(scale) {
-    const uint64_t bits = std::bit_cast<uint64_t>(scale);
-    const uint64_t e = (bits >> 52) & 0x7ff;
-    // Positive, normal, no mantissa bits, and its reciprocal normal too.
-    if ((bits >> 63) == 0 && (bits & ((uint64_t(1) << 52) - 1)) == 0 && e >= 1 && e <= 2045) {
-      inv = std::bit_cast<double>((2046 - e) << 52);
-    }
+// The checker's coordinate x / s is taken as x * (1 / s) where s is a power of two: the
+// reciprocal 2^-k is then exact and x * 2^-k is the same real number as x / 2^k, rounded once
+// either way, so the bits are the division's; the divisions were two thirds of the checker's time
+// on the Whitted showcase (perf annotate), whose scale is 1. Returns 1 / s for such an s (positive,
+// normal, no mantissa bits, its reciprocal normal too), else 0: divide.
+double RenderScene::checker_inverse(double scale) {
+  const uint64_t bits = std::bit_cast<uint64_t>(scale);
+  const uint64_t e = (bits >> 52) & 0x7ff;
+  if ((bits >> 63) == 0 && (bits & ((uint64_t(1) << 52) - 1)) == 0 && e >= 1 && e <= 2045) {
+    return std::bit_cast<double>((2046 - e) << 52);
   }
-  double of(double x) const { return inv != 0 ? x * inv : x / s; }
-};
-
-}  // namespace
+  return 0.0;
+}
 
 int RenderScene::checker_parity(const Hit& hit, const Material& m) const {
-  const CheckerScale s(m.checker_scale);
+  // x / scale, by the reciprocal made at build time where that gives the same bits.
+  const double inv = checker_inverse_[hit.material], scale = m.checker_scale;
+  const auto of = [inv, scale](double x) { return inv != 0 ? x * inv : x / scale; };
   if (hit.prim.kind == PrimRef::Kind::kPlane) {
     // 2D squares in the plane's own basis, anchored at its point: independent of where the
     // plane is in the world.
     const Plane& pl = planes_[hit.prim.id];
     const Vec3d rel = Vec3d(hit.p) - pl.point;
-    const double a = std::floor(s.of(dot(rel, Vec3d(pl.b1)))), b = std::floor(s.of(dot(rel, Vec3d(pl.b2))));
+    const double a = std::floor(of(dot(rel, pl.b1))), b = std::floor(of(dot(rel, pl.b2)));
     return int(int64_t(a + b) & 1);
   }
   const Vec3d w = Vec3d(hit.p) + origin_;  // solid 3D checker in world space
-  const double sum = std::floor(s.of(w.x)) + std::floor(s.of(w.y)) + std::floor(s.of(w.z));
+  const double sum = std::floor(of(w.x)) + std::floor(of(w.y)) + std::floor(of(w.z));
   return int(int64_t(sum) & 1);
 }
 
