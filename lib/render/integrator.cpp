@@ -189,15 +189,13 @@ Rgb shade(const Context& c, const Vec3f& d, const Hit& hit, const Rgb& direct, c
 // (render/secondary_rays.h); whether there are any. Other lanes, and a lone flat lane (it costs
 // less through plan_secondary, the same arithmetic, so the same bits), are left to
 // plan_secondary.
-bool turning_points(const RenderScene& scene, const RayLanes& rays, const Hit* hits, const bool* found, int n, int depth,
+bool turning_points(const RenderScene& scene, const RayLanes& rays, const Hit* hits, const int8_t* turns, int depth,
                     TurningPoints* out) {
   constexpr int P = RenderScene::kPacket;
   TurningPoints& tp = *out;
   int flats = 0;
-  const bool deeper = depth < scene.image().max_depth;
   for (int i = 0; i < P; ++i) {
-    const bool flat = deeper && i < n && found[i] && !hits[i].smooth &&
-                      scene.material(hits[i].material).type != Material::Type::kDiffuse;
+    const bool flat = turns[i] != 0 && !hits[i].smooth;  // turns: 0 at the last depth
     tp.live[i] = flat ? 1 : 0;
     flats += flat ? 1 : 0;
   }
@@ -261,6 +259,7 @@ struct PacketFrame {
   TurningPoints turning;  // the flat mirror and glass hits, for their children's set-up
   SecondaryRays turned;
   int lane_of[P];
+  int8_t turns[P];  // 1: a mirror or glass hit below the last depth (it sends children)
 };
 
 std::vector<PacketFrame>& packet_frames() {
@@ -284,9 +283,16 @@ void radiance_packet(const RenderScene& scene, const RayLanes& rays, const PrimR
   Rgb* direct = fr.direct;
   ShadingPoints& sp = fr.points;
   bool any = false;
+  // Each lane's material kind, looked up once: whether it has a diffuse hit, and whether a
+  // mirror or glass hit that sends children (turns).
+  int8_t* turns = fr.turns;
+  const bool deeper = depth < scene.image().max_depth;
   for (int i = 0; i < P; ++i) {
     direct[i] = Rgb(0.0f);
-    const bool diffuse = i < n && found[i] && scene.material(hits[i].material).type == Material::Type::kDiffuse;
+    const bool hit = i < n && found[i];
+    const Material::Type type = hit ? scene.material(hits[i].material).type : Material::Type::kDiffuse;
+    const bool diffuse = hit && type == Material::Type::kDiffuse;
+    turns[i] = hit && deeper && type != Material::Type::kDiffuse ? 1 : 0;
     const Hit& h = hits[i];
     // Lanes without a diffuse hit hold zeros: computed on, never traced.
     const Vec3f n_f = !diffuse ? Vec3f(0.0f) : dot(rays.d(i), h.n) < 0.0f ? h.n : -h.n;
@@ -370,7 +376,7 @@ void radiance_packet(const RenderScene& scene, const RayLanes& rays, const PrimR
   // into their packets.
   const TurningPoints& tp = fr.turning;
   const SecondaryRays& tr = fr.turned;
-  if (turning_points(scene, rays, hits, found, n, depth, &fr.turning)) secondary_rays(tp, &fr.turned);
+  if (turning_points(scene, rays, hits, turns, depth, &fr.turning)) secondary_rays(tp, &fr.turned);
   Secondary* sec = fr.sec;
   const float roulette_t = float(scene.image().roulette_weight);
   int m[2] = {0, 0};
@@ -382,9 +388,11 @@ void radiance_packet(const RenderScene& scene, const RayLanes& rays, const PrimR
       sec[i].R = tr.R[i];  // glass only (shade reads it for glass)
       if (sec[i].reflect) fr.child_r[0].set(m[0], {tr.rox[i], tr.roy[i], tr.roz[i]}, {tr.rdx[i], tr.rdy[i], tr.rdz[i]});
       if (sec[i].refract) fr.child_r[1].set(m[1], {tr.tox[i], tr.toy[i], tr.toz[i]}, {tr.tdx[i], tr.tdy[i], tr.tdz[i]});
-    } else {
+    } else if (turns[i]) {
       plan_secondary({scene, *samplers[i], counts}, rays.d(i), hits[i], depth, &sec[i], &fr.child_r[0], &fr.child_r[1],
                      m);
+    } else {
+      sec[i].reflect = sec[i].refract = false;  // plan_secondary's answer for a diffuse hit or the last depth
     }
     if (!sec[i].reflect && !sec[i].refract) continue;
     float w[2] = {0.0f, 0.0f}, scale[2] = {1.0f, 1.0f};

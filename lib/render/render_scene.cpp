@@ -158,9 +158,15 @@ bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double t
   return true;
 }
 
+void RenderScene::make_error_terms() {
+  for (const Sphere& sp : spheres_) sphere_err_.push_back(float(4 * kDoubleEps * (max_component(abs(sp.center)) + sp.radius)));
+  for (const Plane& pl : planes_) plane_err_.push_back(float(4 * kDoubleEps * max_component(abs(pl.point))));
+}
+
 void RenderScene::finish_sphere_hit(uint32_t index, uint32_t bucket, Hit* hit) const {
   const Sphere& s = spheres_[index];
-  hit->p_err = abs(hit->p) * gamma_bound(5) + Vec3f(float(4 * kDoubleEps * (max_component(abs(s.center)) + s.radius)));
+  // sphere_err_[index]: float(4 kDoubleEps (max |centre| + radius)), the centre's and radius's share.
+  hit->p_err = abs(hit->p) * gamma_bound(5) + Vec3f(sphere_err_[index]);
   hit->material = s.material;
   hit->prim = {PrimRef::Kind::kSphere, index, bucket};
   hit->u = hit->v = 0.0f;
@@ -168,7 +174,7 @@ void RenderScene::finish_sphere_hit(uint32_t index, uint32_t bucket, Hit* hit) c
 
 void RenderScene::finish_plane_hit(int plane, Hit* hit) const {
   const Plane& pl = planes_[size_t(plane)];
-  hit->p_err = abs(hit->p) * gamma_bound(3) + Vec3f(float(4 * kDoubleEps * max_component(abs(pl.point))));
+  hit->p_err = abs(hit->p) * gamma_bound(3) + Vec3f(plane_err_[size_t(plane)]);  // float(4 kDoubleEps max |point|)
   hit->material = pl.material;
   hit->prim = {PrimRef::Kind::kPlane, uint32_t(plane), 0};
   hit->u = hit->v = 0.0f;

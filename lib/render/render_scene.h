@@ -242,6 +242,10 @@ class RenderScene {
   // The indices of the opaque planes, ascending: the ones a shadow ray tests (opaque_plane_blocks),
   // without a material lookup per plane and ray.
   std::vector<uint32_t> opaque_planes_;
+  // The constant term of a hit point's error bound, per sphere and per plane (finish_sphere_hit,
+  // finish_plane_hit): made once, not per hit.
+  std::vector<float> sphere_err_, plane_err_;
+  void make_error_terms();
   // The same planes as a table for SIMD (plane_table_'s layout), and each plane's index in it
   // (-1: glass): a packet's shadow rays test them all at once (transmittance_packet).
   std::vector<double> opaque_plane_table_;

@@ -135,6 +135,7 @@ void RenderScene::add_mesh(const Mesh& mesh, uint32_t object, const Transform& x
 // What is complete only once every object is in: per-triangle tables padded to every triangle,
 // area-light CDFs normalized, the planes' SIMD table, whether any glass is in the scene.
 void RenderScene::finish_tables() {
+  make_error_terms();
   for (const Material& m : materials_) checker_inverse_.push_back(checker_inverse(m.checker_scale));
   for (TriangleBucket& b : triangles_) {
     if (!b.uvs.empty()) b.uvs.resize(6 * b.material_ids.size(), 0.0f);
