@@ -139,9 +139,8 @@ bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double t
         const Vec3d pd = o + d * double(tfar);
         const Vec3d nd = normalize(pd - s.center);
         const Vec3d pr = s.center + nd * s.radius;
-        hit->p = Vec3f(pr);
         hit->n = Vec3f(nd);
-        finish_sphere_hit(index, uint32_t(k), hit);
+        finish_sphere_hit(index, uint32_t(k), Vec3f(pr), hit);
         return true;
       }
     }
@@ -152,32 +151,14 @@ bool RenderScene::finish_hit(const Vec3d& o, const Vec3d& d, int plane, double t
   Vec3d pd = o + d * tp;
   pd = pd - pl.normal * dot(pd - pl.point, pl.normal);  // project onto the plane
   hit->t = float(tp);
-  hit->p = Vec3f(pd);
   hit->n = Vec3f(pl.normal);
-  finish_plane_hit(plane, hit);
+  finish_plane_hit(plane, Vec3f(pd), hit);
   return true;
 }
 
 void RenderScene::make_error_terms() {
   for (const Sphere& sp : spheres_) sphere_err_.push_back(float(4 * kDoubleEps * (max_component(abs(sp.center)) + sp.radius)));
   for (const Plane& pl : planes_) plane_err_.push_back(float(4 * kDoubleEps * max_component(abs(pl.point))));
-}
-
-void RenderScene::finish_sphere_hit(uint32_t index, uint32_t bucket, Hit* hit) const {
-  const Sphere& s = spheres_[index];
-  // sphere_err_[index]: float(4 kDoubleEps (max |centre| + radius)), the centre's and radius's share.
-  hit->p_err = abs(hit->p) * gamma_bound(5) + Vec3f(sphere_err_[index]);
-  hit->material = s.material;
-  hit->prim = {PrimRef::Kind::kSphere, index, bucket};
-  hit->u = hit->v = 0.0f;
-}
-
-void RenderScene::finish_plane_hit(int plane, Hit* hit) const {
-  const Plane& pl = planes_[size_t(plane)];
-  hit->p_err = abs(hit->p) * gamma_bound(3) + Vec3f(plane_err_[size_t(plane)]);  // float(4 kDoubleEps max |point|)
-  hit->material = pl.material;
-  hit->prim = {PrimRef::Kind::kPlane, uint32_t(plane), 0};
-  hit->u = hit->v = 0.0f;
 }
 
 bool RenderScene::any_hit(const Ray& ray, const PrimRef& from) const {

@@ -172,13 +172,13 @@ void RenderScene::intersect_packet(const RayLanes& rays, const PrimRef* from, in
     if (finish[i] == 0) continue;
     Hit& h = hits[i];
     h.t = finish[i] == kSphereLane ? simd.t[i] : float(tp[i]);
-    h.p = {simd.px[i], simd.py[i], simd.pz[i]};
+    const Vec3f p{simd.px[i], simd.py[i], simd.pz[i]};
     h.n = {simd.nx[i], simd.ny[i], simd.nz[i]};
     h.smooth = false;
     if (finish[i] == kSphereLane) {
-      finish_sphere_hit(prim[i], bucket[i], &h);
+      finish_sphere_hit(prim[i], bucket[i], p, &h);
     } else {
-      finish_plane_hit(plane[i], &h);
+      finish_plane_hit(plane[i], p, &h);
     }
   }
 }
