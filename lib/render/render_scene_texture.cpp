@@ -29,21 +29,4 @@ double RenderScene::checker_inverse(double scale) {
   return 0.0;
 }
 
-int RenderScene::checker_parity(const Hit& hit, const Material& m) const {
-  // x / scale, by the reciprocal made at build time where that gives the same bits.
-  const double inv = checker_inverse_[hit.material], scale = m.checker_scale;
-  const auto of = [inv, scale](double x) { return inv != 0 ? x * inv : x / scale; };
-  if (hit.prim.kind == PrimRef::Kind::kPlane) {
-    // 2D squares in the plane's own basis, anchored at its point: independent of where the
-    // plane is in the world.
-    const Plane& pl = planes_[hit.prim.id];
-    const Vec3d rel = Vec3d(hit.p) - pl.point;
-    const double a = std::floor(of(dot(rel, pl.b1))), b = std::floor(of(dot(rel, pl.b2)));
-    return int(int64_t(a + b) & 1);
-  }
-  const Vec3d w = Vec3d(hit.p) + origin_;  // solid 3D checker in world space
-  const double sum = std::floor(of(w.x)) + std::floor(of(w.y)) + std::floor(of(w.z));
-  return int(int64_t(sum) & 1);
-}
-
 }  // namespace tessera
