@@ -223,6 +223,35 @@ bool turning_points(const RenderScene& scene, const RayLanes& rays, const Hit* h
   return true;
 }
 
+// The packet's diffuse hits as shading points (render/shadow_rays.h), for their shadow rays'
+// set-up across lanes; whether there are any. Each lane's material kind is looked up once, here:
+// turns[i] is 1 for a mirror or glass hit below the last depth (it sends children).
+bool shading_points(const RenderScene& scene, const RayLanes& rays, const Hit* hits, const bool* found, int n, int depth,
+                    ShadingPoints* out, int8_t* turns) {
+  constexpr int P = RenderScene::kPacket;
+  ShadingPoints& sp = *out;
+  bool any = false;
+  const bool deeper = depth < scene.image().max_depth;
+  for (int i = 0; i < P; ++i) {
+    const bool hit = i < n && found[i];
+    const Material::Type type = hit ? scene.material(hits[i].material).type : Material::Type::kDiffuse;
+    const bool diffuse = hit && type == Material::Type::kDiffuse;
+    turns[i] = hit && deeper && type != Material::Type::kDiffuse ? 1 : 0;
+    const Hit& h = hits[i];
+    // Lanes without a diffuse hit hold zeros: computed on, never traced.
+    const Vec3f n_f = !diffuse ? Vec3f(0.0f) : dot(rays.d(i), h.n) < 0.0f ? h.n : -h.n;
+    const Vec3f ns_f = diffuse && h.smooth ? facing(h.ns, h.n, n_f) : n_f;
+    const Vec3f p = diffuse ? h.p : Vec3f(0.0f), e = diffuse ? h.p_err : Vec3f(0.0f);
+    sp.at.set(i, p, e, n_f);
+    sp.sx[i] = ns_f.x, sp.sy[i] = ns_f.y, sp.sz[i] = ns_f.z;
+    sp.g_dot_s[i] = dot(n_f, ns_f);  // smooth_light_cosine's dot(ng_facing, ns_facing)
+    sp.smooth[i] = diffuse && h.smooth ? 1 : 0;
+    sp.live[i] = diffuse ? 1 : 0;
+    any = any || diffuse;
+  }
+  return any;
+}
+
 // The integrator: n <= P rays of one pixel's samples at the same path node (`node`: 1 for camera
 // rays, 2k / 2k + 1 for the reflection / refraction children of node k), traced as one packet.
 // Their shadow rays go in packets, light after light, and their children in one packet per
@@ -281,30 +310,10 @@ void radiance_packet(const RenderScene& scene, const RayLanes& rays, const PrimR
   // each lane's sampler, lane by lane (area_light_query). Each lane sums its lights in that
   // order.
   Rgb* direct = fr.direct;
+  for (int i = 0; i < P; ++i) direct[i] = Rgb(0.0f);
   ShadingPoints& sp = fr.points;
-  bool any = false;
-  // Each lane's material kind, looked up once: whether it has a diffuse hit, and whether a
-  // mirror or glass hit that sends children (turns).
   int8_t* turns = fr.turns;
-  const bool deeper = depth < scene.image().max_depth;
-  for (int i = 0; i < P; ++i) {
-    direct[i] = Rgb(0.0f);
-    const bool hit = i < n && found[i];
-    const Material::Type type = hit ? scene.material(hits[i].material).type : Material::Type::kDiffuse;
-    const bool diffuse = hit && type == Material::Type::kDiffuse;
-    turns[i] = hit && deeper && type != Material::Type::kDiffuse ? 1 : 0;
-    const Hit& h = hits[i];
-    // Lanes without a diffuse hit hold zeros: computed on, never traced.
-    const Vec3f n_f = !diffuse ? Vec3f(0.0f) : dot(rays.d(i), h.n) < 0.0f ? h.n : -h.n;
-    const Vec3f ns_f = diffuse && h.smooth ? facing(h.ns, h.n, n_f) : n_f;
-    const Vec3f p = diffuse ? h.p : Vec3f(0.0f), e = diffuse ? h.p_err : Vec3f(0.0f);
-    sp.at.set(i, p, e, n_f);
-    sp.sx[i] = ns_f.x, sp.sy[i] = ns_f.y, sp.sz[i] = ns_f.z;
-    sp.g_dot_s[i] = dot(n_f, ns_f);  // smooth_light_cosine's dot(ng_facing, ns_facing)
-    sp.smooth[i] = diffuse && h.smooth ? 1 : 0;
-    sp.live[i] = diffuse ? 1 : 0;
-    any = any || diffuse;
-  }
+  const bool any = shading_points(scene, rays, hits, found, n, depth, &sp, turns);
   // The queue of shadow rays, light after light: traced whenever it holds a full packet (with
   // fewer samples a pixel than a packet's lanes, the rays to several lights share one), and each
   // lane adds its light, transmittance x a x b, in the order its queries were queued.
