@@ -208,8 +208,14 @@ void RenderScene::transmittance_packet(const RayLanes& rays, const PrimRef* from
     // a blocking plane is the nearest plane in (0, tmax), batch_nearest_planes() on the opaque
     // planes' table), the arrays copied whole.
     alignas(64) int32_t blocker[kPacket], left[kPacket];
-    if (!opaque_planes_.empty()) {
-      for (int i = 0; i < kPacket; ++i) left[i] = from[i].kind == PrimRef::Kind::kPlane ? opaque_index_[from[i].id] : -1;
+    // With one opaque plane (a ground) and every ray leaving it, there is nothing to test: a ray
+    // never meets the plane it leaves (the shadow rays of a packet of ground hits).
+    bool only_their_own = opaque_planes_.size() == 1;
+    for (int i = 0; i < kPacket; ++i) {
+      left[i] = from[i].kind == PrimRef::Kind::kPlane ? opaque_index_[from[i].id] : -1;
+      only_their_own &= left[i] == 0;
+    }
+    if (!opaque_planes_.empty() && !only_their_own) {
       alignas(64) double tp[kPacket];
       alignas(64) float tfar[kPacket];
       const PlaneTable opaque{opaque_plane_table_.data(), opaque_plane_ids_.data(), opaque_planes_.size()};
