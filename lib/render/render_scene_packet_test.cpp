@@ -120,6 +120,45 @@ TEST_P(PacketTest, PacketTransmittanceMatchesSingleRays) {
   EXPECT_GT(blocked + open, 50);
 }
 
+// Full packets of shadow rays that all leave the ground of a scene with one opaque plane (the
+// Whitted showcase's checker floor): transmittance_packet skips the opaque-plane test for them (a
+// ray never meets the plane it leaves). Toward both of the scene's lights, some rays blocked by
+// the spheres and some open, every lane must still be the single ray's answer.
+TEST(PacketGround, ShadowRaysLeavingTheOnlyOpaquePlaneMatchSingleRays) {
+  const RenderScene rs(load_scene(std::string(TESSERA_SOURCE_DIR) + "/scenes/whitted.json"), 0);
+  ASSERT_EQ(rs.point_lights().size(), 2u);
+  const std::vector<Ray> rays = camera_rays(rs, 4000);
+  constexpr int P = RenderScene::kPacket;
+  int blocked = 0, open = 0, packets = 0;
+  for (const auto& light : rs.point_lights()) {
+    std::vector<Ray> shadow;
+    std::vector<PrimRef> from;
+    for (const Ray& r : rays) {
+      Hit h;
+      if (!rs.intersect(r, PrimRef{}, &h) || h.prim.kind != PrimRef::Kind::kPlane) continue;
+      const Vec3f n = dot(r.d, h.n) < 0 ? h.n : -h.n;
+      const Vec3f w = normalize(light.position - h.p);
+      if (!(dot(w, n) > 0)) continue;
+      shadow.push_back({offset_ray_origin(h.p, h.p_err, n, w), w, length(light.position - h.p) * (1.0f - 1e-4f)});
+      from.push_back(h.prim);
+    }
+    for (size_t base = 0; base + P <= shadow.size(); base += P, ++packets) {
+      Rgb T[P];
+      rs.transmittance_packet(&shadow[base], &from[base], P, T);
+      for (int i = 0; i < P; ++i) {
+        const Rgb t1 = rs.transmittance(shadow[base + i], from[base + i]);
+        ASSERT_EQ(std::bit_cast<uint32_t>(t1.x), std::bit_cast<uint32_t>(T[i].x)) << "shadow ray " << base + i;
+        ASSERT_EQ(std::bit_cast<uint32_t>(t1.y), std::bit_cast<uint32_t>(T[i].y)) << "shadow ray " << base + i;
+        ASSERT_EQ(std::bit_cast<uint32_t>(t1.z), std::bit_cast<uint32_t>(T[i].z)) << "shadow ray " << base + i;
+        (t1.x == 0 && t1.y == 0 && t1.z == 0 ? blocked : open)++;
+      }
+    }
+  }
+  EXPECT_GT(packets, 100);
+  EXPECT_GT(blocked, 50) << "too few rays blocked by the spheres to mean anything";
+  EXPECT_GT(open, 50);
+}
+
 // Every field of two hits, bit for bit (so -0 and +0 differ; padding is not compared).
 void expect_identical_hit(bool found_a, const Hit& a, bool found_b, const Hit& b, const std::string& what) {
   ASSERT_EQ(found_a, found_b) << what;
