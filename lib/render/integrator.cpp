@@ -317,13 +317,19 @@ void radiance_packet(const RenderScene& scene, const RayLanes& rays, const PrimR
   // The queue of shadow rays, light after light: traced whenever it holds a full packet (with
   // fewer samples a pixel than a packet's lanes, the rays to several lights share one), and each
   // lane adds its light, transmittance x a x b, in the order its queries were queued.
+  // trace() sends `count` shadow rays as one packet, ray j leaving lane lane(j) with weights
+  // a(j) and b(j): from the queue, or straight from a light's set-up (queue_lanes).
+  auto trace = [&](const RayLanes& r, int count, auto lane, auto a, auto b) {
+    counts->shadow += uint64_t(count);
+    for (int j = 0; j < count; ++j) fr.f[j] = hits[lane(j)].prim;
+    scene.transmittance_packet(r, fr.f, count, fr.T);
+    for (int j = 0; j < count; ++j) direct[lane(j)] += fr.T[j] * a(j) * b(j);
+  };
   int queued = 0;
   auto flush = [&] {
     if (queued == 0) return;
-    counts->shadow += uint64_t(queued);
-    for (int j = 0; j < queued; ++j) fr.f[j] = hits[fr.lane_of[j]].prim;
-    scene.transmittance_packet(fr.r, fr.f, queued, fr.T);
-    for (int j = 0; j < queued; ++j) direct[fr.lane_of[j]] += fr.T[j] * fr.qa[j] * fr.qb[j];
+    trace(fr.r, queued, [&](int j) { return fr.lane_of[j]; }, [&](int j) { return fr.qa[j]; },
+          [&](int j) { return fr.qb[j]; });
     queued = 0;
   };
   auto queue = [&](int lane, const Ray& ray, const Rgb& a, float b) {
@@ -339,18 +345,16 @@ void radiance_packet(const RenderScene& scene, const RayLanes& rays, const PrimR
   // the queue would make, in its order, with the same products: the same bits, without the
   // copies.
   auto queue_lanes = [&](const ShadowRays& sr, const Rgb& intensity, bool spot) {
+    const auto a = [&](int i) { return spot ? intensity * sr.cone[i] : intensity; };
+    const auto b = [&](int i) { return sr.b[i]; };
     int32_t lit = 1;
     for (int i = 0; i < P; ++i) lit &= sr.live[i];  // live: 0 or 1
     if (queued == 0 && n == P && lit != 0) {
-      counts->shadow += uint64_t(P);
-      for (int j = 0; j < P; ++j) fr.f[j] = hits[j].prim;
-      scene.transmittance_packet(sr.rays, fr.f, P, fr.T);
-      for (int j = 0; j < P; ++j) direct[j] += fr.T[j] * (spot ? intensity * sr.cone[j] : intensity) * sr.b[j];
+      trace(sr.rays, P, [](int j) { return j; }, a, b);
       return;
     }
     for (int i = 0; i < n; ++i) {
-      if (!sr.live[i]) continue;
-      queue(i, sr.rays.ray(i), spot ? intensity * sr.cone[i] : intensity, sr.b[i]);
+      if (sr.live[i]) queue(i, sr.rays.ray(i), a(i), b(i));
     }
   };
   if (any) {

@@ -30,6 +30,7 @@ namespace tessera {
 
 struct RayBatch;
 struct RayLanes;
+struct RayArrays;
 struct HitBatch;
 struct FrameState;
 class Transform;
@@ -218,6 +219,8 @@ class RenderScene {
   }
   // Whether Embree can take a ray from o as it is (embree_ray()): within 16 R, max norm.
   bool starts_near(const Vec3f& o) const { return max_component(abs(o)) <= 16.0f * bounds_radius_; }
+  // Whether a packet is whole (n == kPacket) and every ray starts near: Embree takes it as it is.
+  bool all_start_near(const RayArrays& rays, int n) const;
   double embree_ray_from_far(const Ray& ray, Ray* embree_ray) const;
   Rgb glass_transmittance_walk(const Ray& ray, TraceContext* ctx, Rgb T) const;
   // The halves of intersect() and transmittance() around the Embree query, shared with the

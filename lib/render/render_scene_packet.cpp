@@ -77,6 +77,12 @@ RTCRay lane_ray(const RTCRay8& r, int lane) {
 
 }  // namespace
 
+bool RenderScene::all_start_near(const RayArrays& r, int n) const {
+  bool near = n == kPacket;
+  for (int i = 0; i < kPacket; ++i) near &= starts_near({r.ox[i], r.oy[i], r.oz[i]});  // no branch a lane
+  return near;
+}
+
 void RenderScene::intersect_packet(const RayLanes& rays, const PrimRef* from, int n, Hit* hits, bool* found) const {
   static_assert(kRayLanes == kPacket);
   alignas(32) int valid[kPacket];
@@ -96,9 +102,7 @@ void RenderScene::intersect_packet(const RayLanes& rays, const PrimRef* from, in
     rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
   }
-  bool near = n == kPacket;  // starts_near() of every lane, without a branch a lane
-  for (int i = 0; i < kPacket; ++i) near &= starts_near({rb.ox[i], rb.oy[i], rb.oz[i]});
-  if (near && !log) {
+  if (all_start_near(rb, n) && !log) {
     // The common case, a whole packet of rays Embree takes as they are: the arrays copied
     // whole, in loops of fixed trip count the compiler turns into vector moves (the lane-by-lane
     // loop below cost 2 % of a Whitted frame).
@@ -108,26 +112,26 @@ void RenderScene::intersect_packet(const RayLanes& rays, const PrimRef* from, in
       valid[i] = -1;
     }
   } else {
-  for (int i = 0; i < kPacket; ++i) {
-    valid[i] = 0;
-    if (i >= n) continue;
-    // embree_ray(), its common case written lane by lane: copying Ray structs here cost a
-    // store-forwarding stall per lane (a fifth of this function's time, measured with perf).
-    if (starts_near({rb.ox[i], rb.oy[i], rb.oz[i]})) {
-      t0[i] = 0.0;
-      set_lane(&rh.ray, i, {rb.ox[i], rb.oy[i], rb.oz[i]}, {rb.dx[i], rb.dy[i], rb.dz[i]}, tfar[i], 0xFFFFFFFFu);
-    } else {
-      const Ray ray{rays.o(i), rays.d(i), tfar[i]};
-      Ray er = ray;  // embree_ray_from_far() moves the origin and shortens tmax of this copy
-      t0[i] = embree_ray_from_far(ray, &er);
-      set_lane(&rh.ray, i, er.o, er.d, er.tmax, 0xFFFFFFFFu);
+    for (int i = 0; i < kPacket; ++i) {
+      valid[i] = 0;
+      if (i >= n) continue;
+      // embree_ray(), its common case written lane by lane: copying Ray structs here cost a
+      // store-forwarding stall per lane (a fifth of this function's time, measured with perf).
+      if (starts_near({rb.ox[i], rb.oy[i], rb.oz[i]})) {
+        t0[i] = 0.0;
+        set_lane(&rh.ray, i, {rb.ox[i], rb.oy[i], rb.oz[i]}, {rb.dx[i], rb.dy[i], rb.dz[i]}, tfar[i], 0xFFFFFFFFu);
+      } else {
+        const Ray ray{rays.o(i), rays.d(i), tfar[i]};
+        Ray er = ray;  // embree_ray_from_far() moves the origin and shortens tmax of this copy
+        t0[i] = embree_ray_from_far(ray, &er);
+        set_lane(&rh.ray, i, er.o, er.d, er.tmax, 0xFFFFFFFFu);
+      }
+      if (log) {
+        log->rays.push_back({lane_ray(rh.ray, i), from[i],
+                             from[i].kind == PrimRef::Kind::kNone ? LoggedRay::Kind::kCamera : LoggedRay::Kind::kSecondary});
+      }
+      if (t0[i] >= 0.0) valid[i] = -1;  // else no bounded geometry within reach: planes only
     }
-    if (log) {
-      log->rays.push_back({lane_ray(rh.ray, i), from[i],
-                           from[i].kind == PrimRef::Kind::kNone ? LoggedRay::Kind::kCamera : LoggedRay::Kind::kSecondary});
-    }
-    if (t0[i] >= 0.0) valid[i] = -1;  // else no bounded geometry within reach: planes only
-  }
   }
   TraceContext ctx;
   rtcInitIntersectContext(&ctx.rtc);
@@ -200,9 +204,7 @@ void RenderScene::transmittance_packet(const RayLanes& rays, const PrimRef* from
   int live = 0;
   RayLog* const log = thread_ray_log();
   const RayArrays rb = rays.arrays();
-  bool near = n == kPacket;  // starts_near() of every lane, without a branch a lane
-  for (int i = 0; i < kPacket; ++i) near &= starts_near({rb.ox[i], rb.oy[i], rb.oz[i]});
-  if (near && !log) {
+  if (all_start_near(rb, n) && !log) {
     // The common case, a whole packet of rays Embree takes as they are (a full queue of shadow
     // rays): the opaque planes tested for all lanes at once (opaque_plane_blocks()'s arithmetic:
     // a blocking plane is the nearest plane in (0, tmax), batch_nearest_planes() on the opaque
@@ -231,28 +233,28 @@ void RenderScene::transmittance_packet(const RayLanes& rays, const PrimRef* from
       live += open[i] ? 1 : 0;
     }
   } else {
-  for (int i = 0; i < kPacket; ++i) {
-    valid[i] = 0;
-    if (i >= n) continue;
-    const Ray ray = rays.ray(i);
-    if (opaque_plane_blocks(ray, from[i])) {
-      T[i] = Rgb(0.0f);
-      continue;
+    for (int i = 0; i < kPacket; ++i) {
+      valid[i] = 0;
+      if (i >= n) continue;
+      const Ray ray = rays.ray(i);
+      if (opaque_plane_blocks(ray, from[i])) {
+        T[i] = Rgb(0.0f);
+        continue;
+      }
+      open[i] = true;
+      double t0 = 0.0;  // embree_ray(), lane by lane as in intersect_packet
+      if (starts_near(ray.o)) {
+        set_lane(&r, i, ray.o, ray.d, ray.tmax, mask);
+      } else {
+        Ray er = ray;
+        t0 = embree_ray_from_far(ray, &er);
+        set_lane(&r, i, er.o, er.d, er.tmax, mask);
+      }
+      if (log) log->rays.push_back({lane_ray(r, i), from[i], LoggedRay::Kind::kShadow});
+      if (t0 < 0.0) continue;  // no bounded geometry within reach: planes only (no glass hits)
+      valid[i] = -1;
+      ++live;
     }
-    open[i] = true;
-    double t0 = 0.0;  // embree_ray(), lane by lane as in intersect_packet
-    if (starts_near(ray.o)) {
-      set_lane(&r, i, ray.o, ray.d, ray.tmax, mask);
-    } else {
-      Ray er = ray;
-      t0 = embree_ray_from_far(ray, &er);
-      set_lane(&r, i, er.o, er.d, er.tmax, mask);
-    }
-    if (log) log->rays.push_back({lane_ray(r, i), from[i], LoggedRay::Kind::kShadow});
-    if (t0 < 0.0) continue;  // no bounded geometry within reach: planes only (no glass hits)
-    valid[i] = -1;
-    ++live;
-  }
   }
   if (live > 0) {
     TraceContext ctx;
