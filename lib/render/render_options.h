@@ -1,4 +1,4 @@
-// How a RenderScene is built: which ray-triangle test it traces with.
+// How a RenderScene is built: which ray-triangle test it traces with, and how it finds spheres.
 #pragma once
 
 #include <cstdint>
@@ -24,8 +24,19 @@ constexpr const char* triangle_test_name(TriangleTest t) {
   return t == TriangleTest::kWatertight ? "watertight" : t == TriangleTest::kEmbreeRobust ? "embree-robust" : "embree-fast";
 }
 
+// How rays find the spheres of a scene without triangles.
+enum class SphereSearch : uint8_t {
+  // Default. A scene of at most kScanSpheres (render/sphere_scan.h) spheres and no triangles is
+  // scanned: each packet of rays tested against every sphere the float test of
+  // render/sphere_scan.h keeps (render_scene_scan.cpp). Any other scene: Embree's BVH.
+  kScanSmall,
+  // Always Embree's BVH (the tests and benchmarks compare the two: the same answers).
+  kEmbree,
+};
+
 struct RenderOptions {
   TriangleTest triangles = TriangleTest::kWatertight;
+  SphereSearch spheres = SphereSearch::kScanSmall;
 };
 
 }  // namespace tessera

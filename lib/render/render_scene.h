@@ -18,6 +18,7 @@
 #include "render/hit.h"
 #include "render/ray.h"
 #include "render/render_options.h"
+#include "render/sphere_scan.h"
 #include "render/triangle_cluster.h"
 #include "scene/scene.h"
 
@@ -140,6 +141,8 @@ class RenderScene {
   // Its layout is read in place by the batch's SIMD finish (render/ray_batch_simd.h).
   struct Sphere { Vec3d center; double radius; uint32_t material; uint32_t object; };
   const std::vector<Sphere>& spheres() const { return spheres_; }
+  // Whether packets of rays scan the spheres rather than traverse Embree's BVH (SphereSearch).
+  bool scans_spheres() const { return scan_spheres_; }
   // Half-width added to every user-geometry bounding box (see set_padded_bounds() in
   // user_geometry.cpp): a bound on the rounding error of Embree's box test for rays starting
   // within 32x the radius of the scene's triangles around the eye. Triangles only: one huge
@@ -248,6 +251,22 @@ class RenderScene {
     hit->u = hit->v = 0.0f;
   }
   bool opaque_plane_blocks(const Ray& ray, const PrimRef& from) const;
+  // A scene of at most kScanSpheres spheres and no triangles is scanned, not traversed: a whole
+  // packet's rays are tested against each sphere in turn (render_scene_scan.cpp), where Embree
+  // would run its BVH and call back. scan_[s]: sphere s's bucket and its index there (the
+  // primitive id Embree would report).
+  struct ScanSphere { uint32_t bucket, prim; };
+  bool scan_spheres_ = false;
+  std::vector<ScanSphere> scan_;
+  ScanTable scan_table_;
+  void make_scan();
+  // rtcIntersect8 on a whole packet of rays that start near, as a scan: for each lane, tfar[i]
+  // shortened to its nearest sphere hit in (0, tfar[i]), and geom[i], prim[i] set to it, as the
+  // sphere callback writes them; lanes without one are left alone.
+  void scan_intersect(const RayArrays& rays, const PrimRef* from, float* tfar, uint32_t* geom, uint32_t* prim) const;
+  // rtcOccluded8 likewise: tfar[i] = -inf for a valid lane an opaque sphere blocks in
+  // (0, tfar[i]); glass crossings collected into glass[i], as the callback collects them.
+  void scan_occluded(const RayArrays& rays, const PrimRef* from, const int* valid, float* tfar, GlassHits* glass) const;
   Rgb glass_product(const Ray& ray, TraceContext* ctx, GlassHits* glass) const;
 
   ImageSettings image_;

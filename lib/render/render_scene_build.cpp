@@ -41,7 +41,20 @@ void RenderScene::build(const Scene& scene, int frame) {
   add_objects(scene, state);
   finish_tables();
   measure_bounds();
+  make_scan();
   build_embree_scene();
+}
+
+void RenderScene::make_scan() {
+  scan_spheres_ = options_.spheres == SphereSearch::kScanSmall && triangles_[0].material_ids.empty() &&
+                  triangles_[1].material_ids.empty() && spheres_.size() <= kScanSpheres;
+  if (!scan_spheres_) return;
+  uint32_t in_bucket[2] = {0, 0};
+  for (const Sphere& s : spheres_) {
+    const uint32_t b = is_glass(materials_[s.material]) ? 1 : 0;  // add_objects()' buckets, in order
+    scan_.push_back({b, in_bucket[b]++});
+    add_scan_sphere(&scan_table_, s.center.x, s.center.y, s.center.z, s.radius);
+  }
 }
 
 void RenderScene::add_lights(const std::vector<Light>& lights) {

@@ -33,6 +33,13 @@ struct RenderScene::GlassHits {
   }
 };
 
+// Sphere `index`'s crossings of a shadow ray in (tnear, tfar), added to *glass: both roots, the
+// far one alone for a ray leaving the sphere inward, none for one leaving it outward
+// (sphere_geometry.cpp: the occlusion callback's rule, shared with the scan of
+// render_scene_scan.cpp).
+void add_glass_crossings(const RenderScene::Sphere& s, uint32_t index, const PrimRef& from, const Vec3d& o,
+                         const Vec3d& d, float tnear, float tfar, RenderScene::GlassHits* glass);
+
 // Embree's intersect context extended (as in Embree's tutorials) with what our callbacks need.
 // `from` is the primitive the ray leaves; for packets, `from_by_id` (if set) gives it per lane,
 // indexed by the ray's id, so a lane's result never depends on its packet. `glass` (if set)

@@ -13,6 +13,7 @@
 #include "render/ray_batch.h"
 #include "render/render_scene.h"
 #include "render/sampler.h"
+#include "render/test_hits.h"
 #include "scene/scene_parser.h"
 
 namespace tessera {
@@ -159,28 +160,6 @@ TEST(PacketGround, ShadowRaysLeavingTheOnlyOpaquePlaneMatchSingleRays) {
   EXPECT_GT(open, 50);
 }
 
-// Every field of two hits, bit for bit (so -0 and +0 differ; padding is not compared).
-void expect_identical_hit(bool found_a, const Hit& a, bool found_b, const Hit& b, const std::string& what) {
-  ASSERT_EQ(found_a, found_b) << what;
-  if (!found_a) return;
-  auto bits = [](const Vec3f& v) { return std::tuple(std::bit_cast<uint32_t>(v.x), std::bit_cast<uint32_t>(v.y), std::bit_cast<uint32_t>(v.z)); };
-  EXPECT_EQ(std::bit_cast<uint32_t>(a.t), std::bit_cast<uint32_t>(b.t)) << what;
-  EXPECT_EQ(bits(a.p), bits(b.p)) << what;
-  EXPECT_EQ(bits(a.p_err), bits(b.p_err)) << what;
-  EXPECT_EQ(bits(a.n), bits(b.n)) << what;
-  EXPECT_EQ(a.material, b.material) << what;
-  EXPECT_EQ(a.prim, b.prim) << what;
-  EXPECT_EQ(std::tuple(std::bit_cast<uint32_t>(a.u), std::bit_cast<uint32_t>(a.v), std::bit_cast<uint32_t>(a.tex_u),
-                       std::bit_cast<uint32_t>(a.tex_v)),
-            std::tuple(std::bit_cast<uint32_t>(b.u), std::bit_cast<uint32_t>(b.v), std::bit_cast<uint32_t>(b.tex_u),
-                       std::bit_cast<uint32_t>(b.tex_v)))
-      << what;
-  ASSERT_EQ(a.smooth, b.smooth) << what;
-  if (a.smooth) {
-    EXPECT_EQ(bits(a.ns), bits(b.ns)) << what;
-  }
-}
-
 // intersect_batch() does intersect()'s work over a batch, the common hits' arithmetic in SIMD
 // (each target the machine has): every answer must still be intersect()'s, bit for bit, whatever
 // the batch size or the ray's place in it. Camera rays, rays from inside and around the scene in
@@ -229,7 +208,7 @@ TEST_P(PacketTest, IntersectBatchIsIntersectBitForBit) {
           const Hit& want = single[b + i];
           switch (out->status[i]) {
             case HitBatch::kMiss: EXPECT_FALSE(found[b + i]) << what; break;
-            case HitBatch::kHit: expect_identical_hit(found[b + i], want, true, out->hit[i], what); break;
+            case HitBatch::kHit: test::expect_identical_hit(found[b + i], want, true, out->hit[i], what); break;
             case HitBatch::kAnswered:
               ASSERT_TRUE(found[b + i]) << what;
               EXPECT_FALSE(want.smooth) << what;

@@ -131,19 +131,7 @@ void sphere_occluded(const RTCOccludedFunctionNArguments* args) {
     const PrimRef& from = ctx->from_of(ray, N, i);
     const float tnear = RTCRayN_tnear(ray, N, i), tfar = RTCRayN_tfar(ray, N, i);
     if (collecting) {
-      // A shadow ray collecting glass crossings: every root in (tnear, tfar), not just the first
-      // (the same roots the old crossing-by-crossing walk found, in one traversal).
-      int first = 0;
-      if (from.kind == PrimRef::Kind::kSphere && from.id == index) {
-        if (dot(d, o - s.center) >= 0) continue;
-        first = 1;
-      }
-      double t[2];
-      if (intersect_sphere(o, d, s.center, s.radius, t) == 0) continue;
-      for (int k = first; k < 2; ++k) {
-        const float tf = float(t[k]);
-        if (tf > tnear && tf < tfar) ctx->glass[RTCRayN_id(ray, N, i)].add(tf, s.material);
-      }
+      add_glass_crossings(s, index, from, o, d, tnear, tfar, &ctx->glass[RTCRayN_id(ray, N, i)]);
       continue;
     }
     if (sphere_root(s, index, from, o, d, tnear, tfar) >= 0) {
@@ -153,6 +141,23 @@ void sphere_occluded(const RTCOccludedFunctionNArguments* args) {
 }
 
 }  // namespace
+
+void add_glass_crossings(const RenderScene::Sphere& s, uint32_t index, const PrimRef& from, const Vec3d& o,
+                         const Vec3d& d, float tnear, float tfar, RenderScene::GlassHits* glass) {
+  // Every root in (tnear, tfar), not just the first (the same roots the old crossing-by-crossing
+  // walk found, in one traversal); leaving the sphere, as sphere_root().
+  int first = 0;
+  if (from.kind == PrimRef::Kind::kSphere && from.id == index) {
+    if (dot(d, o - s.center) >= 0) return;
+    first = 1;
+  }
+  double t[2];
+  if (intersect_sphere(o, d, s.center, s.radius, t) == 0) return;
+  for (int k = first; k < 2; ++k) {
+    const float tf = float(t[k]);
+    if (tf > tnear && tf < tfar) glass->add(tf, s.material);
+  }
+}
 
 uint32_t attach_spheres(RTCScene scene, SphereGeomData* data) {
   return attach_user_geometry(scene, data->bucket->ids.size(), data, sphere_bounds, sphere_intersect,
