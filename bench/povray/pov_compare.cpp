@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -46,13 +47,13 @@ struct Run {
 
 // Renders `reps` times and keeps the fastest (CPU): a render here takes a tenth of a second, and
 // the first one also pays for starting the thread pool.
-Run render(const Scene& base, int spp, int threads, const ImageRGB& ref, double target_rmse = 0, int min_spp = 16,
-           int reps = 3) {
+Run render(const Scene& base, const RenderOptions& options, int spp, int threads, const ImageRGB& ref,
+           double target_rmse = 0, int min_spp = 16, int reps = 3) {
   Scene s = base;
   s.image.spp = spp;
   s.image.target_rmse = target_rmse;
   s.image.min_spp = min_spp;
-  RenderScene rs(s, 0);
+  RenderScene rs(s, 0, options);
   Run run;
   run.cpu = run.wall = 1e30;
   for (int i = 0; i < reps; ++i) {
@@ -96,6 +97,12 @@ int main(int argc, char** argv) {
   app.add_option("--pov-settings", pov_settings, "POV-Ray's anti-aliasing flags, for the tables");
   int target_min_spp = 2;  // --target-rmse's own default: its pilot
   app.add_option("--target-min-spp", target_min_spp, "--min-spp of the target-error renders")->check(CLI::Range(2, 1024));
+  RenderOptions options;
+  const std::map<std::string, SphereSearch> sphere_searches = {
+      {sphere_search_name(SphereSearch::kScanSmall), SphereSearch::kScanSmall},
+      {sphere_search_name(SphereSearch::kEmbree), SphereSearch::kEmbree}};
+  app.add_option("--spheres", options.spheres, "How Tessera finds the spheres (render/render_options.h)")
+      ->transform(CLI::CheckedTransformer(sphere_searches));
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::warn);
 
@@ -113,17 +120,17 @@ int main(int argc, char** argv) {
 
   // Same samples per pixel as POV-Ray, then the equal-error search: powers of two up to the first
   // that reaches POV-Ray's error, then every count between it and the one below.
-  const Run same = render(scene, pov_spp, threads, ref);
+  const Run same = render(scene, options, pov_spp, threads, ref);
   Run equal;
   int low = 0;
   for (int spp = 1; spp <= max_spp; spp *= 2) {
-    Run r = spp == pov_spp ? same : render(scene, spp, threads, ref);
+    Run r = spp == pov_spp ? same : render(scene, options, spp, threads, ref);
     equal = std::move(r);
     if (equal.rmse <= pov_rmse) break;
     low = spp;
   }
   for (int spp = low + 1; equal.rmse <= pov_rmse && spp < equal.spp; ++spp) {
-    Run r = render(scene, spp, threads, ref);
+    Run r = render(scene, options, spp, threads, ref);
     if (r.rmse <= pov_rmse) {
       equal = std::move(r);
       break;
@@ -136,7 +143,7 @@ int main(int argc, char** argv) {
   Run target;
   double target_rmse = 1.3 * pov_rmse;
   for (int i = 0; i < 40; ++i, target_rmse *= 0.95) {
-    target = render(scene, 1, threads, ref, target_rmse, target_min_spp);
+    target = render(scene, options, 1, threads, ref, target_rmse, target_min_spp);
     if (target.rmse <= pov_rmse) break;
   }
   const bool target_reached = target.rmse <= pov_rmse;
@@ -155,6 +162,7 @@ int main(int argc, char** argv) {
       {"height", height},
       {"threads", threads},
       {"renderer", embree_isa()},
+      {"spheres", sphere_search_name(options.spheres)},
       {"povray", {{"samples", pov_samples}, {"pixels", pov_pixels}, {"camera_rays", pov_rays}, {"spp", pov_spp},
                   {"settings", pov_settings}, {"camera_rays_per_pixel", pov_rays / px}, {"wall_s", pov_wall}, {"cpu_s", pov_cpu},
                   {"samples_per_s_wall", p_sps_wall}, {"samples_per_s_cpu", p_sps_cpu}, {"rmse_vs_reference", pov_rmse}}},

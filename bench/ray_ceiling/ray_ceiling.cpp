@@ -242,6 +242,12 @@ int main(int argc, char** argv) {
       {triangle_test_name(TriangleTest::kEmbreeFast), TriangleTest::kEmbreeFast}};
   app.add_option("--triangles", triangles, "Triangle test (docs/accuracy.md, case 4)")
       ->transform(CLI::CheckedTransformer(triangle_tests));
+  SphereSearch spheres = SphereSearch::kScanSmall;
+  const std::map<std::string, SphereSearch> sphere_searches = {
+      {sphere_search_name(SphereSearch::kScanSmall), SphereSearch::kScanSmall},
+      {sphere_search_name(SphereSearch::kEmbree), SphereSearch::kEmbree}};
+  app.add_option("--spheres", spheres, "How the renderer finds spheres (render/render_options.h; the ceiling is Embree's)")
+      ->transform(CLI::CheckedTransformer(sphere_searches));
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::warn);
 
@@ -256,7 +262,7 @@ int main(int argc, char** argv) {
   scene.image.height = height;
   scene.image.spp = spp;
   if (depth) scene.image.max_depth = *depth;
-  const RenderScene rs(scene, 0, {triangles});
+  const RenderScene rs(scene, 0, {triangles, spheres});
   const std::vector<TileRect> tiles = TileGrid(width, height, 32).rects();
 
   // 1. The renderer, one thread, whole frame (sampling + tracing + shading + accumulation).
@@ -306,6 +312,7 @@ int main(int argc, char** argv) {
                         {"max_depth", scene.image.max_depth},
                         {"threads", 1},
                         {"triangles", triangle_test_name(triangles)},
+                        {"spheres", sphere_search_name(spheres)},
                         {"renderer", embree_isa()},
                         {"rays", {{"camera", counts.camera}, {"shadow", counts.shadow}, {"secondary", counts.secondary},
                                   {"extra_glass_walk_queries", glass_walk}}},

@@ -34,6 +34,9 @@ enum class SphereSearch : uint8_t {
   kEmbree,
 };
 
+// "scan", "embree" (benchmarks' --spheres).
+constexpr const char* sphere_search_name(SphereSearch s) { return s == SphereSearch::kScanSmall ? "scan" : "embree"; }
+
 struct RenderOptions {
   TriangleTest triangles = TriangleTest::kWatertight;
   SphereSearch spheres = SphereSearch::kScanSmall;

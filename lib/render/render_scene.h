@@ -222,8 +222,8 @@ class RenderScene {
   }
   // Whether Embree can take a ray from o as it is (embree_ray()): within 16 R, max norm.
   bool starts_near(const Vec3f& o) const { return max_component(abs(o)) <= 16.0f * bounds_radius_; }
-  // Whether a packet is whole (n == kPacket) and every ray starts near: Embree takes it as it is.
-  bool all_start_near(const RayArrays& rays, int n) const;
+  // Whether the rays of lanes 0..n-1 all start near: Embree (and the sphere scan) take them as they are.
+  bool lanes_start_near(const RayArrays& rays, int n) const;
   double embree_ray_from_far(const Ray& ray, Ray* embree_ray) const;
   Rgb glass_transmittance_walk(const Ray& ray, TraceContext* ctx, Rgb T) const;
   // The halves of intersect() and transmittance() around the Embree query, shared with the
@@ -260,10 +260,11 @@ class RenderScene {
   std::vector<ScanSphere> scan_;
   ScanTable scan_table_;
   void make_scan();
-  // rtcIntersect8 on a whole packet of rays that start near, as a scan: for each lane, tfar[i]
-  // shortened to its nearest sphere hit in (0, tfar[i]), and geom[i], prim[i] set to it, as the
-  // sphere callback writes them; lanes without one are left alone.
-  void scan_intersect(const RayArrays& rays, const PrimRef* from, float* tfar, uint32_t* geom, uint32_t* prim) const;
+  // rtcIntersect8 on a packet of rays that start near, as a scan: for each lane in the mask
+  // `lanes`, tfar[i] shortened to its nearest sphere hit in (0, tfar[i]), and geom[i], prim[i]
+  // set to it, as the sphere callback writes them; lanes without one are left alone.
+  void scan_intersect(const RayArrays& rays, const PrimRef* from, uint32_t lanes, float* tfar, uint32_t* geom,
+                      uint32_t* prim) const;
   // rtcOccluded8 likewise: tfar[i] = -inf for a valid lane an opaque sphere blocks in
   // (0, tfar[i]); glass crossings collected into glass[i], as the callback collects them.
   void scan_occluded(const RayArrays& rays, const PrimRef* from, const int* valid, float* tfar, GlassHits* glass) const;

@@ -78,8 +78,8 @@ RTCRay lane_ray(const RTCRay8& r, int lane) {
 
 }  // namespace
 
-bool RenderScene::all_start_near(const RayArrays& r, int n) const {
-  // starts_near() of every lane, in integers: |x| <= bound on floats is (bits(x) & 0x7FFFFFFF)
+bool RenderScene::lanes_start_near(const RayArrays& r, int n) const {
+  // starts_near() of lanes 0..n-1, in integers: |x| <= bound on floats is (bits(x) & 0x7FFFFFFF)
   // <= bits(bound) on their bit patterns as signed integers (non-negative floats order as their
   // bits; a NaN's exceed any finite bound's, so it is not near). The compiler makes these
   // compares vector instructions; the float loop it replaces stayed scalar (2.5 % of a Whitted
@@ -87,11 +87,13 @@ bool RenderScene::all_start_near(const RayArrays& r, int n) const {
   const int32_t bound = std::bit_cast<int32_t>(16.0f * bounds_radius_);
   int32_t far = 0;
   for (int i = 0; i < kPacket; ++i) {
-    far |= int32_t((std::bit_cast<int32_t>(r.ox[i]) & 0x7FFFFFFF) > bound);
-    far |= int32_t((std::bit_cast<int32_t>(r.oy[i]) & 0x7FFFFFFF) > bound);
-    far |= int32_t((std::bit_cast<int32_t>(r.oz[i]) & 0x7FFFFFFF) > bound);
+    int32_t lane = 0;
+    lane |= int32_t((std::bit_cast<int32_t>(r.ox[i]) & 0x7FFFFFFF) > bound);
+    lane |= int32_t((std::bit_cast<int32_t>(r.oy[i]) & 0x7FFFFFFF) > bound);
+    lane |= int32_t((std::bit_cast<int32_t>(r.oz[i]) & 0x7FFFFFFF) > bound);
+    far |= lane & int32_t(i < n);
   }
-  return n == kPacket && far == 0;
+  return far == 0;
 }
 
 void RenderScene::intersect_packet(const RayLanes& rays, const PrimRef* from, int n, Hit* hits, bool* found) const {
@@ -113,15 +115,15 @@ void RenderScene::intersect_packet(const RayLanes& rays, const PrimRef* from, in
     rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
   }
-  const bool near_packet = all_start_near(rb, n) && !log;
-  if (near_packet) {
-    // The common case, a whole packet of rays Embree takes as they are: the arrays copied
-    // whole, in loops of fixed trip count the compiler turns into vector moves (the lane-by-lane
-    // loop below cost 2 % of a Whitted frame).
+  const bool near = lanes_start_near(rb, n) && !log;
+  if (near) {
+    // The common case, rays Embree takes as they are: the arrays copied whole, in loops of
+    // fixed trip count the compiler turns into vector moves (the lane-by-lane loop below cost
+    // 2 % of a Whitted frame); lanes past n are copied too, and left invalid.
     set_lanes(&rh.ray, rb, tfar, 0xFFFFFFFFu);
     for (int i = 0; i < kPacket; ++i) {
       t0[i] = 0.0;
-      valid[i] = -1;
+      valid[i] = i < n ? -1 : 0;
     }
   } else {
     for (int i = 0; i < kPacket; ++i) {
@@ -145,8 +147,10 @@ void RenderScene::intersect_packet(const RayLanes& rays, const PrimRef* from, in
       if (t0[i] >= 0.0) valid[i] = -1;  // else no bounded geometry within reach: planes only
     }
   }
-  if (scan_spheres_ && near_packet) {
-    scan_intersect(rb, from, rh.ray.tfar, rh.hit.geomID, rh.hit.primID);
+  if (scan_spheres_ && near) {
+    // Whole packets and partly filled ones alike, so that a sample's answer is the same in
+    // either (exact ties between spheres are decided by sphere order, not traversal order).
+    scan_intersect(rb, from, (1u << n) - 1u, rh.ray.tfar, rh.hit.geomID, rh.hit.primID);
   } else {
     TraceContext ctx;
     rtcInitIntersectContext(&ctx.rtc);
@@ -220,8 +224,8 @@ void RenderScene::transmittance_packet(const RayLanes& rays, const PrimRef* from
   int live = 0;
   RayLog* const log = thread_ray_log();
   const RayArrays rb = rays.arrays();
-  const bool near_packet = all_start_near(rb, n) && !log;
-  if (near_packet) {
+  const bool near = lanes_start_near(rb, n) && !log;
+  if (near && n == kPacket) {
     // The common case, a whole packet of rays Embree takes as they are (a full queue of shadow
     // rays): the opaque planes tested for all lanes at once (opaque_plane_blocks()'s arithmetic:
     // a blocking plane is the nearest plane in (0, tmax), batch_nearest_planes() on the opaque
@@ -273,7 +277,7 @@ void RenderScene::transmittance_packet(const RayLanes& rays, const PrimRef* from
       ++live;
     }
   }
-  if (live > 0 && near_packet && scan_spheres_) {
+  if (live > 0 && near && scan_spheres_) {  // whole packets and partly filled ones, as in intersect_packet
     scan_occluded(rb, from, valid, r.tfar, glass);
   } else if (live > 0) {
     TraceContext ctx;

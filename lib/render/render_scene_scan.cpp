@@ -8,7 +8,8 @@
 // and sphere_roots() runs on those spheres only. The roots are the callbacks' roots, in the same
 // double arithmetic, and a lane's hit is the nearest as Embree's would be: only an exact tie
 // between two spheres (the same float t) may resolve differently (the lower sphere index here;
-// traversal order there), as the packet query already allows (render_scene.h).
+// traversal order there). Whole packets and partly filled ones are scanned alike, so in a
+// scanned scene even such a tie does not depend on which samples share a packet.
 #include <cmath>
 #include <limits>
 
@@ -19,18 +20,19 @@
 
 namespace tessera {
 
-void RenderScene::scan_intersect(const RayArrays& rays, const PrimRef* from, float* tfar, uint32_t* geom,
-                                 uint32_t* prim) const {
+void RenderScene::scan_intersect(const RayArrays& rays, const PrimRef* from, uint32_t lanes, float* tfar,
+                                 uint32_t* geom, uint32_t* prim) const {
   static_assert(kSphereLanes == kPacket);
   uint32_t near[kScanSpheres];
-  scan_candidates(rays, scan_table_, (1u << kPacket) - 1u, near);
+  scan_candidates(rays, scan_table_, lanes, near);
   alignas(32) const float tnear[kPacket] = {};
   for (size_t s = 0; s < scan_.size(); ++s) {
     if (near[s] == 0) continue;
     alignas(32) int32_t active[kPacket], leaving[kPacket];
     for (int i = 0; i < kPacket; ++i) {
       active[i] = int32_t((near[s] >> i) & 1u);
-      leaving[i] = from[i].kind == PrimRef::Kind::kSphere && from[i].id == s ? 1 : 0;
+      // (from[] holds only the packet's lanes: read for active ones alone)
+      leaving[i] = active[i] && from[i].kind == PrimRef::Kind::kSphere && from[i].id == s ? 1 : 0;
     }
     const Sphere& sp = spheres_[s];
     double t[kPacket];
@@ -71,7 +73,7 @@ void RenderScene::scan_occluded(const RayArrays& rays, const PrimRef* from, cons
     alignas(32) int32_t active[kPacket], leaving[kPacket];
     for (int i = 0; i < kPacket; ++i) {
       active[i] = int32_t((test >> i) & 1u);
-      leaving[i] = from[i].kind == PrimRef::Kind::kSphere && from[i].id == s ? 1 : 0;
+      leaving[i] = active[i] && from[i].kind == PrimRef::Kind::kSphere && from[i].id == s ? 1 : 0;
     }
     double t[kPacket];
     sphere_roots({rays.ox, rays.oy, rays.oz, rays.dx, rays.dy, rays.dz, tnear, tfar, active, leaving}, sp.center,

@@ -140,7 +140,7 @@ std::string seven_spheres() {
 
 // Packets of camera rays, of rays leaving sphere and plane hits inward and outward, and of rays
 // from anywhere in the scene; then shadow rays from the same points to random points: the scan's
-// answers are Embree's, bit for bit, every lane.
+// answers are Embree's, bit for bit, every lane, in whole packets and in partly filled ones.
 TEST(SphereScan, ScannedSceneAnswersPacketsAsEmbreeDoes) {
   const Scene scene = parse_scene(seven_spheres(), "seven.json");
   const RenderScene scanned(scene, 0);
@@ -193,6 +193,18 @@ TEST(SphereScan, ScannedSceneAnswersPacketsAsEmbreeDoes) {
       EXPECT_EQ(std::bit_cast<uint32_t>(ta[i].z), std::bit_cast<uint32_t>(tb[i].z)) << what;
       const bool zero = tb[i].x == 0 && tb[i].y == 0 && tb[i].z == 0, one = tb[i].x == 1 && tb[i].y == 1 && tb[i].z == 1;
       (zero ? blocked : one ? open : crossed)++;
+    }
+    // The same rays as a partly filled packet (1..7 lanes), scanned too.
+    const int k = 1 + int(base / P) % (P - 1);
+    scanned.intersect_packet(&rays[base], &from[base], k, a, fa);
+    traversed.intersect_packet(&rays[base], &from[base], k, b, fb);
+    scanned.transmittance_packet(shadow, &from[base], k, ta);
+    traversed.transmittance_packet(shadow, &from[base], k, tb);
+    for (int i = 0; i < k; ++i) {
+      const std::string what = "ray " + std::to_string(base + i) + " of " + std::to_string(k);
+      test::expect_identical_hit(fb[i], b[i], fa[i], a[i], what);
+      EXPECT_EQ(std::bit_cast<uint32_t>(ta[i].x), std::bit_cast<uint32_t>(tb[i].x)) << what;
+      EXPECT_EQ(std::bit_cast<uint32_t>(ta[i].z), std::bit_cast<uint32_t>(tb[i].z)) << what;
     }
   }
   // Every kind of answer must have come up often enough to mean something.
