@@ -53,7 +53,8 @@ void RenderScene::make_scan() {
   for (const Sphere& s : spheres_) {
     const uint32_t b = is_glass(materials_[s.material]) ? 1 : 0;  // add_objects()' buckets, in order
     scan_.push_back({b, in_bucket[b]++});
-    add_scan_sphere(&scan_table_, s.center.x, s.center.y, s.center.z, s.radius);
+    // The scan takes rays that start near (starts_near(): |o|max <= 16 R, so |o|_1 <= 48 R).
+    add_scan_sphere(&scan_table_, s.center.x, s.center.y, s.center.z, s.radius, 48.0 * double(bounds_radius_));
   }
 }
 

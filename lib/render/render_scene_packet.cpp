@@ -119,8 +119,13 @@ void RenderScene::intersect_packet(const RayLanes& rays, const PrimRef* from, in
   if (near) {
     // The common case, rays Embree takes as they are: the arrays copied whole, in loops of
     // fixed trip count the compiler turns into vector moves (the lane-by-lane loop below cost
-    // 2 % of a Whitted frame); lanes past n are copied too, and left invalid.
-    set_lanes(&rh.ray, rb, tfar, 0xFFFFFFFFu);
+    // 2 % of a Whitted frame); lanes past n are copied too, and left invalid. The sphere scan
+    // reads the rays where they are and needs only tfar.
+    if (scan_spheres_) {
+      std::memcpy(rh.ray.tfar, tfar, sizeof rh.ray.tfar);
+    } else {
+      set_lanes(&rh.ray, rb, tfar, 0xFFFFFFFFu);
+    }
     for (int i = 0; i < kPacket; ++i) {
       t0[i] = 0.0;
       valid[i] = i < n ? -1 : 0;
@@ -246,7 +251,11 @@ void RenderScene::transmittance_packet(const RayLanes& rays, const PrimRef* from
     } else {
       std::fill(blocker, blocker + kPacket, -1);
     }
-    set_lanes(&r, rb, rb.tmax, mask);
+    if (scan_spheres_) {
+      std::memcpy(r.tfar, rb.tmax, sizeof r.tfar);  // all the scan reads of Embree's arrays
+    } else {
+      set_lanes(&r, rb, rb.tmax, mask);
+    }
     for (int i = 0; i < kPacket; ++i) {
       open[i] = blocker[i] < 0;
       valid[i] = open[i] ? -1 : 0;

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <hwy/targets.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -55,8 +56,6 @@ TEST(SphereScan, CandidatesKeepEveryLaneTheExactTestHits) {
       const double scale = std::pow(10.0, double(sphere % 7) - 3.0);  // radii 1e-3 .. 1e3
       const Vec3d c = Vec3d(s.vec()) * (50.0 * scale);
       const double r = scale * (0.5 + 0.5 * std::abs(double(s.next())));
-      ScanTable table;
-      add_scan_sphere(&table, c.x, c.y, c.z, r);
       for (int packet = 0; packet < 8; ++packet) {
         alignas(32) float ox[P], oy[P], oz[P], dx[P], dy[P], dz[P], tmax[P];
         alignas(32) int32_t active[P], leaving[P];
@@ -94,6 +93,13 @@ TEST(SphereScan, CandidatesKeepEveryLaneTheExactTestHits) {
         }
         double t[P];
         sphere_roots({ox, oy, oz, dx, dy, dz, tnear, tmax, active, leaving}, c, r, t);
+        // The table for exactly these origins: the tightest bound the scan allows.
+        double origins = 0;
+        for (int i = 0; i < P; ++i) {
+          origins = std::max(origins, double(std::abs(ox[i])) + double(std::abs(oy[i])) + double(std::abs(oz[i])));
+        }
+        ScanTable table;
+        add_scan_sphere(&table, c.x, c.y, c.z, r, origins);
         uint32_t near = 0;
         scan_candidates(RayArrays(ox, oy, oz, dx, dy, dz, tmax), table, (1u << P) - 1u, &near);
         for (int i = 0; i < P; ++i) {

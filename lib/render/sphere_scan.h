@@ -20,18 +20,20 @@ inline constexpr size_t kScanSpheres = 8;  // the most spheres a scene is scanne
 inline constexpr size_t kScanLanes = 8;    // a packet's rays (RenderScene::kPacket)
 
 // The spheres, as the test reads them: centre and reach (the radius widened by the margin of the
-// test's own rounding, sphere_scan_simd.cpp), in float.
+// test's own rounding for origins within a bound, sphere_scan_simd.cpp), in float.
 struct ScanTable {
   alignas(32) float cx[kScanSpheres] = {}, cy[kScanSpheres] = {}, cz[kScanSpheres] = {};
   alignas(32) float reach[kScanSpheres] = {};
   size_t count = 0;
 };
 
-// One sphere's entry: its centre and radius in render space (double, as the exact test takes them).
-void add_scan_sphere(ScanTable* table, double cx, double cy, double cz, double radius);
+// One sphere's entry: its centre and radius in render space (double, as the exact test takes
+// them), for rays whose origins o have |o.x| + |o.y| + |o.z| <= `origins`.
+void add_scan_sphere(ScanTable* table, double cx, double cy, double cz, double radius, double origins);
 
 // near[s], for each sphere s < table.count: bit i set when lane i is in `lanes` and its ray may
-// meet sphere s at some t > 0.
+// meet sphere s at some t > 0. The origins of the lanes in `lanes` must lie within the table's
+// bound (add_scan_sphere).
 void scan_candidates(const RayArrays& rays, const ScanTable& table, uint32_t lanes, uint32_t* near);
 
 }  // namespace tessera

@@ -17,13 +17,13 @@ namespace hn = hwy::HWY_NAMESPACE;
 // o + t d, the line passes within r of the centre when |f x d|^2 <= r^2 |d|^2, and the sphere lies
 // wholly behind the origin when f . d < -r |d|. Each float operation errs by at most 2^-24 of its
 // result; the centre's rounding adds 2^-24 |c|, and the components of f x d and f . d err by a
-// few 2^-24 |f| |d|. A reach of r + 1e-5 (|f|_1 + |c|_1 + r) covers all of it more than tenfold,
-// so a lane left out provably has no root at t > 0. A NaN or an overflow compares false and keeps
-// the lane: the exact test decides.
+// few 2^-24 |f| |d|. With |f|_1 <= |c|_1 + |o|_1, a reach of r + 1e-5 (2 |c|_1 + r + the
+// origins' bound) covers all of it more than tenfold (add_scan_sphere), so a lane left out
+// provably has no root at t > 0. A NaN or an overflow compares false and keeps the lane: the
+// exact test decides.
 void ScanCandidates(const RayArrays& r, const ScanTable& table, uint32_t lanes, uint32_t* near) {
   const hn::CappedTag<float, kScanLanes> df;
   const size_t N = hn::Lanes(df);
-  const auto margin = hn::Set(df, 1e-5f);
   for (size_t s = 0; s < table.count; ++s) {
     const auto cx = hn::Set(df, table.cx[s]), cy = hn::Set(df, table.cy[s]), cz = hn::Set(df, table.cz[s]);
     const auto reach = hn::Set(df, table.reach[s]);
@@ -39,9 +39,7 @@ void ScanCandidates(const RayArrays& r, const ScanTable& table, uint32_t lanes, 
       const auto cross2 = hn::Add(hn::Add(hn::Mul(ex, ex), hn::Mul(ey, ey)), hn::Mul(ez, ez));
       const auto dd = hn::Add(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy)), hn::Mul(dz, dz));
       const auto b = hn::Add(hn::Add(hn::Mul(fx, dx), hn::Mul(fy, dy)), hn::Mul(fz, dz));
-      const auto f1 = hn::Add(hn::Add(hn::Abs(fx), hn::Abs(fy)), hn::Abs(fz));
-      const auto rr = hn::Add(reach, hn::Mul(margin, f1));
-      const auto lim = hn::Mul(hn::Mul(rr, rr), dd);
+      const auto lim = hn::Mul(hn::Mul(reach, reach), dd);
       const auto far_line = hn::Gt(cross2, lim);
       const auto behind = hn::And(hn::Lt(b, hn::Zero(df)), hn::Gt(hn::Mul(b, b), lim));
       uint8_t m[8] = {};
@@ -63,14 +61,15 @@ namespace tessera {
 
 HWY_EXPORT(ScanCandidates);
 
-void add_scan_sphere(ScanTable* table, double cx, double cy, double cz, double radius) {
+void add_scan_sphere(ScanTable* table, double cx, double cy, double cz, double radius, double origins) {
   const size_t s = table->count++;
   table->cx[s] = float(cx);
   table->cy[s] = float(cy);
   table->cz[s] = float(cz);
-  // ScanCandidates' margin (why there): the radius, widened by 1e-5 of |c|_1 + r, and by a floor
-  // that keeps its square a normal float.
-  table->reach[s] = float(radius + 1e-5 * (std::abs(cx) + std::abs(cy) + std::abs(cz) + radius) + 1e-18);
+  // ScanCandidates' margin (why there): the radius, widened by 1e-5 of 2 |c|_1 + r + the
+  // origins' bound, and by a floor that keeps its square a normal float.
+  const double c1 = std::abs(cx) + std::abs(cy) + std::abs(cz);
+  table->reach[s] = float(radius + 1e-5 * (2.0 * c1 + radius + origins) + 1e-18);
 }
 
 void scan_candidates(const RayArrays& rays, const ScanTable& table, uint32_t lanes, uint32_t* near) {
