@@ -265,6 +265,10 @@ class RenderScene {
   // set to it, as the sphere callback writes them; lanes without one are left alone.
   void scan_intersect(const RayArrays& rays, const PrimRef* from, uint32_t lanes, float* tfar, uint32_t* geom,
                       uint32_t* prim) const;
+  // sphere_roots() of sphere s for the lanes in the mask `lanes` (others: -1), within (0, tfar[i]),
+  // each lane leaving the sphere or not as from[i] says: the scan's one exact test.
+  void scan_roots(const RayArrays& rays, const PrimRef* from, uint32_t lanes, size_t s, const float* tfar,
+                  double* t) const;
   // rtcOccluded8 likewise: tfar[i] = -inf for a valid lane an opaque sphere blocks in
   // (0, tfar[i]); glass crossings collected into glass[i], as the callback collects them.
   void scan_occluded(const RayArrays& rays, const PrimRef* from, const int* valid, float* tfar, GlassHits* glass) const;

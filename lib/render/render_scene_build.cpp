@@ -49,10 +49,13 @@ void RenderScene::make_scan() {
   scan_spheres_ = options_.spheres == SphereSearch::kScanSmall && triangles_[0].material_ids.empty() &&
                   triangles_[1].material_ids.empty() && spheres_.size() <= kScanSpheres;
   if (!scan_spheres_) return;
-  uint32_t in_bucket[2] = {0, 0};
+  // Each sphere's place in its bucket, read off the buckets add_objects() made.
+  scan_.resize(spheres_.size());
+  for (uint32_t b = 0; b < 2; ++b) {
+    const std::vector<uint32_t>& ids = sphere_buckets_[b].ids;
+    for (uint32_t k = 0; k < ids.size(); ++k) scan_[ids[k]] = {b, k};
+  }
   for (const Sphere& s : spheres_) {
-    const uint32_t b = is_glass(materials_[s.material]) ? 1 : 0;  // add_objects()' buckets, in order
-    scan_.push_back({b, in_bucket[b]++});
     // The scan takes rays that start near (starts_near(): |o|max <= 16 R, so |o|_1 <= 48 R).
     add_scan_sphere(&scan_table_, s.center.x, s.center.y, s.center.z, s.radius, 48.0 * double(bounds_radius_));
   }

@@ -20,24 +20,29 @@
 
 namespace tessera {
 
+void RenderScene::scan_roots(const RayArrays& rays, const PrimRef* from, uint32_t lanes, size_t s, const float* tfar,
+                             double* t) const {
+  static_assert(kSphereLanes == kPacket);
+  alignas(32) static constexpr float tnear[kPacket] = {};
+  alignas(32) int32_t active[kPacket], leaving[kPacket];
+  for (int i = 0; i < kPacket; ++i) {
+    active[i] = int32_t((lanes >> i) & 1u);
+    // (from[] holds only the packet's lanes: read for active ones alone)
+    leaving[i] = active[i] && from[i].kind == PrimRef::Kind::kSphere && from[i].id == s ? 1 : 0;
+  }
+  const Sphere& sp = spheres_[s];
+  sphere_roots({rays.ox, rays.oy, rays.oz, rays.dx, rays.dy, rays.dz, tnear, tfar, active, leaving}, sp.center,
+               sp.radius, t);
+}
+
 void RenderScene::scan_intersect(const RayArrays& rays, const PrimRef* from, uint32_t lanes, float* tfar,
                                  uint32_t* geom, uint32_t* prim) const {
-  static_assert(kSphereLanes == kPacket);
   uint32_t near[kScanSpheres];
   scan_candidates(rays, scan_table_, lanes, near);
-  alignas(32) const float tnear[kPacket] = {};
   for (size_t s = 0; s < scan_.size(); ++s) {
     if (near[s] == 0) continue;
-    alignas(32) int32_t active[kPacket], leaving[kPacket];
-    for (int i = 0; i < kPacket; ++i) {
-      active[i] = int32_t((near[s] >> i) & 1u);
-      // (from[] holds only the packet's lanes: read for active ones alone)
-      leaving[i] = active[i] && from[i].kind == PrimRef::Kind::kSphere && from[i].id == s ? 1 : 0;
-    }
-    const Sphere& sp = spheres_[s];
     double t[kPacket];
-    sphere_roots({rays.ox, rays.oy, rays.oz, rays.dx, rays.dy, rays.dz, tnear, tfar, active, leaving}, sp.center,
-                 sp.radius, t);
+    scan_roots(rays, from, near[s], s, tfar, t);
     for (int i = 0; i < kPacket; ++i) {
       if (t[i] < 0) continue;
       // record_hit()'s fields, as the sphere callback writes them (the Ng it also writes is
@@ -55,7 +60,6 @@ void RenderScene::scan_occluded(const RayArrays& rays, const PrimRef* from, cons
   for (int i = 0; i < kPacket; ++i) lanes |= valid[i] ? 1u << i : 0u;
   uint32_t near[kScanSpheres];
   scan_candidates(rays, scan_table_, lanes, near);
-  alignas(32) const float tnear[kPacket] = {};
   uint32_t blocked = 0;
   for (size_t s = 0; s < scan_.size(); ++s) {
     const Sphere& sp = spheres_[s];
@@ -70,14 +74,8 @@ void RenderScene::scan_occluded(const RayArrays& rays, const PrimRef* from, cons
     }
     const uint32_t test = near[s] & ~blocked;
     if (test == 0) continue;
-    alignas(32) int32_t active[kPacket], leaving[kPacket];
-    for (int i = 0; i < kPacket; ++i) {
-      active[i] = int32_t((test >> i) & 1u);
-      leaving[i] = active[i] && from[i].kind == PrimRef::Kind::kSphere && from[i].id == s ? 1 : 0;
-    }
     double t[kPacket];
-    sphere_roots({rays.ox, rays.oy, rays.oz, rays.dx, rays.dy, rays.dz, tnear, tfar, active, leaving}, sp.center,
-                 sp.radius, t);
+    scan_roots(rays, from, test, s, tfar, t);
     for (int i = 0; i < kPacket; ++i) blocked |= t[i] >= 0 ? 1u << i : 0u;
   }
   // Embree's mark of an occluded ray.
