@@ -11,7 +11,8 @@
 #                 armadillo); the watertight test's frame time against Embree's robust test
 #   povray        POV-Ray 3.7 on the same Whitted scene: error and samples/s of both
 #   cycles        Blender 3.4's Cycles (Whitted-like settings) on the glTF test scene: error and
-#                 samples/s of both (skipped, with a message, when blender is not installed)
+#                 samples/s of both (skipped, with a message, when blender is not installed), and
+#                 the bound on their ratio: bare Embree's time for the frame's own queries
 #   farm          bench/farm/run.sh (farm overhead, coordinator at scale), when it exists
 #
 # Results go to OUT (default bench-results/): JSON per run, summary.md (markdown tables) and the
@@ -270,7 +271,12 @@ if want cycles && peer blender blender "Blender's Cycles against Tessera on whit
   adaptive=$(cycles_render "$OUT/cycles_whitted_a_adaptive.exr" "$OUT/cycles_adaptive.log" $BREF $BNOISE)
   awall=$(field "$adaptive" wall_s)
   acpu=$(field "$adaptive" cpu_s)
+  # The bound on the throughput ratio: bare Embree on the same frame's own queries, one thread
+  # (cycles_compare's --ray-ceiling-json).
+  "$BUILD/bench/ray_ceiling/ray_ceiling" --scene tests/data/gltf/whitted_a.glb --width $BW --height $BH --spp $BSPP \
+    --max-depth 8 --reps $REPS >"$OUT/ray_ceiling_whitted_a_cycles_frame.json"
   "$BUILD/bench/cycles/cycles_compare" --scene tests/data/gltf/whitted_a.glb --cycles-exr "$OUT/cycles_whitted_a.exr" \
+    --ray-ceiling-json "$OUT/ray_ceiling_whitted_a_cycles_frame.json" \
     --cycles-reference-exr "$OUT/cycles_whitted_a_ref.exr" \
     --cycles-adaptive-exr "$OUT/cycles_whitted_a_adaptive.exr" --cycles-adaptive-wall "$awall" \
     --cycles-adaptive-cpu "$acpu" --cycles-adaptive-threshold $BNOISE --cycles-adaptive-max-spp $BREF \

@@ -16,6 +16,15 @@
 // (its own "synchronization_time" metadata). Given Cycles' time for the same render at 1 spp
 // (--cycles-one-spp-cpu, --cycles-one-spp-wall), that fixed cost is estimated from the two
 // times, as Cycles' time is linear in spp past it, and taken out of Cycles' times.
+//
+// The bound (--ray-ceiling-json: bench/ray_ceiling's output for the same scene, size, spp and
+// depth, one thread): the CPU time bare Embree takes to answer this frame's own queries (the same
+// rays, the faster of 8- and 16-wide packets, Embree's robust triangles), against Cycles' render
+// time. Tessera's samples can be no faster than their queries, so Cycles' time over that query
+// time is the most Tessera / Cycles throughput any shading, sampling and accumulation code could
+// reach with these rays; a goal of g times Cycles needs the renderer's whole frame within
+// Cycles' time / g, which is a ray-ceiling ratio of g x query time / Cycles' time (reported as
+// needed_ceiling_ratio, beside the ratio the renderer has now).
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -189,6 +198,13 @@ int main(int argc, char** argv) {
   app.add_option("--cycles-adaptive-cpu", adaptive_cpu, "Its render CPU-seconds");
   app.add_option("--cycles-adaptive-threshold", adaptive_threshold, "Its noise threshold, for the tables");
   app.add_option("--cycles-adaptive-max-spp", adaptive_max_spp, "Its most samples per pixel, for the tables");
+  std::string ceiling_json;
+  double goal = 3.0;
+  app.add_option("--ray-ceiling-json", ceiling_json,
+                 "bench/ray_ceiling's JSON for the same scene, size, spp and depth: the bound on the throughput ratio")
+      ->check(CLI::ExistingFile);
+  app.add_option("--goal", goal, "The throughput goal the bound is read against (Tessera / Cycles samples per CPU-second)")
+      ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::err);
 
@@ -260,6 +276,37 @@ int main(int argc, char** argv) {
       {"throughput_ratio_cpu", t_sps_cpu / c_sps_cpu},
       // The comparison as it stood before 2026-11-28: Cycles' fixed cost counted as rendering.
       {"throughput_ratio_cpu_with_cycles_fixed_cost", t_sps_cpu * cycles_cpu / (px * spp)}};
+  if (!ceiling_json.empty()) {
+    nlohmann::json c;
+    try {
+      c = nlohmann::json::parse(std::ifstream(ceiling_json));
+      for (const auto& [key, want] : {std::pair<const char*, int>{"width", width}, {"height", height}, {"spp", spp},
+                                      {"max_depth", max_depth}, {"threads", 1}}) {
+        if (c.at(key).get<int>() != want) {
+          std::cerr << "cycles_compare: " << ceiling_json << ": field \"" << key << "\" is " << c.at(key)
+                    << ", this comparison's is " << want << "\n";
+          return 2;
+        }
+      }
+      const double query = c.at("robust_ceiling").at("best_packet_mrays_per_s").get<double>();
+      const auto& rays = c.at("rays");
+      const double n = rays.at("camera").get<double>() + rays.at("shadow").get<double>() + rays.at("secondary").get<double>();
+      const double query_s = n / (query * 1e6);
+      out["bound"] = {{"ray_ceiling_json", ceiling_json},
+                      {"rays", n},
+                      {"rays_per_sample", n / (px * spp)},
+                      {"bare_query_cpu_s", query_s},
+                      {"renderer_cpu_s_one_thread", c.at("seconds").at("renderer")},
+                      {"cycles_render_cpu_s", render_cpu},
+                      {"max_throughput_ratio_cpu", render_cpu / query_s},
+                      {"goal", goal},
+                      {"needed_ceiling_ratio", goal * query_s / render_cpu},
+                      {"ceiling_ratio_now", c.at("robust_ceiling").at("ratio")}};
+    } catch (const std::exception& e) {
+      std::cerr << "cycles_compare: " << ceiling_json << ": not bench/ray_ceiling's JSON (" << e.what() << ")\n";
+      return 2;
+    }
+  }
   if (!cycles_ref_exr.empty()) {
     const ImageRGB cref = read_exr(cycles_ref_exr);
     if (cref.width != width || cref.height != height) {
@@ -336,6 +383,20 @@ int main(int argc, char** argv) {
                     a["tessera"]["rmse_vs_own_reference"].get<double>(),
                     a["tessera"]["reached"].get<bool>() ? "reached" : "NOT reached", a["speedup_cpu"].get<double>(),
                     a["speedup_wall"].get<double>());
+      md << buf;
+    }
+    if (out.contains("bound")) {
+      const auto& b = out["bound"];
+      std::snprintf(buf, sizeof buf,
+                    "\nThe bound: bare Embree answers this frame's %.0f queries (%.2f a sample) in %.4f CPU s "
+                    "(`ray_ceiling`, one thread, robust triangles, best packet width), against Cycles' %.4f: no "
+                    "Tessera render with these rays can pass **%.2fx** Cycles' samples per CPU-second. %.1fx needs "
+                    "the whole frame within %.2fx its queries' time, a ray-ceiling ratio of **%.2f**; it is %.2f "
+                    "now.\n",
+                    b["rays"].get<double>(), b["rays_per_sample"].get<double>(), b["bare_query_cpu_s"].get<double>(),
+                    render_cpu, b["max_throughput_ratio_cpu"].get<double>(), goal,
+                    1.0 / b["needed_ceiling_ratio"].get<double>(), b["needed_ceiling_ratio"].get<double>(),
+                    b["ceiling_ratio_now"].get<double>());
       md << buf;
     }
   }
