@@ -4,6 +4,7 @@
 #include <limits>
 #include <utility>
 
+#include "render/isa_clones.h"
 #include "render/render_scene_embree.h"
 #include "render/triangle_cluster.h"
 #include "render/user_geometry.h"
@@ -57,7 +58,7 @@ uint32_t cluster_lanes(const TriangleGeomData* data, const TriangleCluster& c, c
   return intersect_cluster_packet(c, p, masks, th);
 }
 
-void cluster_intersect(const RTCIntersectFunctionNArguments* args) {
+TESSERA_ISA_CLONES void cluster_intersect(const RTCIntersectFunctionNArguments* args) {
   const auto* data = static_cast<const TriangleGeomData*>(args->geometryUserPtr);
   const auto* ctx = reinterpret_cast<const TraceContext*>(args->context);
   const TriangleCluster& c = data->bucket->clusters[args->primID];
@@ -89,7 +90,7 @@ void cluster_intersect(const RTCIntersectFunctionNArguments* args) {
   }
 }
 
-void cluster_occluded(const RTCOccludedFunctionNArguments* args) {
+TESSERA_ISA_CLONES void cluster_occluded(const RTCOccludedFunctionNArguments* args) {
   const auto* data = static_cast<const TriangleGeomData*>(args->geometryUserPtr);
   const auto* ctx = reinterpret_cast<const TraceContext*>(args->context);
   const TriangleCluster& c = data->bucket->clusters[args->primID];

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "render/hit.h"
+#include "render/isa_clones.h"
 #include "render/ray.h"
 #include "render/render_options.h"
 #include "render/sphere_scan.h"
@@ -56,7 +57,7 @@ class RenderScene {
   // pure function of the pixel (the tile renderer packs one pixel's consecutive samples).
   // The rays come as arrays of components (render/ray_lanes.h), as the integrator holds them.
   static constexpr int kPacket = 8;
-  void intersect_packet(const RayLanes& rays, const PrimRef* from, int n, Hit* hits, bool* found) const;
+  TESSERA_ISA_CLONES void intersect_packet(const RayLanes& rays, const PrimRef* from, int n, Hit* hits, bool* found) const;
   // The same for rays given a struct each (tests, the ray service's checks): packed into lanes.
   void intersect_packet(const Ray* rays, const PrimRef* from, int n, Hit* hits, bool* found) const;
   // Whether intersect() would find a hit with a finite point, by an any-hit traversal
@@ -69,7 +70,7 @@ class RenderScene {
   void any_hit_batch(const RayBatch& rays, size_t n, uint8_t* blocked) const;
   // transmittance() for n <= kPacket rays at once, one Embree packet (render_scene_packet.cpp);
   // the Ray overload packs them into lanes.
-  void transmittance_packet(const RayLanes& rays, const PrimRef* from, int n, Rgb* T) const;
+  TESSERA_ISA_CLONES void transmittance_packet(const RayLanes& rays, const PrimRef* from, int n, Rgb* T) const;
   void transmittance_packet(const Ray* rays, const PrimRef* from, int n, Rgb* T) const;
   // Fraction of light arriving along the ray over (0, ray.tmax]: 0 if an opaque surface blocks
   // it, else the product of the transmittances of the glass surfaces crossed (unrefracted).
@@ -223,12 +224,12 @@ class RenderScene {
   // Whether Embree can take a ray from o as it is (embree_ray()): within 16 R, max norm.
   bool starts_near(const Vec3f& o) const { return max_component(abs(o)) <= 16.0f * bounds_radius_; }
   // Whether the rays of lanes 0..n-1 all start near: Embree (and the sphere scan) take them as they are.
-  bool lanes_start_near(const RayArrays& rays, int n) const;
+  TESSERA_ISA_CLONES bool lanes_start_near(const RayArrays& rays, int n) const;
   double embree_ray_from_far(const Ray& ray, Ray* embree_ray) const;
   Rgb glass_transmittance_walk(const Ray& ray, TraceContext* ctx, Rgb T) const;
   // The halves of intersect() and transmittance() around the Embree query, shared with the
   // packet versions (render_scene_packet.cpp).
-  bool finish_hit(const Vec3d& o, const Vec3d& d, int plane, double tp, uint32_t geom_id, uint32_t prim_id,
+  TESSERA_ISA_CLONES bool finish_hit(const Vec3d& o, const Vec3d& d, int plane, double tp, uint32_t geom_id, uint32_t prim_id,
                   float u, float v, float tfar, Hit* hit) const;
   // The rest of finish_hit()'s answer on a sphere or a plane, given its point p (stored here too)
   // and normal: the point's error bound, the material and the primitive. Shared with the packet's
@@ -263,15 +264,15 @@ class RenderScene {
   // rtcIntersect8 on a packet of rays that start near, as a scan: for each lane in the mask
   // `lanes`, tfar[i] shortened to its nearest sphere hit in (0, tfar[i]), and geom[i], prim[i]
   // set to it, as the sphere callback writes them; lanes without one are left alone.
-  void scan_intersect(const RayArrays& rays, const PrimRef* from, uint32_t lanes, float* tfar, uint32_t* geom,
+  TESSERA_ISA_CLONES void scan_intersect(const RayArrays& rays, const PrimRef* from, uint32_t lanes, float* tfar, uint32_t* geom,
                       uint32_t* prim) const;
   // sphere_roots() of sphere s for the lanes in the mask `lanes` (others: -1), within (0, tfar[i]),
   // each lane leaving the sphere or not as from[i] says: the scan's one exact test.
-  void scan_roots(const RayArrays& rays, const PrimRef* from, uint32_t lanes, size_t s, const float* tfar,
+  TESSERA_ISA_CLONES void scan_roots(const RayArrays& rays, const PrimRef* from, uint32_t lanes, size_t s, const float* tfar,
                   double* t) const;
   // rtcOccluded8 likewise: tfar[i] = -inf for a valid lane an opaque sphere blocks in
   // (0, tfar[i]); glass crossings collected into glass[i], as the callback collects them.
-  void scan_occluded(const RayArrays& rays, const PrimRef* from, const int* valid, float* tfar, GlassHits* glass) const;
+  TESSERA_ISA_CLONES void scan_occluded(const RayArrays& rays, const PrimRef* from, const int* valid, float* tfar, GlassHits* glass) const;
   Rgb glass_product(const Ray& ray, TraceContext* ctx, GlassHits* glass) const;
 
   ImageSettings image_;
