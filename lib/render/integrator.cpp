@@ -303,11 +303,9 @@ std::vector<PacketFrame>& packet_frames() {
 // kept them as out-of-line baseline functions once radiance_packet had two versions, and the
 // AVX2 one gained a third of what it does with them (1438 against 1349 instructions a sample on
 // the Whitted showcase; 1450 before).
-TESSERA_ISA_CLONES __attribute__((flatten)) void radiance_packet(const RenderScene& scene, const RayLanes& rays,
-                                                                 const PrimRef* from,
-                                                                 const PixelSampler* const* samplers,
-                                                                 const float* weight, int n, int depth, uint64_t node,
-                                                                 RayCounts* counts, Rgb* out) {
+TESSERA_ISA_CLONES_FLAT void radiance_packet(const RenderScene& scene, const RayLanes& rays, const PrimRef* from,
+                                             const PixelSampler* const* samplers, const float* weight, int n,
+                                             int depth, uint64_t node, RayCounts* counts, Rgb* out) {
   constexpr int P = RenderScene::kPacket;
   PacketFrame& fr = packet_frames()[size_t(depth)];  // sized by trace_radiance_packet
   Hit* hits = fr.hits;
