@@ -207,6 +207,28 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::err);
+  // The ray ceiling's JSON, checked before any render: it must be of this comparison's frame.
+  nlohmann::json ceiling;
+  if (!ceiling_json.empty()) {
+    try {
+      ceiling = nlohmann::json::parse(std::ifstream(ceiling_json));
+      for (const auto& [key, want] : {std::pair<const char*, int>{"width", width}, {"height", height}, {"spp", spp},
+                                      {"max_depth", max_depth}, {"threads", 1}}) {
+        if (ceiling.at(key).get<int>() != want) {
+          std::cerr << "cycles_compare: " << ceiling_json << ": field \"" << key << "\" is " << ceiling.at(key)
+                    << ", this comparison's is " << want << "\n";
+          return 2;
+        }
+      }
+      for (const char* key : {"camera", "shadow", "secondary"}) ceiling.at("rays").at(key).get<double>();
+      ceiling.at("robust_ceiling").at("best_packet_mrays_per_s").get<double>();
+      ceiling.at("robust_ceiling").at("ratio").get<double>();
+      ceiling.at("seconds").at("renderer").get<double>();
+    } catch (const std::exception& e) {
+      std::cerr << "cycles_compare: " << ceiling_json << ": not bench/ray_ceiling's JSON (" << e.what() << ")\n";
+      return 2;
+    }
+  }
 
   Scene scene = load_scene(scene_path);
   ImageOverrides o;
@@ -276,36 +298,21 @@ int main(int argc, char** argv) {
       {"throughput_ratio_cpu", t_sps_cpu / c_sps_cpu},
       // The comparison as it stood before 2026-11-28: Cycles' fixed cost counted as rendering.
       {"throughput_ratio_cpu_with_cycles_fixed_cost", t_sps_cpu * cycles_cpu / (px * spp)}};
-  if (!ceiling_json.empty()) {
-    nlohmann::json c;
-    try {
-      c = nlohmann::json::parse(std::ifstream(ceiling_json));
-      for (const auto& [key, want] : {std::pair<const char*, int>{"width", width}, {"height", height}, {"spp", spp},
-                                      {"max_depth", max_depth}, {"threads", 1}}) {
-        if (c.at(key).get<int>() != want) {
-          std::cerr << "cycles_compare: " << ceiling_json << ": field \"" << key << "\" is " << c.at(key)
-                    << ", this comparison's is " << want << "\n";
-          return 2;
-        }
-      }
-      const double query = c.at("robust_ceiling").at("best_packet_mrays_per_s").get<double>();
-      const auto& rays = c.at("rays");
-      const double n = rays.at("camera").get<double>() + rays.at("shadow").get<double>() + rays.at("secondary").get<double>();
-      const double query_s = n / (query * 1e6);
-      out["bound"] = {{"ray_ceiling_json", ceiling_json},
-                      {"rays", n},
-                      {"rays_per_sample", n / (px * spp)},
-                      {"bare_query_cpu_s", query_s},
-                      {"renderer_cpu_s_one_thread", c.at("seconds").at("renderer")},
-                      {"cycles_render_cpu_s", render_cpu},
-                      {"max_throughput_ratio_cpu", render_cpu / query_s},
-                      {"goal", goal},
-                      {"needed_ceiling_ratio", goal * query_s / render_cpu},
-                      {"ceiling_ratio_now", c.at("robust_ceiling").at("ratio")}};
-    } catch (const std::exception& e) {
-      std::cerr << "cycles_compare: " << ceiling_json << ": not bench/ray_ceiling's JSON (" << e.what() << ")\n";
-      return 2;
-    }
+  if (!ceiling.is_null()) {
+    const double query = ceiling["robust_ceiling"]["best_packet_mrays_per_s"].get<double>();
+    const auto& rays = ceiling["rays"];
+    const double n = rays["camera"].get<double>() + rays["shadow"].get<double>() + rays["secondary"].get<double>();
+    const double query_s = n / (query * 1e6);
+    out["bound"] = {{"ray_ceiling_json", ceiling_json},
+                    {"rays", n},
+                    {"rays_per_sample", n / (px * spp)},
+                    {"bare_query_cpu_s", query_s},
+                    {"renderer_cpu_s_one_thread", ceiling["seconds"]["renderer"]},
+                    {"cycles_render_cpu_s", render_cpu},
+                    {"max_throughput_ratio_cpu", render_cpu / query_s},
+                    {"goal", goal},
+                    {"needed_ceiling_ratio", goal * query_s / render_cpu},
+                    {"ceiling_ratio_now", ceiling["robust_ceiling"]["ratio"]}};
   }
   if (!cycles_ref_exr.empty()) {
     const ImageRGB cref = read_exr(cycles_ref_exr);

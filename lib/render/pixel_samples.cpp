@@ -13,8 +13,8 @@ namespace tessera {
 
 // Compiled for AVX2 and the baseline (render/isa_clones.h): its per-lane set-up and camera rays are
 // plain C++ the compiler vectorizes.
-TESSERA_ISA_CLONES void render_samples(const RenderScene& scene, const TileRect& pixels, uint32_t from, uint32_t to, PixelEstimate* est,
-                    RayCounts* rays) {
+TESSERA_ISA_CLONES void render_samples(const RenderScene& scene, const TileRect& pixels, uint32_t from, uint32_t to,
+                                       PixelEstimate* est, RayCounts* rays) {
   constexpr int P = RenderScene::kPacket;
   if (to <= from || pixels.width <= 0 || pixels.height <= 0) return;
   const ImageSettings& img = scene.image();

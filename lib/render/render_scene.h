@@ -57,7 +57,8 @@ class RenderScene {
   // pure function of the pixel (the tile renderer packs one pixel's consecutive samples).
   // The rays come as arrays of components (render/ray_lanes.h), as the integrator holds them.
   static constexpr int kPacket = 8;
-  TESSERA_ISA_CLONES void intersect_packet(const RayLanes& rays, const PrimRef* from, int n, Hit* hits, bool* found) const;
+  TESSERA_ISA_CLONES void intersect_packet(const RayLanes& rays, const PrimRef* from, int n, Hit* hits,
+                                           bool* found) const;
   // The same for rays given a struct each (tests, the ray service's checks): packed into lanes.
   void intersect_packet(const Ray* rays, const PrimRef* from, int n, Hit* hits, bool* found) const;
   // Whether intersect() would find a hit with a finite point, by an any-hit traversal
@@ -229,8 +230,8 @@ class RenderScene {
   Rgb glass_transmittance_walk(const Ray& ray, TraceContext* ctx, Rgb T) const;
   // The halves of intersect() and transmittance() around the Embree query, shared with the
   // packet versions (render_scene_packet.cpp).
-  TESSERA_ISA_CLONES bool finish_hit(const Vec3d& o, const Vec3d& d, int plane, double tp, uint32_t geom_id, uint32_t prim_id,
-                  float u, float v, float tfar, Hit* hit) const;
+  TESSERA_ISA_CLONES bool finish_hit(const Vec3d& o, const Vec3d& d, int plane, double tp, uint32_t geom_id,
+                                     uint32_t prim_id, float u, float v, float tfar, Hit* hit) const;
   // The rest of finish_hit()'s answer on a sphere or a plane, given its point p (stored here too)
   // and normal: the point's error bound, the material and the primitive. Shared with the packet's
   // SIMD finish. Inline, and p passed in: read back from the Hit just written, p cost a
@@ -264,15 +265,16 @@ class RenderScene {
   // rtcIntersect8 on a packet of rays that start near, as a scan: for each lane in the mask
   // `lanes`, tfar[i] shortened to its nearest sphere hit in (0, tfar[i]), and geom[i], prim[i]
   // set to it, as the sphere callback writes them; lanes without one are left alone.
-  TESSERA_ISA_CLONES void scan_intersect(const RayArrays& rays, const PrimRef* from, uint32_t lanes, float* tfar, uint32_t* geom,
-                      uint32_t* prim) const;
+  TESSERA_ISA_CLONES void scan_intersect(const RayArrays& rays, const PrimRef* from, uint32_t lanes, float* tfar,
+                                         uint32_t* geom, uint32_t* prim) const;
   // sphere_roots() of sphere s for the lanes in the mask `lanes` (others: -1), within (0, tfar[i]),
   // each lane leaving the sphere or not as from[i] says: the scan's one exact test.
-  TESSERA_ISA_CLONES void scan_roots(const RayArrays& rays, const PrimRef* from, uint32_t lanes, size_t s, const float* tfar,
-                  double* t) const;
+  TESSERA_ISA_CLONES void scan_roots(const RayArrays& rays, const PrimRef* from, uint32_t lanes, size_t s,
+                                     const float* tfar, double* t) const;
   // rtcOccluded8 likewise: tfar[i] = -inf for a valid lane an opaque sphere blocks in
   // (0, tfar[i]); glass crossings collected into glass[i], as the callback collects them.
-  TESSERA_ISA_CLONES void scan_occluded(const RayArrays& rays, const PrimRef* from, const int* valid, float* tfar, GlassHits* glass) const;
+  TESSERA_ISA_CLONES void scan_occluded(const RayArrays& rays, const PrimRef* from, const int* valid, float* tfar,
+                                        GlassHits* glass) const;
   Rgb glass_product(const Ray& ray, TraceContext* ctx, GlassHits* glass) const;
 
   ImageSettings image_;
