@@ -222,8 +222,10 @@ class RenderScene {
     *embree_ray = ray;  // the common case, inline: every ray but those from far plane points
     return starts_near(ray.o) ? 0.0 : embree_ray_from_far(ray, embree_ray);
   }
-  // Whether Embree can take a ray from o as it is (embree_ray()): within 16 R, max norm.
-  bool starts_near(const Vec3f& o) const { return max_component(abs(o)) <= 16.0f * bounds_radius_; }
+  // Whether Embree can take a ray from o as it is (embree_ray()): within 16 R, max norm. The one
+  // bound lanes_start_near() and the sphere scan's margin (make_scan()) are read against too.
+  float near_bound() const { return 16.0f * bounds_radius_; }
+  bool starts_near(const Vec3f& o) const { return max_component(abs(o)) <= near_bound(); }
   // Whether the rays of lanes 0..n-1 all start near: Embree (and the sphere scan) take them as they are.
   TESSERA_ISA_CLONES bool lanes_start_near(const RayArrays& rays, int n) const;
   double embree_ray_from_far(const Ray& ray, Ray* embree_ray) const;

@@ -56,8 +56,9 @@ void RenderScene::make_scan() {
     for (uint32_t k = 0; k < ids.size(); ++k) scan_[ids[k]] = {b, k};
   }
   for (const Sphere& s : spheres_) {
-    // The scan takes rays that start near (starts_near(): |o|max <= 16 R, so |o|_1 <= 48 R).
-    add_scan_sphere(&scan_table_, s.center.x, s.center.y, s.center.z, s.radius, 48.0 * double(bounds_radius_));
+    // The scan takes rays that start near (starts_near(): |o|max <= near_bound(), so |o|_1 is at
+    // most three times that).
+    add_scan_sphere(&scan_table_, s.center.x, s.center.y, s.center.z, s.radius, 3.0 * double(near_bound()));
   }
 }
 

@@ -84,7 +84,7 @@ bool RenderScene::lanes_start_near(const RayArrays& r, int n) const {
   // bits; a NaN's exceed any finite bound's, so it is not near). The compiler makes these
   // compares vector instructions; the float loop it replaces stayed scalar (2.5 % of a Whitted
   // frame by perf).
-  const int32_t bound = std::bit_cast<int32_t>(16.0f * bounds_radius_);
+  const int32_t bound = std::bit_cast<int32_t>(near_bound());
   int32_t far = 0;
   for (int i = 0; i < kPacket; ++i) {
     int32_t lane = 0;
