@@ -21,6 +21,7 @@
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
 #include "farm/request_limits.h"
+#include "farm/stop_signals.h"
 #include "large_buffers.h"
 #include "ray_service.h"
 #include "render/embree_device.h"
@@ -164,6 +165,7 @@ std::unique_ptr<rays::Announcer> start_announcer(const RaysFlags& f, const farm:
 }  // namespace
 
 int main(int argc, char** argv) {
+  const sigset_t sigs = farm::block_stop_signals();  // first: gRPC's threads start with the credentials
   rays::keep_large_buffers();
   RaysFlags flags;
   if (std::optional<int> exit_code = parse_flags(argc, argv, flags)) return *exit_code;
@@ -180,15 +182,6 @@ int main(int argc, char** argv) {
   }
   spdlog::set_level(spdlog::level::from_str(flags.log_level));
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ [rays] %v");
-
-  // Output through a pipe whose reader went away must cost the log lines, not the service
-  // (gRPC writes with MSG_NOSIGNAL, spdlog does not).
-  signal(SIGPIPE, SIG_IGN);
-  sigset_t sigs;
-  sigemptyset(&sigs);
-  sigaddset(&sigs, SIGINT);
-  sigaddset(&sigs, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &sigs, nullptr);  // before any thread starts: all inherit it
 
   std::unique_ptr<v1::WorkerService::Stub> stub;
   std::unique_ptr<rays::BundleScenes> scenes;

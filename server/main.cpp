@@ -18,6 +18,7 @@
 #include "farm/accept_guard.h"
 #include "farm/auth.h"
 #include "farm/request_limits.h"
+#include "farm/stop_signals.h"
 #include "job_store.h"
 #include "metrics/farm_metrics.h"
 #include "monitor/http_listener.h"
@@ -105,22 +106,6 @@ void raise_descriptor_limit() {
   spdlog::info("descriptor limit {} (was {}; hard limit {})", lim.rlim_cur, before, lim.rlim_max);
 }
 
-
-// Returns SIGINT and SIGTERM, blocked: main takes them with sigwait.
-sigset_t block_signals() {
-  // A write to a pipe or socket whose reader went away must cost that write, not the process:
-  // spdlog writing to a pipe (`tessera-server | tee`, a log shipper that restarted) and OpenSSL
-  // write without MSG_NOSIGNAL (gRPC asks for it; cpp-httplib ignores SIGPIPE itself when its
-  // server is made, so with --http-listen this line is not the only guard).
-  signal(SIGPIPE, SIG_IGN);
-  // Signals are taken by one thread with sigwait: block them before any thread starts.
-  sigset_t sigs;
-  sigemptyset(&sigs);
-  sigaddset(&sigs, SIGINT);
-  sigaddset(&sigs, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &sigs, nullptr);
-  return sigs;
-}
 
 CoordinatorOptions coordinator_options(const ServerFlags& f) {
   CoordinatorOptions opts;
@@ -229,6 +214,7 @@ void serve_until_signal(sigset_t sigs, HttpListener* http, Coordinator& coordina
 }  // namespace
 
 int main(int argc, char** argv) {
+  const sigset_t sigs = farm::block_stop_signals();  // first: gRPC's threads start with the credentials
   ServerFlags flags;
   if (std::optional<int> exit_code = parse_flags(argc, argv, flags)) return *exit_code;
   farm::Authenticator auth;
@@ -245,7 +231,6 @@ int main(int argc, char** argv) {
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
   raise_descriptor_limit();
   farm::install_accept_guard();
-  const sigset_t sigs = block_signals();
 
   std::unique_ptr<BundleStore> store;
   std::unique_ptr<JobStore> jobs;

@@ -12,8 +12,10 @@
 
 #include "connection.h"
 #include "cpu_quota.h"
+#include "farm/stop_signals.h"
 
 int main(int argc, char** argv) {
+  const sigset_t sigs = tessera::farm::block_stop_signals();  // first, before any thread starts
   using namespace tessera::worker;
   WorkerOptions o;
   const char* env = std::getenv("TESSERA_COORDINATOR");
@@ -81,15 +83,6 @@ int main(int argc, char** argv) {
   }
   spdlog::set_level(spdlog::level::from_str(log_level));
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ [" + o.name + "] %v");
-
-  // Output through a pipe whose reader went away (`tessera-worker | tee`, a log shipper that
-  // restarted) must cost the log lines, not the worker: gRPC writes with MSG_NOSIGNAL, spdlog does not.
-  signal(SIGPIPE, SIG_IGN);
-  sigset_t sigs;
-  sigemptyset(&sigs);
-  sigaddset(&sigs, SIGINT);
-  sigaddset(&sigs, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &sigs, nullptr);  // before any thread exists: all inherit it
 
   std::unique_ptr<WorkerConnection> conn;
   try {

@@ -95,6 +95,25 @@ fs::path bin(const std::string& name) {
   return fs::path(TESSERA_BINARY_DIR) / "worker" / "tessera-worker";
 }
 
+std::vector<std::string> threads_taking(int pid, int sig) {
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (const auto& task : fs::directory_iterator(fs::path("/proc") / std::to_string(pid) / "task", ec)) {
+    std::istringstream status(read_text(task.path() / "status"));
+    std::string line;
+    while (std::getline(status, line)) {
+      if (line.rfind("SigBlk:", 0) != 0) continue;
+      const uint64_t blocked = std::stoull(line.substr(7), nullptr, 16);
+      if (!(blocked & (uint64_t(1) << (sig - 1)))) {
+        std::string name = read_text(task.path() / "comm");
+        while (!name.empty() && name.back() == '\n') name.pop_back();
+        out.push_back(task.path().filename().string() + " " + name);
+      }
+    }
+  }
+  return out;
+}
+
 fs::path source(const std::string& rel) { return fs::path(TESSERA_SOURCE_DIR) / rel; }
 
 std::string read_text(const fs::path& p) {

@@ -43,6 +43,9 @@ struct CliResult {
 };
 
 fs::path bin(const std::string& name);  // built binaries
+// The threads of process `pid` in which signal `sig` is not blocked, by name (from /proc; a
+// thread in sigwait for `sig` counts, as the kernel counts it). Empty if the process is gone.
+std::vector<std::string> threads_taking(int pid, int sig);
 fs::path source(const std::string& rel);
 std::string read_text(const fs::path& p);
 

@@ -114,6 +114,23 @@ TEST(RaysDiscovery, KilledServerExpiresAndTheClientSaysSo) {
   EXPECT_FALSE(fs::exists(farm.dir() / "o.csv"));
 }
 
+// Only the thread that waits for them takes SIGINT and SIGTERM (farm/stop_signals.h): gRPC's own
+// threads, started when the credentials are made, block them too, so a stop is never a kill.
+TEST(RaysDiscovery, OnlyTheWaitingThreadTakesStopSignals) {
+  Farm farm;
+  farm.start_server();
+  std::unique_ptr<Process> rays;
+  const std::string addr = start_rays(farm, &rays);
+  ASSERT_TRUE(eventually([&] { return lists(farm, addr); })) << rays->log();
+  for (int sig : {SIGTERM, SIGINT}) {
+    const std::vector<std::string> taking = threads_taking(rays->pid(), sig);
+    std::string all;
+    for (const auto& t : taking) all += "\n  " + t;
+    ASSERT_EQ(taking.size(), 1u) << "signal " << sig << " can be taken by these threads:" << all;
+    EXPECT_EQ(taking[0].rfind(std::to_string(rays->pid()) + " ", 0), 0u) << "not the main thread:" << all;
+  }
+}
+
 // A server stopped with SIGTERM says it is leaving: gone from the list at once, not after 3 periods.
 TEST(RaysDiscovery, StoppedServerLeavesTheListAtOnce) {
   Farm farm;
