@@ -11,6 +11,7 @@
 #include "color/rgbe.h"
 #include "commands.h"
 #include "image/exr_io.h"
+#include "interrupt.h"
 #include "output_flags.h"
 
 namespace tessera::cli {
@@ -55,6 +56,7 @@ void register_color_commands(CLI::App& app) {
   add_output_options(*convert, convert_args->out);
   convert->callback([convert_args] {
     const ImageRGB image = read_hdr_input(convert_args->input);
+    const OutputWrite whole;  // an interrupt now waits for the file to be written
     color::write_output(image, convert_args->output, convert_args->out, std::cout);
   });
 

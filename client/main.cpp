@@ -6,8 +6,10 @@
 #include <iostream>
 
 #include "commands.h"
+#include "interrupt.h"
 
 int main(int argc, char** argv) {
+  tessera::cli::take_interrupts();  // first: before gRPC starts any thread
   CLI::App app{"tessera: render scenes locally or on a Tessera render farm"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "tessera 0.1.0");

@@ -12,6 +12,7 @@
 #include "color/output_options.h"
 #include "commands.h"
 #include "image_options.h"
+#include "interrupt.h"
 #include "image/exr_io.h"
 #include "image/output_path.h"
 #include "output_flags.h"
@@ -127,6 +128,7 @@ int run_render(const RenderArgs& a) {
   }
   set_exr_threads(a.threads);  // the EXR's compression runs on as many threads as the render
   try {
+    const OutputWrite whole;  // an interrupt now waits for the file to be written
     if (float_exr) {
       const ErrorChannels channels =
           a.error_channels ? make_error_channels(r.variance, r.spp) : ErrorChannels{};

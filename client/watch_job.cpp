@@ -16,6 +16,7 @@
 #include "farm_command.h"
 #include "farm_frames.h"
 #include "image/output_path.h"
+#include "interrupt.h"
 #include "job_text.h"
 #include "progress_line.h"
 #include "sample_report.h"
@@ -166,6 +167,7 @@ void JobWatch::on_tile(const v1::TileData& tile) {
   if (o_.preview_every > 0 && !o_.output.empty() && now_s() - last_preview_ >= o_.preview_every) {
     last_preview_ = now_s();
     try {
+      const OutputWrite whole;
       frames_->write_previews(o_.output, o_.color);
     } catch (const std::exception& e) {
       spdlog::warn("cannot write a preview: {}", e.what());  // the frames themselves still come
@@ -194,6 +196,7 @@ void JobWatch::on_frame_done(int f) {
 void JobWatch::write_frame(int f) {
   FrameReport rep;
   try {
+    const OutputWrite whole;
     rep = frames_->write(f, o_.output, o_.scene_name, o_.color, o_.error_channels);
   } catch (const std::exception& e) {
     throw FarmError{kExitFailure, std::string("cannot write frame ") + std::to_string(f) + ": " + e.what()};
@@ -271,6 +274,10 @@ void check_output_writable(const std::string& pattern, int frame) {
 }
 
 int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions& o) {
+  say_on_interrupt(interrupt_notice(job_id, client.address(), o.output));
+  struct Ended {
+    ~Ended() { say_on_interrupt(""); }  // a watch that has ended has nothing to say
+  } ended;
   return JobWatch(client, job_id, o).run();
 }
 

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <regex>
 #include <thread>
 
 #include "farm_harness.h"
@@ -57,6 +58,49 @@ TEST(FarmSignals, OnlyTheWaitingThreadsTakeStopSignalsAndSigtermStopsCleanly) {
   EXPECT_NE(farm.server().log().find("shutting down"), std::string::npos) << farm.server().log();
   worker.signal(SIGTERM);
   EXPECT_EQ(worker.wait(30s), 0) << worker.log();
+}
+
+// Ctrl-C on an attached `tessera submit` (client/interrupt.h): the job is the farm's and keeps
+// rendering; the client ends by SIGINT right away, says how to come back or cancel, and leaves
+// only whole files; `tessera watch` then writes the other frames, bit-identical.
+TEST(FarmSignals, CtrlCOnAnAttachedSubmitLeavesTheJobRenderingAndSaysHowToComeBack) {
+  const fs::path scene = source("tests/farm/whitted_orbit.json");  // 96x64, 3 frames
+  Farm farm;
+  farm.start_server();
+  farm.start_worker("w1", 1, 60);  // 60 ms a tile: 24 tiles a frame, about 1.5 s a frame
+  const fs::path out = farm.dir() / "out";
+  const std::string pattern = (out / "frame_####.exr").string();
+  auto client = farm.cli_async({"submit", scene.string(), "--coordinator", farm.address(), "-o", pattern, "--tile", "16"},
+                               "submit.log");
+  for (int i = 0; i < 600 && client->running() && client->log().find("frame_0000.exr: frame 0") == std::string::npos;
+       ++i) {
+    std::this_thread::sleep_for(50ms);
+  }
+  ASSERT_NE(client->log().find("frame_0000.exr: frame 0"), std::string::npos) << client->log();
+  const std::string job = job_id_from(client->log());
+  client->signal(SIGINT);
+  EXPECT_EQ(client->wait(10s), 128 + SIGINT) << client->log();
+  const std::string said = client->log();
+  EXPECT_NE(said.find("interrupted: job " + job + " keeps rendering on the farm"), std::string::npos) << said;
+  EXPECT_NE(said.find("tessera watch " + job + " --coordinator " + farm.address() + " -o " + pattern),
+            std::string::npos) << said;
+  EXPECT_NE(said.find("tessera cancel " + job + " --coordinator " + farm.address()), std::string::npos) << said;
+  // Only whole frames under their names, and no temporary file left beside them.
+  for (const auto& e : fs::directory_iterator(out)) {
+    EXPECT_TRUE(std::regex_match(e.path().filename().string(), std::regex("frame_000[0-2]\\.exr")))
+        << e.path();
+  }
+  EXPECT_EQ(compare_exr(out / "frame_0000.exr", reference_frame(scene, 0, {})), "");
+  std::string state;
+  farm.tiles_done(job, &state);
+  EXPECT_TRUE(state == "running" || state == "done") << state;
+  // Coming back as the notice says: every frame, bit-identical to `tessera render`.
+  const CliResult w = farm.cli({"watch", job, "--coordinator", farm.address(), "-o", pattern});
+  EXPECT_EQ(w.code, 0) << w.output << farm.server_logs();
+  for (int f = 0; f < 3; ++f) {
+    EXPECT_EQ(compare_exr(out / ("frame_000" + std::to_string(f) + ".exr"), reference_frame(scene, f, {})), "")
+        << "frame " << f << "\n" << w.output;
+  }
 }
 
 }  // namespace
