@@ -169,7 +169,8 @@ FrameReport FrameAssembler::write(int frame, const std::string& pattern, const s
       const ErrorChannels channels =
           error_channels ? make_error_channels(f.pixels.variance(), f.pixels.spp()) : ErrorChannels{};
       write_exr(tmp, image, attrs, ExrPixelType::kFloat,
-                error_channels ? channels.channels() : std::vector<ExrChannel>{});
+                error_channels ? channels.channels() : std::vector<ExrChannel>{},
+                parse_exr_compression(color.exr_compression));
     } else {
       color::write_output(image, tmp, color, std::cout);
     }
@@ -192,7 +193,8 @@ int FrameAssembler::write_previews(const std::string& pattern, const color::Outp
                    {"tessera:frame", int64_t(frame)},
                    {"tessera:preview", std::string("missing tiles are black")},
                    {"tessera:tilesDone", int64_t(f.pixels.tiles_done())},
-                   {"tessera:tilesTotal", int64_t(job_.tiles_per_frame())}});
+                   {"tessera:tilesTotal", int64_t(job_.tiles_per_frame())}},
+                  ExrPixelType::kFloat, {}, parse_exr_compression(color.exr_compression));
       } else {
         std::ostringstream quiet;  // the conversion report of a preview is noise
         color::write_output(f.pixels.image(), tmp, color, quiet);

@@ -23,8 +23,12 @@ int main(int argc, char** argv) {
   tessera::cli::register_rays_command(app);
   try {
     app.parse(argc, argv);
+  } catch (const CLI::RuntimeError& e) {
+    return e.get_exit_code();  // a command's own exit code, its message already printed
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // app.exit() prints the message (or the help); a bad command line is bad input, exit 2 as
+    // docs/farm.md promises, not CLI11's own codes (105 for a value out of its set, 106 ...).
+    return app.exit(e) == 0 ? 0 : 2;
   } catch (const std::exception& e) {
     // Subcommands report their own errors; this is the last line of defence.
     std::cerr << "tessera: error: " << e.what() << "\n";

@@ -1,5 +1,7 @@
 #include "output_flags.h"
 
+#include "image/exr_io.h"
+
 namespace tessera::cli {
 
 void add_output_options(CLI::App& cmd, color::OutputOptions& o) {
@@ -19,6 +21,11 @@ void add_output_options(CLI::App& cmd, color::OutputOptions& o) {
   cmd.add_option("--dither", o.dither,
                  "bayer|blue-noise for rgb8/rgba8/rgb565, floyd-steinberg for palette")
       ->check(CLI::IsMember({"none", "bayer", "blue-noise", "floyd-steinberg"}))
+      ->capture_default_str();
+  cmd.add_option("--exr-compression", o.exr_compression,
+                 "Lossless compression of EXR outputs: zip (the default), piz (smallest files), zips, rle, "
+                 "none (fastest to write, largest)")
+      ->check(CLI::IsMember(exr_compression_names()))
       ->capture_default_str();
   cmd.add_option("--report", o.report, "Report style")
       ->check(CLI::IsMember({"text", "json"}))

@@ -134,7 +134,8 @@ int run_render(const RenderArgs& a) {
           a.error_channels ? make_error_channels(r.variance, r.spp) : ErrorChannels{};
       // Keeps the render's attributes; the error layers on request.
       write_exr(out, r.image, attrs, ExrPixelType::kFloat,
-                a.error_channels ? channels.channels() : std::vector<ExrChannel>{});
+                a.error_channels ? channels.channels() : std::vector<ExrChannel>{},
+                parse_exr_compression(a.color.exr_compression));
     } else {
       // Tone map + quantize + its report: a line before the render's own, or a member of the JSON.
       color::write_output(r.image, out, a.color, a.color.report == "json" ? conversion : std::cout);

@@ -147,12 +147,14 @@ Encoded encode_hdr(const ImageRGB& linear, const std::string& path, const Conver
     }
     case OutputFormat::kExrHalf:
       std::transform(linear.rgb.begin(), linear.rgb.end(), e.decoded.rgb.begin(), through_half);
-      write_exr(path, linear, {{"software", std::string("tessera convert")}}, ExrPixelType::kHalf);
+      write_exr(path, linear, {{"software", std::string("tessera convert")}}, ExrPixelType::kHalf, {},
+                o.exr_compression);
       e.bits_per_pixel = 48;
       break;
     case OutputFormat::kExrFloat:
       e.decoded = linear;
-      write_exr(path, linear, {{"software", std::string("tessera convert")}}, ExrPixelType::kFloat);
+      write_exr(path, linear, {{"software", std::string("tessera convert")}}, ExrPixelType::kFloat, {},
+                o.exr_compression);
       e.bits_per_pixel = 96;
       break;
     default:

@@ -25,6 +25,7 @@
 #include "color/input_sanitizer.h"
 #include "color/png_io.h"
 #include "color/tonemap.h"
+#include "image/exr_io.h"
 #include "image/image.h"
 
 namespace tessera::color {
@@ -42,6 +43,7 @@ struct ConvertOptions {
   OutputFormat format = OutputFormat::kRgb8;
   int colors = 256;  // palette only, 2..256
   DitherMethod dither = DitherMethod::kNone;
+  ExrCompression exr_compression = ExrCompression::kZip;  // EXR formats only; lossless
 };
 
 // Throws ColorError naming the problem when options do not fit together (e.g. a Bayer dither

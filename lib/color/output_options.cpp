@@ -35,6 +35,11 @@ ConvertOptions resolve_output_options(const OutputOptions& o, const std::string&
     throw ColorError("--colors applies to --format palette only");
   }
   c.colors = o.colors != 0 ? o.colors : 256;
+  try {
+    c.exr_compression = parse_exr_compression(o.exr_compression);
+  } catch (const ExrError& e) {
+    throw ColorError(std::string("--exr-compression: ") + e.what());
+  }
   validate(c);
   return c;
 }

@@ -23,6 +23,7 @@ struct OutputOptions {
   int colors = 0;            // 0: not given (256 for palette); given with .png: palette
   std::string dither = "none";  // none | bayer | blue-noise | floyd-steinberg
   std::string report = "text";  // text | json
+  std::string exr_compression = "zip";  // EXR outputs: none | rle | zips | zip | piz (image/exr_io.h)
 };
 
 // Turns the parsed strings into ConvertOptions for this output path; throws ColorError when

@@ -47,6 +47,21 @@ half to_half_clamped(float v) {
 
 }  // namespace
 
+const std::vector<std::string>& exr_compression_names() {
+  static const std::vector<std::string> names{"none", "rle", "zips", "zip", "piz"};
+  return names;
+}
+
+std::string exr_compression_name(ExrCompression c) { return exr_compression_names().at(size_t(c)); }
+
+ExrCompression parse_exr_compression(const std::string& name) {
+  const auto& names = exr_compression_names();
+  for (size_t i = 0; i < names.size(); ++i) {
+    if (names[i] == name) return ExrCompression(i);
+  }
+  throw ExrError("unknown EXR compression \"" + name + "\"; allowed: none, rle, zips, zip, piz (lossless only)");
+}
+
 void set_exr_threads(int threads) {
   std::lock_guard lock(exr_threads_mutex);
   exr_threads_wanted = std::max(0, threads);
@@ -54,13 +69,15 @@ void set_exr_threads(int threads) {
 }
 
 void write_exr(const std::string& path, const ImageRGB& image, const ExrAttributes& attributes,
-               ExrPixelType type, const std::vector<ExrChannel>& extra) {
+               ExrPixelType type, const std::vector<ExrChannel>& extra, ExrCompression compression) {
   if (image.width <= 0 || image.height <= 0) {
     throw ExrError("cannot write " + path + ": empty image");
   }
   try {
     Imf::Header header(image.width, image.height);
-    header.compression() = Imf::ZIP_COMPRESSION;
+    static constexpr Imf::Compression kImf[] = {Imf::NO_COMPRESSION, Imf::RLE_COMPRESSION, Imf::ZIPS_COMPRESSION,
+                                                Imf::ZIP_COMPRESSION, Imf::PIZ_COMPRESSION};
+    header.compression() = kImf[size_t(compression)];
     const Imf::PixelType pt = type == ExrPixelType::kFloat ? Imf::FLOAT : Imf::HALF;
     for (const char* c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(pt));
     for (const ExrChannel& c : extra) {

@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 #include <variant>
+#include <vector>
 
 #include "image/image.h"
 
@@ -15,6 +16,21 @@ using ExrAttribute = std::variant<std::string, double, int64_t>;
 using ExrAttributes = std::map<std::string, ExrAttribute>;
 
 enum class ExrPixelType { kFloat, kHalf };
+
+// How the pixels are compressed in the file. Lossless ones only: whichever is chosen, a float
+// frame reads back bit for bit. (PXR24 rounds floats to 24 bits and B44 and DWA quantize: they
+// would break the promise that the EXR holds the renderer's pixels exactly.) Measured on three
+// rendered frames (bench/colors/exr_compression_bench; docs/colors.md, "EXR compression"): zip,
+// the default here as in most renderers, halves a noisy float frame for about 0.25 us of CPU a
+// pixel; piz is always the smallest (5-8 % below zip) at 0.74-1.3x zip's time; none writes in a
+// tenth of zip's time at twice the size.
+enum class ExrCompression { kNone, kRle, kZips, kZip, kPiz };
+
+// The names the command line takes: none, rle, zips, zip, piz.
+const std::vector<std::string>& exr_compression_names();
+std::string exr_compression_name(ExrCompression c);
+// Throws ExrError naming the allowed values for an unknown name.
+ExrCompression parse_exr_compression(const std::string& name);
 
 class ExrError : public std::runtime_error {
  public:
@@ -29,12 +45,13 @@ struct ExrChannel {
   const std::vector<float>* values;
 };
 
-// Writes R, G, B channels (ZIP compressed, lossless), and `extra` channels. kHalf converts R, G, B
+// Writes R, G, B channels (compressed losslessly, ZIP by default), and `extra` channels. kHalf converts R, G, B
 // to 16-bit half floats; values beyond half's range (65504) are clamped to it and NaN is written
 // as 0, so no Inf or NaN is ever produced by the conversion itself. Throws ExrError naming the
 // path on failure (also for an extra channel of the wrong size or a name that is taken).
 void write_exr(const std::string& path, const ImageRGB& image, const ExrAttributes& attributes = {},
-               ExrPixelType type = ExrPixelType::kFloat, const std::vector<ExrChannel>& extra = {});
+               ExrPixelType type = ExrPixelType::kFloat, const std::vector<ExrChannel>& extra = {},
+               ExrCompression compression = ExrCompression::kZip);
 
 // How many threads compress and decompress EXR line blocks (OpenEXR's global pool, so for the
 // whole process): 0, the default, means one per hardware thread. The bytes written do not depend

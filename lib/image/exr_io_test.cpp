@@ -1,8 +1,14 @@
 #include "image/exr_io.h"
 
+#include <ImfCompression.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
+#include <limits>
+#include <map>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -55,6 +61,54 @@ TEST(ExrIo, TheBytesDoNotDependOnTheThreadCount) {
   set_exr_threads(0);
   ASSERT_GT(written[0].size(), 1000u);
   EXPECT_EQ(written[0], written[1]);
+}
+
+// Every compression the command line offers is lossless: float bits come back as written
+// (denormals, -0, the largest float, NaN payloads), in the R, G, B channels and the extra ones,
+// and the file says the compression it was asked for (read by OpenEXR's own header reader).
+TEST(ExrIo, EveryCompressionIsLosslessAndIsTheOneAskedFor) {
+  ImageRGB img(37, 41);  // more rows than a ZIP block (16) or a PIZ block (32)
+  uint32_t x = 12345;
+  for (float& v : img.rgb) {
+    x = x * 1664525u + 1013904223u;  // every bit pattern, NaNs and infinities included
+    std::memcpy(&v, &x, sizeof v);
+  }
+  img.rgb[0] = -0.0f;
+  img.rgb[1] = std::numeric_limits<float>::denorm_min();
+  img.rgb[2] = std::numeric_limits<float>::max();
+  std::vector<float> extra(img.pixel_count());
+  for (size_t i = 0; i < extra.size(); ++i) extra[i] = float(i % 7) * 0.25f;
+  const auto bits = [](const std::vector<float>& v) {
+    return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(float));
+  };
+  ASSERT_EQ(exr_compression_names().size(), 5u);
+  for (const std::string& name : exr_compression_names()) {
+    SCOPED_TRACE(name);
+    const ExrCompression c = parse_exr_compression(name);
+    EXPECT_EQ(exr_compression_name(c), name);
+    const auto path = std::filesystem::temp_directory_path() / ("tessera_exr_compression_" + name + ".exr");
+    write_exr(path.string(), img, {}, ExrPixelType::kFloat, {{"error.Y", &extra}}, c);
+    EXPECT_EQ(bits(read_exr(path.string()).rgb), bits(img.rgb));
+    EXPECT_EQ(bits(read_exr_channel(path.string(), "error.Y")), bits(extra));
+    const std::map<std::string, Imf::Compression> in_the_file{{"none", Imf::NO_COMPRESSION},
+                                                               {"rle", Imf::RLE_COMPRESSION},
+                                                               {"zips", Imf::ZIPS_COMPRESSION},
+                                                               {"zip", Imf::ZIP_COMPRESSION},
+                                                               {"piz", Imf::PIZ_COMPRESSION}};
+    EXPECT_EQ(Imf::InputFile(path.string().c_str()).header().compression(), in_the_file.at(name));
+    std::filesystem::remove(path);
+  }
+}
+
+TEST(ExrIo, AnUnknownOrLossyCompressionIsRefusedWithTheAllowedNames) {
+  for (const char* name : {"dwaa", "pxr24", "b44", "ZIP", ""}) {
+    try {
+      parse_exr_compression(name);
+      ADD_FAILURE() << name << " was accepted";
+    } catch (const ExrError& e) {
+      EXPECT_NE(std::string(e.what()).find("allowed: none, rle, zips, zip, piz"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(ExrIo, HalfClampsInsteadOfWritingInf) {

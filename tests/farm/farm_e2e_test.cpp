@@ -1,6 +1,8 @@
 // End-to-end farm tests: a real coordinator, real workers and the real CLI on 127.0.0.1.
 // Images are small (96x64, 4 spp, 16 px tiles: 24 tiles a frame) so the suite stays fast on two
 // cores; workers that must be killed mid-job are slowed with --test-delay-ms.
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 
@@ -25,6 +27,8 @@ void expect_frames_identical(const fs::path& dir) {
   }
 }
 
+// Also: the client writes its frames with the compression asked for (PIZ here; zip by default),
+// losslessly.
 TEST(FarmEndToEnd, ThreeFramesTwoWorkersBitIdenticalToRender) {
   Farm farm;
   farm.start_server();
@@ -32,10 +36,14 @@ TEST(FarmEndToEnd, ThreeFramesTwoWorkersBitIdenticalToRender) {
   farm.start_worker("w2");
   const fs::path out = farm.dir() / "out";
   CliResult r = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "-o",
-                          (out / "frame_####.exr").string(), "--tile", "16"});
+                          (out / "frame_####.exr").string(), "--tile", "16", "--exr-compression", "piz"});
   ASSERT_EQ(r.code, 0) << r.output << farm.server().log();
   EXPECT_NE(r.output.find("est. RMSE"), std::string::npos) << r.output;
   expect_frames_identical(out);
+  for (int f = 0; f < kFrames; ++f) {
+    const fs::path frame = out / ("frame_000" + std::to_string(f) + ".exr");
+    EXPECT_EQ(Imf::InputFile(frame.c_str()).header().compression(), Imf::PIZ_COMPRESSION) << frame;
+  }
   // Both workers took part, and the coordinator has every tile exactly once.
   const std::string job = job_id_from(r.output);
   std::string state;

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -67,6 +68,46 @@ TEST_F(RenderCli, RendersTheShowcaseToAFloatExrThatOiiotoolReads) {
   ASSERT_EQ(info.status, 0) << info.output;
   EXPECT_NE(info.output.find("96 x   54, 3 channel, float"), std::string::npos) << info.output;
   EXPECT_NE(info.output.find("tessera:spp: 4"), std::string::npos) << info.output;
+}
+
+// --exr-compression: the file is compressed as asked (exrheader, an independent reader, says so)
+// and holds the same pixels; a lossy or unknown codec is refused, naming the allowed ones.
+TEST_F(RenderCli, ExrCompressionIsTheOneAskedForAndLossless) {
+  const std::string base = kTessera + " render " + kScenes + "/whitted.json --width 64 --height 48 --spp 2 --quiet -o ";
+  std::map<std::string, std::vector<float>> pixels;
+  for (const std::string c : {"zip", "piz", "none"}) {
+    const fs::path file = dir_ / (c + ".exr");
+    const CmdResult r = run(base + file.string() + (c == "zip" ? "" : " --exr-compression " + c));
+    ASSERT_EQ(r.status, 0) << r.output;
+    pixels[c] = tessera::read_exr(file.string()).rgb;
+    if (run("command -v exrheader").status != 0) continue;
+    const CmdResult h = run("exrheader " + file.string());
+    EXPECT_NE(h.output.find("compression (type compression): " + std::string(c == "none" ? "none" : c)),
+              std::string::npos) << h.output;
+  }
+  EXPECT_EQ(pixels["piz"], pixels["zip"]);
+  EXPECT_EQ(pixels["none"], pixels["zip"]);
+  const CmdResult bad = run(base + (dir_ / "bad.exr").string() + " --exr-compression dwaa");
+  EXPECT_EQ(bad.status, 2) << "bad input\n" << bad.output;
+  EXPECT_NE(bad.output.find("--exr-compression"), std::string::npos) << bad.output;
+  EXPECT_NE(bad.output.find("piz"), std::string::npos) << "the allowed values are named\n" << bad.output;
+  EXPECT_FALSE(fs::exists(dir_ / "bad.exr"));
+}
+
+// A bad command line is bad input: exit 2 (docs/farm.md), with CLI11's message naming the option;
+// asking for help is not an error.
+TEST_F(RenderCli, ABadCommandLineExitsTwoAndHelpZero) {
+  const std::string render = kTessera + " render " + kScenes + "/whitted.json -o " + (dir_ / "x.exr").string();
+  const std::pair<std::string, std::string> cases[] = {
+      {" --spp abc", "--spp"}, {" --tonemap sepia", "--tonemap"}, {" --bogus", "--bogus"}};
+  for (const auto& [args, named] : cases) {
+    const CmdResult r = run(render + args);
+    EXPECT_EQ(r.status, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(named), std::string::npos) << r.output;
+  }
+  EXPECT_EQ(run(kTessera + " render").status, 2);  // the scene is required
+  EXPECT_EQ(run(kTessera + " render --help").status, 0);
+  EXPECT_FALSE(fs::exists(dir_ / "x.exr"));
 }
 
 // The README's picture (docs/whitted.png) is what the first command leaves, not an older render:
