@@ -18,6 +18,7 @@
 #include "bundle_scenes.h"
 #include "farm/accept_guard.h"
 #include "farm/auth.h"
+#include "farm/command_line.h"
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
 #include "farm/request_limits.h"
@@ -104,8 +105,7 @@ std::optional<int> parse_flags(int argc, char** argv, RaysFlags& f) {
   app.add_option("--max-batch-rays", f.options.max_batch_rays, "Most rays in one request (larger: INVALID_ARGUMENT)")
       ->check(CLI::Range(int64_t(1), int64_t(1) << 24))->capture_default_str()->group("Limits");
   app.set_version_flag("--version", kVersion);
-  CLI11_PARSE(app, argc, argv);
-  return std::nullopt;
+  return farm::parse_command_line(app, argc, argv);
 }
 
 // Builds and starts the gRPC server; null when it cannot listen. `*port` is the port bound.

@@ -17,6 +17,7 @@
 #include "coordinator.h"
 #include "farm/accept_guard.h"
 #include "farm/auth.h"
+#include "farm/command_line.h"
 #include "farm/request_limits.h"
 #include "farm/stop_signals.h"
 #include "job_store.h"
@@ -86,8 +87,7 @@ std::optional<int> parse_flags(int argc, char** argv, ServerFlags& f) {
       ->group("Security");
   f.limits.add_flags(app);
   app.set_version_flag("--version", "tessera-server 0.1.0");
-  CLI11_PARSE(app, argc, argv);
-  return std::nullopt;
+  return farm::parse_command_line(app, argc, argv);
 }
 
 // Every connection costs a descriptor, and gRPC 1.51 (Debian bookworm) stops accepting for good

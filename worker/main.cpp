@@ -12,6 +12,7 @@
 
 #include "connection.h"
 #include "cpu_quota.h"
+#include "farm/command_line.h"
 #include "farm/stop_signals.h"
 
 int main(int argc, char** argv) {
@@ -71,7 +72,7 @@ int main(int argc, char** argv) {
       ->group("Security");
   app.add_option("--tls-key", o.security.tls_key, "PEM private key of --tls-cert")->group("Security");
   app.set_version_flag("--version", "tessera-worker 0.1.0");
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> rc = tessera::farm::parse_command_line(app, argc, argv)) return *rc;
   o.cache_dir = cache;
   o.batching.linger = std::chrono::milliseconds(linger_ms);
   o.exit_when_idle = std::chrono::milliseconds(int64_t(idle_s * 1000));

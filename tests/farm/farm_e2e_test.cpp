@@ -176,6 +176,28 @@ TEST(FarmErrors, InvalidSceneUnknownJobUnwritableOutput) {
   EXPECT_NE(r.output.find("not writable"), std::string::npos) << r.output;
 }
 
+// A bad command line is bad input for every program: exit 2 and a message naming the flag, not
+// CLI11's own codes (105 for a value out of range); --help exits 0.
+TEST(FarmErrors, BadFlagsExitTwoNamingTheFlagInEveryProgram) {
+  Farm farm;
+  struct Case {
+    std::vector<std::string> argv;
+    std::string named;
+  };
+  const Case cases[] = {{{bin("tessera-server").string(), "--heartbeat-ms", "soon"}, "--heartbeat-ms"},
+                        {{bin("tessera-server").string(), "--no-such-flag"}, "--no-such-flag"},
+                        {{bin("tessera-worker").string(), "--threads", "-3"}, "--threads"},
+                        {{bin("tessera").string(), "submit", kScene.string(), "--tile", "9999"}, "--tile"}};
+  int n = 0;
+  for (const Case& c : cases) {
+    Process p(c.argv, farm.dir() / ("flags" + std::to_string(n++) + ".log"));
+    EXPECT_EQ(p.wait(20s), 2) << c.argv[0] << " " << c.named << "\n" << p.log();
+    EXPECT_NE(p.log().find(c.named), std::string::npos) << p.log();
+  }
+  Process help({bin("tessera-worker").string(), "--help"}, farm.dir() / "help.log");
+  EXPECT_EQ(help.wait(20s), 0) << help.log();
+}
+
 TEST(FarmPython, IndependentPythonClientListsWorkersAndSubmits) {
   if (!fs::exists("/usr/bin/python3")) GTEST_SKIP() << "/usr/bin/python3 not installed";
   Farm farm;

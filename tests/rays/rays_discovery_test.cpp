@@ -114,6 +114,15 @@ TEST(RaysDiscovery, KilledServerExpiresAndTheClientSaysSo) {
   EXPECT_FALSE(fs::exists(farm.dir() / "o.csv"));
 }
 
+// A bad command line is bad input: exit 2 naming the flag (farm/command_line.h).
+TEST(RaysDiscovery, ABadFlagExitsTwoNamingIt) {
+  Farm farm;
+  Process p({(fs::path(TESSERA_BINARY_DIR) / "rays" / "tessera-rays").string(), "--announce-seconds", "never"},
+            farm.dir() / "flags.log");
+  EXPECT_EQ(p.wait(20s), 2) << p.log();
+  EXPECT_NE(p.log().find("--announce-seconds"), std::string::npos) << p.log();
+}
+
 // Only the thread that waits for them takes SIGINT and SIGTERM (farm/stop_signals.h): gRPC's own
 // threads, started when the credentials are made, block them too, so a stop is never a kill.
 TEST(RaysDiscovery, OnlyTheWaitingThreadTakesStopSignals) {
