@@ -13,21 +13,24 @@ namespace tessera::cli {
 
 namespace {
 
+// These outlive static destruction on purpose (never deleted): the interrupt thread may take a
+// signal while the process is already exiting normally.
+
 // Held while an output file is written; the interrupt thread takes it and never gives it back,
 // so nothing new starts being written once the process is ending.
 std::mutex& write_mutex() {
-  static std::mutex m;
-  return m;
+  static auto* m = new std::mutex;
+  return *m;
 }
 
 std::mutex& notice_mutex() {
-  static std::mutex m;
-  return m;
+  static auto* m = new std::mutex;
+  return *m;
 }
 
 std::string& notice() {
-  static std::string s;
-  return s;
+  static auto* s = new std::string;
+  return *s;
 }
 
 sigset_t interrupt_signals() {
