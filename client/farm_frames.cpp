@@ -34,6 +34,7 @@ void write_in_place(const std::string& path, Write&& write) {
     throw;
   }
 }
+
 double now_s() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
@@ -172,7 +173,7 @@ FrameReport FrameAssembler::write(int frame, const std::string& pattern, const s
                 error_channels ? channels.channels() : std::vector<ExrChannel>{},
                 parse_exr_compression(color.exr_compression));
     } else {
-      color::write_output(image, tmp, color, std::cout);
+      color::write_output(image, tmp, color, std::cout, rep.path);
     }
   });
   std::filesystem::remove(preview_path(rep.path), ec);  // the preview has served its purpose

@@ -45,9 +45,10 @@ ConvertOptions resolve_output_options(const OutputOptions& o, const std::string&
 }
 
 ConversionReport write_output(const ImageRGB& image, const std::string& out_path,
-                              const OutputOptions& o, std::ostream& report_out) {
+                              const OutputOptions& o, std::ostream& report_out, const std::string& report_path) {
   const ConvertOptions c = resolve_output_options(o, out_path);
-  const ConversionReport r = convert_image(image, out_path, c);
+  ConversionReport r = convert_image(image, out_path, c);
+  if (!report_path.empty()) r.path = report_path;
   if (o.report == "json") {
     report_out << report_json(r).dump() << "\n";
   } else {

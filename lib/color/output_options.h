@@ -35,8 +35,11 @@ ConvertOptions resolve_output_options(const OutputOptions& options, const std::s
 bool is_float_exr_output(const OutputOptions& options, const std::string& out_path);
 
 // Converts, writes out_path, prints the report line (text or JSON) to report_out and returns
-// it. Throws ColorError / ExrError naming the path.
+// it. Throws ColorError / ExrError naming the path. `report_path`, when given, is the name the
+// report gives the file: a file written beside its name and renamed into place is reported
+// under the name it ends up with.
 ConversionReport write_output(const ImageRGB& image, const std::string& out_path,
-                              const OutputOptions& options, std::ostream& report_out);
+                              const OutputOptions& options, std::ostream& report_out,
+                              const std::string& report_path = {});
 
 }  // namespace tessera::color

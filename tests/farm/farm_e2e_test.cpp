@@ -58,6 +58,28 @@ TEST(FarmEndToEnd, ThreeFramesTwoWorkersBitIdenticalToRender) {
   EXPECT_EQ(total, kFrames * 24);
 }
 
+// Frames in a color format: tone-mapped PNGs byte-identical to `tessera render` to the same
+// format, each written beside its name and renamed into place, and reported under its own name
+// (not the temporary one it was written to).
+TEST(FarmEndToEnd, PngFramesMatchRenderAndAreReportedUnderTheirNames) {
+  Farm farm;
+  farm.start_server();
+  farm.start_worker("w1", 2);
+  const fs::path out = farm.dir() / "out";
+  CliResult r = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "-o",
+                          (out / "frame_####.png").string(), "--tile", "16", "--tonemap", "aces", "--frames", "1"});
+  ASSERT_EQ(r.code, 0) << r.output << farm.server().log();
+  EXPECT_NE(r.output.find("rgb8 " + (out / "frame_0001.png").string() + " 96x64"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find(".tmp"), std::string::npos) << r.output;
+  std::vector<std::string> files;
+  for (const auto& e : fs::directory_iterator(out)) files.push_back(e.path().filename().string());
+  EXPECT_EQ(files, std::vector<std::string>{"frame_0001.png"});
+  const fs::path ref = farm.dir() / "ref.png";
+  const CliResult rr = farm.cli({"render", kScene.string(), "--frame", "1", "-o", ref.string(), "--tonemap", "aces", "-q"});
+  ASSERT_EQ(rr.code, 0) << rr.output;
+  EXPECT_EQ(read_text(out / "frame_0001.png"), read_text(ref)) << "the farm's PNG differs from tessera render's";
+}
+
 TEST(FarmEndToEnd, WorkerKilledMidJobJobStillCompletesIdentical) {
   Farm farm;
   farm.start_server({"--lease-timeout-ms", "3000", "--heartbeat-ms", "300"});
