@@ -4,39 +4,22 @@
 // Prints a Markdown table, then one JSON object per line (--json FILE writes them there instead).
 //
 //   exr_compression_bench [--work DIR] [--repeat N] [--json FILE] FRAME.exr [FRAME.exr ...]
-#include <time.h>
-
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "../bench_host.h"
 #include "image/exr_io.h"
 
 using namespace tessera;
+using bench::cpu_model;
+using bench::process_cpu_seconds;
 namespace fs = std::filesystem;
-
-namespace {
-
-double cpu_seconds() {
-  timespec t{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return double(t.tv_sec) + double(t.tv_nsec) * 1e-9;
-}
-
-std::string cpu_model() {
-  std::ifstream in("/proc/cpuinfo");
-  for (std::string line; std::getline(in, line);) {
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  }
-  return "unknown";
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   fs::path work = fs::temp_directory_path() / "tessera_exr_compression_bench";
@@ -74,11 +57,11 @@ int main(int argc, char** argv) {
         double write_s = 1e30, read_s = 1e30;
         bool exact = true;
         for (int r = 0; r < repeat; ++r) {
-          const double t0 = cpu_seconds();
+          const double t0 = process_cpu_seconds();
           write_exr(out.string(), img, {}, ExrPixelType::kFloat, {}, parse_exr_compression(name));
-          const double t1 = cpu_seconds();
+          const double t1 = process_cpu_seconds();
           const ImageRGB back = read_exr(out.string());
-          const double t2 = cpu_seconds();
+          const double t2 = process_cpu_seconds();
           write_s = std::min(write_s, t1 - t0);
           read_s = std::min(read_s, t2 - t1);
           exact = exact && back.rgb.size() == img.rgb.size() &&
