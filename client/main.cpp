@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "commands.h"
+#include "farm/command_line.h"
 #include "interrupt.h"
 
 int main(int argc, char** argv) {
@@ -22,13 +23,8 @@ int main(int argc, char** argv) {
   tessera::cli::register_health_command(app);
   tessera::cli::register_rays_command(app);
   try {
-    app.parse(argc, argv);
-  } catch (const CLI::RuntimeError& e) {
-    return e.get_exit_code();  // a command's own exit code, its message already printed
-  } catch (const CLI::ParseError& e) {
-    // app.exit() prints the message (or the help); a bad command line is bad input, exit 2 as
-    // docs/farm.md promises, not CLI11's own codes (105 for a value out of its set, 106 ...).
-    return app.exit(e) == 0 ? 0 : 2;
+    // A bad command line exits 2 as docs/farm.md promises; a command's own code passes through.
+    if (const std::optional<int> rc = tessera::farm::parse_command_line(app, argc, argv)) return *rc;
   } catch (const std::exception& e) {
     // Subcommands report their own errors; this is the last line of defence.
     std::cerr << "tessera: error: " << e.what() << "\n";
