@@ -9,6 +9,8 @@
 #include <cstring>
 #include <thread>
 
+#include "farm/stop_signals.h"
+
 namespace tessera::cli {
 
 namespace {
@@ -33,14 +35,6 @@ std::string& notice() {
   return *s;
 }
 
-sigset_t interrupt_signals() {
-  sigset_t sigs;
-  sigemptyset(&sigs);
-  sigaddset(&sigs, SIGINT);
-  sigaddset(&sigs, SIGTERM);
-  return sigs;
-}
-
 // The signal's own default action: a shell or a script sees the process ended by it.
 [[noreturn]] void die_by(int sig) {
   ::signal(sig, SIG_DFL);
@@ -55,12 +49,7 @@ sigset_t interrupt_signals() {
 [[noreturn]] void end_by(int sig, sigset_t sigs) {
   // A second interrupt ends the process at once: a write that does not finish (a full pipe, a
   // stalled network disk) must not make the client impossible to stop.
-  std::thread([sigs] {
-    int again = 0;
-    while (sigwait(&sigs, &again) != 0) {
-    }
-    die_by(again);
-  }).detach();
+  std::thread([sigs] { die_by(farm::wait_for_signal(sigs)); }).detach();
   write_mutex().lock();  // the file being written is finished first
   {
     std::lock_guard lock(notice_mutex());
@@ -74,14 +63,11 @@ sigset_t interrupt_signals() {
 }  // namespace
 
 void take_interrupts() {
-  const sigset_t sigs = interrupt_signals();
+  // Not farm::block_stop_signals(): that also ignores SIGPIPE, and `tessera status | head` should
+  // end quietly by SIGPIPE, not report a failed write.
+  const sigset_t sigs = farm::stop_signal_set();
   pthread_sigmask(SIG_BLOCK, &sigs, nullptr);
-  std::thread([sigs] {
-    int sig = 0;
-    while (sigwait(&sigs, &sig) != 0) {
-    }
-    end_by(sig, sigs);
-  }).detach();
+  std::thread([sigs] { end_by(farm::wait_for_signal(sigs), sigs); }).detach();
 }
 
 std::string shell_word(const std::string& s) {

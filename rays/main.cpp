@@ -221,9 +221,7 @@ int main(int argc, char** argv) {
   std::fflush(stdout);
   std::unique_ptr<rays::Announcer> announcer = start_announcer(flags, auth, *stub, service, advertised);
 
-  int sig = 0;
-  sigwait(&sigs, &sig);
-  spdlog::info("signal {}: shutting down", sig);
+  spdlog::info("signal {}: shutting down", farm::wait_for_signal(sigs));
   announcer.reset();
   server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
   server->Wait();

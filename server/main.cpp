@@ -201,9 +201,7 @@ void print_listening(const ServerFlags& f, int port, const HttpListener* http, i
 
 // Waits for SIGINT or SIGTERM, then stops taking work and closes the streams.
 void serve_until_signal(sigset_t sigs, HttpListener* http, Coordinator& coordinator, grpc::Server& server) {
-  int sig = 0;
-  sigwait(&sigs, &sig);
-  spdlog::info("signal {}: shutting down", sig);
+  spdlog::info("signal {}: shutting down", farm::wait_for_signal(sigs));
   if (http) http->stop();
   coordinator.stop();
   // Give streams a moment to finish; then everything still open is cancelled.

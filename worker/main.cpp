@@ -103,11 +103,7 @@ int main(int argc, char** argv) {
     }
     if (sig < 0) return;
     spdlog::info("signal {}: finishing current tiles and leaving (again to quit at once)", sig);
-    std::thread([&] {
-      int again = 0;
-      sigwait(&sigs, &again);
-      std::_Exit(128 + again);
-    }).detach();
+    std::thread([&] { std::_Exit(128 + tessera::farm::wait_for_signal(sigs)); }).detach();
     conn->request_stop();
   });
   const int rc = conn->run();

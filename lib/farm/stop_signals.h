@@ -8,6 +8,12 @@
 
 namespace tessera::farm {
 
+// SIGINT and SIGTERM: the signals that stop a farm program (the CLI takes the same two).
+sigset_t stop_signal_set();
+
+// Waits for one of `sigs` (blocked in every thread) and returns it.
+int wait_for_signal(const sigset_t& sigs);
+
 // Ignores SIGPIPE and blocks SIGINT and SIGTERM in the calling thread; returns the blocked set for
 // sigwait. Call it first thing in main, before anything that may start a thread: a thread keeps
 // the mask it was started with, and gRPC starts its executor and timer threads as soon as the
