@@ -56,10 +56,12 @@ std::string exr_compression_name(ExrCompression c) { return exr_compression_name
 
 ExrCompression parse_exr_compression(const std::string& name) {
   const auto& names = exr_compression_names();
+  std::string allowed;
   for (size_t i = 0; i < names.size(); ++i) {
     if (names[i] == name) return ExrCompression(i);
+    allowed += (i ? ", " : "") + names[i];
   }
-  throw ExrError("unknown EXR compression \"" + name + "\"; allowed: none, rle, zips, zip, piz (lossless only)");
+  throw ExrError("unknown EXR compression \"" + name + "\"; allowed: " + allowed + " (lossless only)");
 }
 
 void set_exr_threads(int threads) {
