@@ -16,25 +16,6 @@ namespace tessera::cli {
 
 namespace {
 
-// Writes `path` beside itself and renames it into place: a viewer, a compositor watching the
-// folder or a client killed mid-write never sees half a file under the frame's name. A failed
-// write leaves nothing behind.
-template <class Write>
-void write_in_place(const std::string& path, Write&& write) {
-  const std::filesystem::path p(path);
-  const std::string tmp =
-      farm::make_temp_file(p.parent_path().empty() ? "." : p.parent_path(), p.stem().string() + ".tmp",
-                           p.extension().string(), farm::TempAccess::kReadable);
-  try {
-    write(tmp);
-    std::filesystem::rename(tmp, path);
-  } catch (...) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw;
-  }
-}
-
 double now_s() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
@@ -165,7 +146,7 @@ FrameReport FrameAssembler::write(int frame, const std::string& pattern, const s
   const auto parent = std::filesystem::path(rep.path).parent_path();
   std::error_code ec;
   if (!parent.empty()) std::filesystem::create_directories(parent, ec);
-  write_in_place(rep.path, [&](const std::string& tmp) {
+  farm::write_in_place(rep.path, [&](const std::string& tmp) {
     if (color::is_float_exr_output(color, rep.path)) {
       const ErrorChannels channels =
           error_channels ? make_error_channels(f.pixels.variance(), f.pixels.spp()) : ErrorChannels{};
@@ -187,7 +168,7 @@ int FrameAssembler::write_previews(const std::string& pattern, const color::Outp
   for (const auto& [frame, f] : frames_) {
     if (f.pixels.tiles_done() == 0 || f.pixels.complete()) continue;
     const std::string path = preview_path(frame_output_path(pattern, frame));
-    write_in_place(path, [&](const std::string& tmp) {
+    farm::write_in_place(path, [&](const std::string& tmp) {
       if (color::is_float_exr_output(color, path)) {
         write_exr(tmp, f.pixels.image(),
                   {{"tessera:job", job_.job_id()},

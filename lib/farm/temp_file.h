@@ -18,4 +18,22 @@ std::filesystem::path make_temp_file(const std::filesystem::path& dir, const std
 // A new, empty folder "<stem>.XXXXXX" in `parent`. Throws std::filesystem::filesystem_error.
 std::filesystem::path make_temp_dir(const std::filesystem::path& parent, const std::string& stem);
 
+// Writes `path` through `write(temp_path)` into "<stem>.tmp.XXXXXX<extension>" beside it (the
+// extension kept, so a writer that picks the format from it still can), then renames it into
+// place: a reader, or a process killed mid-write, never leaves half a file under `path`. A write
+// that throws leaves nothing behind and the exception goes on.
+template <class Write>
+void write_in_place(const std::filesystem::path& path, Write&& write, TempAccess access = TempAccess::kReadable) {
+  const std::filesystem::path tmp = make_temp_file(path.parent_path().empty() ? "." : path.parent_path(),
+                                                   path.stem().string() + ".tmp", path.extension().string(), access);
+  try {
+    write(tmp.string());
+    std::filesystem::rename(tmp, path);
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw;
+  }
+}
+
 }  // namespace tessera::farm

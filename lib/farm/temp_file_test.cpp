@@ -3,7 +3,11 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
+#include <fstream>
+#include <iterator>
 #include <set>
+#include <stdexcept>
+#include <vector>
 
 namespace tessera::farm {
 namespace {
@@ -48,6 +52,39 @@ TEST_F(TempFileTest, FoldersAreNewAndAMissingParentIsNamed) {
   } catch (const fs::filesystem_error& e) {
     EXPECT_NE(std::string(e.what()).find("missing"), std::string::npos) << e.what();
   }
+}
+
+// write_in_place: the writer sees a temporary name with the final extension; afterwards only the
+// final file is there, readable; a writer that throws leaves no file at all, and an earlier file
+// under the name is kept untouched.
+std::string read_all(const fs::path& p) {
+  std::ifstream in(p);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+TEST_F(TempFileTest, WriteInPlaceLeavesTheWholeFileOrNothing) {
+  const fs::path out = dir_ / "frame_0003.png";
+  std::string seen;
+  write_in_place(out, [&](const std::string& tmp) {
+    seen = tmp;
+    std::ofstream(tmp) << "new";
+  });
+  EXPECT_EQ(fs::path(seen).extension(), ".png");
+  EXPECT_NE(fs::path(seen).filename(), out.filename());
+  EXPECT_EQ(read_all(out), "new");
+  struct stat st {};
+  ASSERT_EQ(stat(out.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0644u);
+  EXPECT_THROW(write_in_place(out,
+                              [&](const std::string& tmp) {
+                                std::ofstream(tmp) << "half";
+                                throw std::runtime_error("disk full");
+                              }),
+               std::runtime_error);
+  EXPECT_EQ(read_all(out), "new");
+  std::vector<std::string> left;
+  for (const auto& e : fs::directory_iterator(dir_)) left.push_back(e.path().filename().string());
+  EXPECT_EQ(left, std::vector<std::string>{"frame_0003.png"});
 }
 
 }  // namespace
