@@ -66,7 +66,8 @@ const Listing<v1::ListWorkersResponse, v1::WorkerInfo> kWorkers{
     .json = [](const v1::WorkerInfo& w) -> nlohmann::json {
       return {{"worker_id", w.worker_id()}, {"name", w.name()}, {"peer", w.peer()},
               {"threads", w.threads()}, {"embree_isa", w.embree_isa()},
-              {"tiles_in_flight", w.tiles_in_flight()}, {"tiles_done", w.tiles_done()}, {"rays", w.rays()},
+              {"tiles_in_flight", w.tiles_in_flight()}, {"tiles_done", w.tiles_done()},
+              {"results_refused", w.results_refused()}, {"rays", w.rays()},
               {"render_seconds", w.render_seconds()}, {"connected_seconds", w.connected_seconds()},
               {"since_heartbeat_seconds", w.since_heartbeat_seconds()}};
     },

@@ -8,6 +8,7 @@
 #include "farm/bundle.h"
 #include "farm/client_identity.h"
 #include "farm/overrides_codec.h"
+#include "farm/peer_text.h"
 #include "scene/scene_parser.h"
 #include "stream_sink.h"
 
@@ -160,6 +161,7 @@ Status ClientServiceImpl::authenticate(const grpc::CallbackServerContext& ctx, C
 }
 
 Status ClientServiceImpl::authorize(const std::string& job, const Caller& caller, const char* action) {
+  if (Status s = farm::check_job_id(job); !s.ok()) return s;  // before it is looked up or echoed
   const std::optional<std::string> owner = coord_.job_owner(job);
   if (!owner) return Status::OK;
   Status s = check_job_access(job, *owner, caller, action);
@@ -171,7 +173,8 @@ grpc::ServerUnaryReactor* ClientServiceImpl::HasBundle(grpc::CallbackServerConte
                                                        const v1::HasBundleRequest* req, v1::HasBundleResponse* resp) {
   if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
   if (!farm::is_sha256_hex(req->sha256())) {
-    return reply(ctx, Status(StatusCode::INVALID_ARGUMENT, "'" + req->sha256() + "' is not a lower-case hex SHA-256"));
+    return reply(ctx, Status(StatusCode::INVALID_ARGUMENT,
+                             "'" + farm::peer_text(req->sha256(), 80) + "' is not a lower-case hex SHA-256"));
   }
   resp->set_present(coord_.bundles().has(req->sha256()));
   return reply(ctx, Status::OK);
@@ -232,6 +235,7 @@ grpc::ServerUnaryReactor* ClientServiceImpl::AckFrame(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* ClientServiceImpl::GetJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req,
                                                     v1::JobStatus* resp) {
   if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) return reply(ctx, std::move(s));
+  if (Status s = farm::check_job_id(req->job_id()); !s.ok()) return reply(ctx, std::move(s));
   return reply(ctx, coord_.get_job(req->job_id(), resp));
 }
 

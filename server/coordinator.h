@@ -34,6 +34,7 @@
 #include "coordinator_messages.h"
 #include "frame_passes.h"
 #include "job_store.h"
+#include "peer_warnings.h"
 #include "ray_servers.h"
 #include "scheduler.h"
 #include "scene/scene.h"
@@ -180,6 +181,7 @@ class Coordinator : private SchedulerListener {
   void evict_expired_locked();
   std::optional<JobSnapshot> evicted_job(const std::string& id);  // without mu_
   grpc::Status attach_resident(const std::string& id, const std::shared_ptr<WatchSink>& sink);
+  grpc::Status set_priority_resident(const std::string& id, int priority, tessera::v1::JobStatus* out);
   // Queues a finished tile into a watch stream (shared encoded bytes, parsed when written) and
   // holds the job when that stream's backlog reaches the bound.
   void push_tile_locked(const JobId& job, const std::shared_ptr<WatchSink>& sink,
@@ -202,6 +204,7 @@ class Coordinator : private SchedulerListener {
   std::multimap<JobId, std::shared_ptr<WatchSink>> watchers_;
   std::map<JobId, TimePoint> ended_;  // ended jobs still in memory (retention)
   std::map<JobId, TimePoint> awaiting_first_tile_;  // submit time, until the first tile (logged)
+  PeerWarnings peer_warnings_;  // what workers sent wrong, one line a second each
   std::set<std::string> isas_;  // Embree ISAs seen: bit-identity needs the same kernels
   std::vector<std::shared_ptr<WorkerSink>> touched_workers_;
   std::vector<std::shared_ptr<WatchSink>> touched_watchers_;

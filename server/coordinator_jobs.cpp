@@ -6,6 +6,7 @@
 
 #include "farm/bundle.h"
 #include "farm/overrides_codec.h"
+#include "farm/peer_text.h"
 #include "farm/request_limits.h"
 #include "farm/tile_codec.h"
 #include "scene/scene_parser.h"
@@ -109,7 +110,7 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out, 
   }
   if (!farm::is_sha256_hex(req.bundle_sha256())) {
     return Status(StatusCode::INVALID_ARGUMENT,
-                  "bundle_sha256 '" + req.bundle_sha256() + "' is not a lower-case hex SHA-256");
+                  "bundle_sha256 '" + farm::peer_text(req.bundle_sha256(), 80) + "' is not a lower-case hex SHA-256");
   }
   if (!store_.has(req.bundle_sha256())) {
     return Status(StatusCode::NOT_FOUND,
@@ -231,11 +232,25 @@ Status Coordinator::cancel(const std::string& id, v1::JobStatus* out) {
         break;
     }
     job_status_proto(*scheduler_.job(id), out);
+    // Its unfinished frames were released with the cancel; with no final frame left to deliver,
+    // the job leaves memory now rather than after --retention-hours (`tessera status` answers).
+    if (scheduler_.all_acknowledged(id)) evict_locked(id, "cancelled, no frame left to deliver");
     return Status::OK;
   }), "job " + id + " is cancelled");
 }
 
 Status Coordinator::set_priority(const std::string& id, int priority, v1::JobStatus* out) {
+  Status s = set_priority_resident(id, priority, out);
+  if (s.error_code() != StatusCode::NOT_FOUND) return s;
+  // Left memory: it ended (a cancelled job with nothing to deliver leaves at once).
+  if (auto old = evicted_job(id)) {
+    return Status(StatusCode::FAILED_PRECONDITION,
+                  "job " + id + " has ended (" + job_state_name(old->state) + "): its priority no longer matters");
+  }
+  return s;
+}
+
+Status Coordinator::set_priority_resident(const std::string& id, int priority, v1::JobStatus* out) {
   return durable(locked([&] {
     switch (scheduler_.set_priority(id, priority)) {
       case Scheduler::PriorityResult::kUnknownJob:

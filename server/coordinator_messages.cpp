@@ -65,6 +65,7 @@ void worker_proto(const WorkerStats& w, v1::WorkerInfo* p) {
   p->set_render_seconds(w.seconds);
   p->set_connected_seconds(seconds_since(w.connected));
   p->set_since_heartbeat_seconds(seconds_since(w.last_seen));
+  p->set_results_refused(w.refused);
 }
 
 void assignment_proto(const Assignment& a, v1::Assignment* p) {

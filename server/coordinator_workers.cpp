@@ -7,7 +7,9 @@
 
 #include <algorithm>
 
+#include "farm/peer_text.h"
 #include "farm/tile_codec.h"
+#include "result_bounds.h"
 #include "sampling/pass_plan.h"
 
 namespace tessera::server {
@@ -67,9 +69,10 @@ void Coordinator::worker_message(WorkerId id, v1::WorkerMessage& msg) {
       case v1::WorkerMessage::kFailed: {
         auto lease = scheduler_.lease(msg.failed().lease_id());
         if (!lease || lease->worker != id) break;  // revoked meanwhile: nothing to count
+        // The reason is stored with the job and shown to every client: bounded, one line.
         scheduler_.fault(id, lease->tile.job, lease->id,
                          fmt::format("frame {} tile {}: worker cannot render: {}", lease->tile.frame, lease->tile.tile,
-                                     msg.failed().reason()));
+                                     farm::peer_text(msg.failed().reason(), farm::kMaxReasonBytes)));
         break;
       }
       default:
@@ -95,13 +98,31 @@ void Coordinator::tile_result_locked(WorkerId id, v1::TileResult& r) {
                                 : fmt::format("lease {} belongs to worker {}", r.lease_id(), lease->worker);
     if (scheduler_.fault(id, r.tile().job_id(), std::nullopt,
                          fmt::format("frame {} tile {}: {}", r.tile().frame(), r.tile().tile_index(), why)) == 0) {
-      spdlog::warn("worker {}: refused a result for unknown job '{}': {}", id, r.tile().job_id(), why);
+      // No job to blocklist the worker for: counted against the session, logged a line a second.
+      scheduler_.count_refused(id);
+      peer_warnings_.warn(id, "worker {}: refused a result for unknown job '{}': {}", id,
+                          farm::peer_text(r.tile().job_id(), 80), why);
     }
     return;
   }
+  if (r.tile().job_id() != lease->tile.job || r.tile().frame() != lease->tile.frame ||
+      r.tile().tile_index() != lease->tile.tile) {
+    // An honest worker echoes its assignment: a result that names another job, frame or tile
+    // than its lease is a fault, never relabelled (its pixels are of whatever it names).
+    scheduler_.fault(id, lease->tile.job, lease->id,
+                     fmt::format("frame {} tile {}: the result names job '{}' frame {} tile {}, not its lease's",
+                                 lease->tile.frame, lease->tile.tile, farm::peer_text(r.tile().job_id(), 80),
+                                 r.tile().frame(), r.tile().tile_index()));
+    return;
+  }
   const auto rect = scheduler_.tile_rect(lease->tile.job, lease->tile.frame, lease->tile.tile);
+  const JobSpec& spec = scheduler_.header(lease->tile.job)->spec;
   std::string err = farm::validate_tile(r.tile(), *rect);
-  if (const JobSpec& spec = scheduler_.header(lease->tile.job)->spec; err.empty() && spec.passes) {
+  if (err.empty()) {
+    err = check_result_bounds(r.tile(), {std::chrono::duration<double>(Clock::now() - lease->issued).count(),
+                                         int64_t(rect->width) * rect->height, spec.spp});
+  }
+  if (err.empty() && spec.passes) {
     // A frame target's pass is planned from the statistics every tile carries: a tile without
     // them (a worker that renders no frame targets) or with malformed ones is a fault now, at
     // the tile, rather than a failed plan at the frame's end.

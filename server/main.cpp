@@ -39,6 +39,7 @@ struct ServerFlags {
   std::string log_level = "info";
   int heartbeat_ms = 1000;
   int lease_timeout_ms = 10000;
+  int stall_timeout_ms = int(tessera::server::SchedulerOptions{}.stall_timeout.count());
   bool no_speculation = false;
   int max_faults = 3;
   double retention_hours = 24;
@@ -63,6 +64,10 @@ std::optional<int> parse_flags(int argc, char** argv, ServerFlags& f) {
       ->check(CLI::Range(50, 60000))->capture_default_str();
   app.add_option("--lease-timeout-ms", f.lease_timeout_ms, "Silence after which a worker loses its tiles")
       ->check(CLI::Range(200, 3600000))->capture_default_str();
+  app.add_option("--stall-timeout-ms", f.stall_timeout_ms,
+                 "A worker that holds tiles and returns no result for this long (or 8x the slowest tile so far) "
+                 "loses them, heartbeats or not")
+      ->check(CLI::Range(200, 86400000))->capture_default_str();
   app.add_flag("--no-speculation", f.no_speculation, "Never hand out second copies of in-flight tiles");
   app.add_option("--max-faults", f.max_faults, "Bad results after which a worker gets no more tiles of that job")
       ->check(CLI::Range(1, 1000))->capture_default_str();
@@ -112,6 +117,7 @@ CoordinatorOptions coordinator_options(const ServerFlags& f) {
   opts.heartbeat_interval = std::chrono::milliseconds(f.heartbeat_ms);
   opts.scheduler.lease_timeout = std::chrono::milliseconds(f.lease_timeout_ms);
   opts.scheduler.speculate = !f.no_speculation;
+  opts.scheduler.stall_timeout = std::chrono::milliseconds(f.stall_timeout_ms);
   opts.scheduler.max_faults = f.max_faults;
   opts.retention = std::chrono::seconds(int64_t(f.retention_hours * 3600));
   opts.watch_backlog_tiles = f.watch_backlog_tiles;

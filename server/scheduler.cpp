@@ -1,6 +1,7 @@
 #include "scheduler.h"
 
 #include <algorithm>
+#include <climits>
 #include <cstdio>
 #include <random>
 
@@ -27,6 +28,7 @@ const char* lease_end_name(LeaseEnd e) {
     case LeaseEnd::kWorkerLeft: return "worker left";
     case LeaseEnd::kFaulted: return "faulty result";
     case LeaseEnd::kBlocklisted: return "worker blocklisted for the job";
+    case LeaseEnd::kStalled: return "its worker returned nothing for too long";
   }
   return "?";
 }
@@ -83,7 +85,8 @@ JobId Scheduler::submit(const JobSpec& spec) {
   built.submitted = now_();
   Job& job = jobs_.emplace(id, std::move(built)).first->second;
   ++next_seq_;
-  tiles_held_ += job.spec.tiles();
+  job.tiles_resident = job.spec.tiles();
+  tiles_held_ += job.tiles_resident;
   job_order_.push_back(id);  // reserved above: does not throw
   update_runnable(job);
   events().job_submitted(snapshot(job));
@@ -95,7 +98,19 @@ void Scheduler::set_state(Job& job, JobState s) {
   if (job.state == s) return;
   job.state = s;
   if (job_ended(s)) job.ended = now_();
+  if (s == JobState::kCancelled || s == JobState::kFailed) release_unfinished(job);
   events().job_state_changed(job.id, s);
+}
+
+void Scheduler::release_unfinished(Job& job) {
+  for (Frame& fr : job.frames) {
+    if (fr.final || fr.released) continue;
+    job.tiles_resident -= int64_t(fr.tiles.size());
+    tiles_held_ -= int64_t(fr.tiles.size());
+    std::vector<Tile>().swap(fr.tiles);  // clear() would keep the capacity
+    fr.done = 0;
+    fr.released = true;
+  }
 }
 
 void Scheduler::update_runnable(Job& job) {
@@ -141,7 +156,7 @@ Scheduler::AckResult Scheduler::acknowledge_frame(const JobId& id, int frame) {
   const int fi = frame - job->spec.first_frame;
   if (fi < 0 || fi >= int(job->frames.size())) return AckResult::kUnknownFrame;
   Frame& fr = job->frames[size_t(fi)];
-  if (fr.done != int(fr.tiles.size())) return AckResult::kNotFinished;
+  if (!fr.final) return AckResult::kNotFinished;
   if (!fr.acknowledged) {
     fr.acknowledged = true;
     for (Tile& t : fr.tiles) t.output = {};  // the client has them: free the pixels
@@ -185,6 +200,20 @@ void Scheduler::request_tiles(WorkerId id, int count) {
   int& wanted = it->second.stats.wanted;
   wanted = std::min(options_.max_wanted_per_worker, wanted + count);
   wanting_.insert(id);
+}
+
+int Scheduler::credit(const Worker& w) const {
+  if (options_.initial_leases_per_thread <= 0) return INT_MAX;
+  const int threads = std::clamp(w.stats.info.threads, 1, SchedulerOptions::kMaxCreditThreads);
+  const int64_t earned = int64_t(options_.initial_leases_per_thread) * threads + 2 * (w.results - w.credit_base);
+  return int(std::min<int64_t>(earned, std::max(options_.max_wanted_per_worker, 1)));
+}
+
+int Scheduler::lease_credit(WorkerId id) const {
+  auto it = workers_.find(id);
+  if (it == workers_.end()) return 0;
+  const int c = credit(it->second);
+  return c == INT_MAX ? c : std::max(0, c - int(it->second.leases.size()));
 }
 
 bool Scheduler::dispatchable() const {
@@ -231,6 +260,8 @@ std::vector<Assignment> Scheduler::dispatch() {
     const std::vector<WorkerId> ids(wanting_.begin(), wanting_.end());
     for (WorkerId id : ids) {
       Worker& w = workers_.at(id);
+      // Not more than it has earned: it stays wanting, and its next result makes room.
+      if (int64_t(w.leases.size()) >= credit(w)) continue;
       std::optional<Assignment> a = next_for(w);
       if (!a && options_.speculate) a = speculate_for(w);
       if (!a) continue;
@@ -301,6 +332,7 @@ Assignment Scheduler::issue(Worker& w, Job& job, int fi, int t, bool speculative
     for (LeaseId other : tile.leases) set_single_copy(job, other, false);
   }
   leases_[a.lease.id] = a.lease;
+  if (w.leases.empty()) w.last_progress = now;  // the stall clock runs while it holds work
   w.leases.insert(a.lease.id);
   w.stats.in_flight = int(w.leases.size());
   if (job.state == JobState::kQueued) set_state(job, JobState::kRunning);
@@ -346,6 +378,8 @@ Scheduler::ResultOutcome Scheduler::complete(WorkerId worker, LeaseId lease_id, 
   if (auto wit = workers_.find(worker); wit != workers_.end()) {
     wit->second.stats.rays += output.rays;
     wit->second.stats.seconds += output.seconds;
+    ++wit->second.results;
+    wit->second.last_progress = now_();
   }
   if (tile.state == TileState::kDone) {
     ++job.duplicates_discarded;
@@ -359,6 +393,7 @@ Scheduler::ResultOutcome Scheduler::complete(WorkerId worker, LeaseId lease_id, 
   ++job.tiles_done;
   job.rays += tile.output.rays;
   job.tile_seconds += tile.output.seconds;
+  slowest_tile_ = std::max(slowest_tile_, tile.output.seconds);
   end_lease(lease_id, LeaseEnd::kCompleted, false);
   // First copy wins: the other copy's worker should stop wasting time on it.
   const std::vector<LeaseId> others = tile.leases;
@@ -368,7 +403,10 @@ Scheduler::ResultOutcome Scheduler::complete(WorkerId worker, LeaseId lease_id, 
     if (frame.done == int(frame.tiles.size())) end_pass(job, fi);
   } else {
     events().tile_finished(lease.tile, tile.output, worker);
-    if (frame.done == int(frame.tiles.size())) events().frame_finished(job.id, lease.tile.frame);
+    if (frame.done == int(frame.tiles.size())) {
+      frame.final = true;
+      events().frame_finished(job.id, lease.tile.frame);
+    }
   }
   if (job_ended(job.state)) return ResultOutcome::kAccepted;  // the planner failed it
   if (job.tiles_done == int64_t(job.frames.size()) * int64_t(job.grid.count())) {
@@ -413,6 +451,7 @@ void Scheduler::end_pass(Job& job, int fi) {
     return;
   }
   // The frame's last pass: its tiles are final, reported in tile order, then the frame.
+  frame.final = true;
   for (size_t t = 0; t < frame.tiles.size(); ++t) {
     events().tile_finished({job.id, frame_number, int(t)}, frame.tiles[t].output, frame.tiles[t].finished_by);
   }
@@ -434,8 +473,15 @@ int Scheduler::fault(WorkerId worker, const JobId& job_id, std::optional<LeaseId
     auto lit = leases_.find(*lease);
     if (lit != leases_.end() && lit->second.worker == worker) end_lease(*lease, LeaseEnd::kFaulted, true);
   }
+  ++wit->second.stats.refused;
   const std::string& name = wit->second.stats.info.name;
   const int faults = ++job->faults[name];
+  if (faults <= options_.max_faults) {
+    // A wrong result is still a result: the worker keeps the credit to get the tiles that
+    // blocklist it (a session that returns nothing earns none). Past the blocklist it earns no more.
+    ++wit->second.results;
+    wit->second.last_progress = now_();
+  }
   const bool now_blocked = faults >= options_.max_faults && job->blocklisted.insert(name).second;
   events().worker_faulted(job_id, wit->second.stats, reason, faults, now_blocked);
   if (!now_blocked) return faults;
@@ -456,6 +502,10 @@ int Scheduler::fault(WorkerId worker, const JobId& job_id, std::optional<LeaseId
                        std::to_string(options_.max_faults) + " faults each; last fault: " + reason);
   }
   return faults;
+}
+
+void Scheduler::count_refused(WorkerId worker) {
+  if (auto it = workers_.find(worker); it != workers_.end()) ++it->second.stats.refused;
 }
 
 void Scheduler::fail_job(Job& job, const std::string& error) {
@@ -479,7 +529,8 @@ void Scheduler::restore(JobRecord rec) {
   lay_out_tiles(job);
   const int frames = int(job.frames.size());
   const int per_frame = job.grid.count();
-  tiles_held_ += job.spec.tiles();
+  job.tiles_resident = job.spec.tiles();
+  tiles_held_ += job.tiles_resident;
   for (RestoredTile& d : rec.done) {
     const int fi = d.frame - job.spec.first_frame;
     if (fi < 0 || fi >= frames || d.tile < 0 || d.tile >= per_frame) continue;
@@ -511,10 +562,12 @@ void Scheduler::restore(JobRecord rec) {
       fr.done = 0;
     }
   }
+  for (Frame& fr : job.frames) fr.final = fr.done == per_frame;
   for (int f : rec.acknowledged) {
     const int fi = f - job.spec.first_frame;
-    if (fi >= 0 && fi < frames && job.frames[size_t(fi)].done == per_frame) job.frames[size_t(fi)].acknowledged = true;
+    if (fi >= 0 && fi < frames && job.frames[size_t(fi)].final) job.frames[size_t(fi)].acknowledged = true;
   }
+  if (job.state == JobState::kCancelled || job.state == JobState::kFailed) release_unfinished(job);
   // A job stored as done whose tiles are not all there any more (a damaged or lost segment
   // record, dropped by the store) runs again: "done" would be a lie, and the client would be
   // told every frame is ready while one is short. Cancelled and failed jobs stay as they are.
@@ -551,7 +604,7 @@ bool Scheduler::forget(const JobId& id) {
   runnable_.erase(queue_key(*job));
   speculable_.erase(id);
   std::erase(job_order_, id);
-  tiles_held_ -= job->spec.tiles();
+  tiles_held_ -= job->tiles_resident;
   jobs_.erase(id);
   return true;
 }
@@ -560,7 +613,7 @@ bool Scheduler::all_acknowledged(const JobId& id) const {
   const Job* job = find_job(id);
   if (!job) return false;
   for (const Frame& fr : job->frames) {
-    if (!fr.acknowledged) return false;
+    if (!fr.acknowledged && !fr.released) return false;  // a released frame has nothing to deliver
   }
   return true;
 }
@@ -572,6 +625,7 @@ std::vector<WorkerId> Scheduler::expire() {
     if (now - w.stats.last_seen > options_.lease_timeout) silent.push_back(id);
   }
   for (WorkerId id : silent) remove_worker(id, "missed heartbeats");
+  revoke_stalled(now);
   std::vector<LeaseId> expired;
   for (const auto& [lid, lease] : leases_) {
     if (lease.deadline < now) expired.push_back(lid);
@@ -580,93 +634,15 @@ std::vector<WorkerId> Scheduler::expire() {
   return silent;
 }
 
-JobSnapshot Scheduler::snapshot(const Job& job) const {
-  JobSnapshot s;
-  s.header() = job.header();
-  s.tiles_per_frame = job.grid.count();
-  s.tiles_total = int64_t(job.frames.size()) * s.tiles_per_frame;
-  s.tiles_done = job.tiles_done;
-  s.rays = job.rays;
-  s.tile_seconds = job.tile_seconds;
-  s.blocklisted.assign(job.blocklisted.begin(), job.blocklisted.end());
-  for (size_t f = 0; f < job.frames.size(); ++f) {
-    const Frame& fr = job.frames[f];
-    for (const Tile& t : fr.tiles) s.tiles_leased += t.state == TileState::kLeased;
-    if (fr.done == int(fr.tiles.size())) s.frames_done.push_back(job.spec.first_frame + int(f));
-    if (fr.acknowledged) s.frames_acknowledged.push_back(job.spec.first_frame + int(f));
+void Scheduler::revoke_stalled(TimePoint now) {
+  const auto limit = std::max<Clock::duration>(
+      options_.stall_timeout, std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(8 * slowest_tile_)));
+  for (auto& [id, w] : workers_) {
+    if (w.leases.empty() || now - w.last_progress <= limit) continue;
+    const std::vector<LeaseId> held(w.leases.begin(), w.leases.end());
+    for (LeaseId lid : held) end_lease(lid, LeaseEnd::kStalled, true);
+    w.credit_base = w.results;  // earned again from the start, like a new session
   }
-  return s;
-}
-
-std::optional<JobSnapshot> Scheduler::job(const JobId& id) const {
-  const Job* j = find_job(id);
-  if (!j) return std::nullopt;
-  return snapshot(*j);
-}
-
-const JobHeader* Scheduler::header(const JobId& id) const {
-  const Job* j = find_job(id);
-  return j ? &j->header() : nullptr;
-}
-
-int Scheduler::tiles_per_frame(const JobId& id) const {
-  const Job* j = find_job(id);
-  return j ? j->grid.count() : 0;
-}
-
-std::vector<JobSnapshot> Scheduler::jobs() const {
-  std::vector<JobSnapshot> out;
-  for (const JobId& id : job_order_) out.push_back(snapshot(*find_job(id)));
-  return out;
-}
-
-std::vector<WorkerStats> Scheduler::workers() const {
-  std::vector<WorkerStats> out;
-  for (const auto& [id, w] : workers_) out.push_back(w.stats);
-  return out;
-}
-
-std::optional<WorkerStats> Scheduler::worker(WorkerId id) const {
-  auto it = workers_.find(id);
-  if (it == workers_.end()) return std::nullopt;
-  return it->second.stats;
-}
-
-std::optional<Lease> Scheduler::lease(LeaseId id) const {
-  auto it = leases_.find(id);
-  if (it == leases_.end()) return std::nullopt;
-  return it->second;
-}
-
-std::vector<std::pair<TileKey, TileOutput>> Scheduler::finished_tiles(const JobId& id) const {
-  std::vector<std::pair<TileKey, TileOutput>> out;
-  const Job* job = find_job(id);
-  if (!job) return out;
-  for (size_t f = 0; f < job->frames.size(); ++f) {
-    const Frame& fr = job->frames[f];
-    if (fr.acknowledged) continue;
-    for (size_t t = 0; t < fr.tiles.size(); ++t) {
-      if (fr.tiles[t].state != TileState::kDone) continue;
-      out.push_back({TileKey{id, job->spec.first_frame + int(f), int(t)}, fr.tiles[t].output});
-    }
-  }
-  return out;
-}
-
-std::optional<TileRect> Scheduler::tile_rect(const JobId& id, int frame, int tile) const {
-  const Job* job = find_job(id);
-  if (!job) return std::nullopt;
-  const int fi = frame - job->spec.first_frame;
-  if (fi < 0 || fi >= int(job->frames.size()) || !job->grid.contains(tile)) {
-    return std::nullopt;
-  }
-  return job->grid.rect(tile);
-}
-
-size_t Scheduler::queued_tiles() const {
-  size_t n = 0;
-  for (const auto& key : runnable_) n += find_job(std::get<2>(key))->queue.size();
-  return n;
 }
 
 }  // namespace tessera::server

@@ -111,6 +111,7 @@ enum class LeaseEnd {
   kWorkerLeft,     // the worker disconnected or was dropped
   kFaulted,        // the worker sent a bad result or could not render: requeued
   kBlocklisted,    // the worker was blocklisted for the job: the worker should drop it
+  kStalled,        // its worker returned no result for too long (SchedulerOptions::stall_timeout): requeued
 };
 const char* lease_end_name(LeaseEnd e);
 
@@ -129,6 +130,7 @@ struct WorkerStats {
   int wanted = 0;          // tiles requested and not yet assigned
   int in_flight = 0;       // active leases
   int64_t tiles_done = 0;  // accepted results
+  int64_t refused = 0;     // results refused as faults (bad, foreign, for unknown jobs)
   uint64_t rays = 0;
   double seconds = 0;
 };
@@ -199,6 +201,17 @@ struct SchedulerOptions {
   // When nothing is queued, idle workers take a second copy of the oldest in-flight tiles.
   bool speculate = true;
   int max_wanted_per_worker = 1024;  // caps a worker's standing request
+  // Leases a worker may hold before it has returned anything, per thread it declares (at most
+  // kMaxCreditThreads of them); each result it returns earns it two more, up to
+  // max_wanted_per_worker (a slow start). A session that never renders holds no more than this.
+  // 0: no bound (unit tests of other rules).
+  int initial_leases_per_thread = 2;
+  static constexpr int kMaxCreditThreads = 64;
+  // A worker holding leases that returns no result for this long (or for 8x the slowest tile
+  // accepted so far, if longer) loses them: they are requeued and its credit starts again. Heartbeats
+  // alone do not keep work a session does not do. Five minutes: longer than any tile of the
+  // showcase takes by four orders of magnitude; a farm whose single tiles take longer raises it.
+  std::chrono::milliseconds stall_timeout{300000};
   // Faults (bad results, render failures) after which a worker gets no more tiles of a job.
   int max_faults = 3;
 };
@@ -262,6 +275,9 @@ class Scheduler {
   // and when every connected worker is blocklisted the job fails. Returns the fault count (0 for
   // an unknown job).
   int fault(WorkerId worker, const JobId& job, std::optional<LeaseId> lease, const std::string& reason);
+  // A refused result no job can be blamed for (it names a job that does not exist): counted in
+  // the worker's WorkerStats::refused, as fault() counts the others.
+  void count_refused(WorkerId worker);
   // Drops workers silent for longer than the lease timeout and requeues expired leases.
   // Returns the workers dropped (the coordinator ends their streams).
   std::vector<WorkerId> expire();
@@ -289,10 +305,14 @@ class Scheduler {
   // memory grows with.
   int64_t tiles_held() const { return tiles_held_; }
   std::vector<JobSnapshot> jobs() const;  // in submit order
+  // Leases the worker may still take now: what it has earned (SchedulerOptions::
+  // initial_leases_per_thread) less what it holds. INT_MAX when unbounded; 0 for an unknown id.
+  int lease_credit(WorkerId id) const;
   std::vector<WorkerStats> workers() const;
   std::optional<WorkerStats> worker(WorkerId id) const;
   std::optional<Lease> lease(LeaseId id) const;
-  // Every finished, unacknowledged tile of the job, by frame then tile (for a client attaching).
+  // Every final, unacknowledged tile of the job, by frame then tile (for a client attaching): see
+  // deliverable(), the one rule for what may reach a client.
   std::vector<std::pair<TileKey, TileOutput>> finished_tiles(const JobId& id) const;
   std::optional<TileRect> tile_rect(const JobId& id, int frame, int tile) const;
   size_t queued_tiles() const;
@@ -310,7 +330,9 @@ class Scheduler {
     std::vector<Tile> tiles;
     int done = 0;
     int passes = 0;               // passes jobs: passes ended
+    bool final = false;           // every tile done, at its last pass: the frame may be delivered
     bool acknowledged = false;
+    bool released = false;        // the job ended before the frame was final: its tiles are freed
   };
   struct Job : JobHeader {
     TileGrid grid;  // how each frame is cut into tiles
@@ -325,10 +347,14 @@ class Scheduler {
     // Active leases whose tile has no other copy in flight, oldest first: the candidates for a
     // speculative copy. Kept up to date by issue()/end_lease() so speculation never scans leases_.
     std::set<LeaseId> single_copies;
+    int64_t tiles_resident = 0;  // tiles of its frames not released (what tiles_held() counts)
   };
   struct Worker {
     WorkerStats stats;
     std::set<LeaseId> leases;
+    int64_t results = 0;      // results returned (accepted, duplicate, or faults up to the blocklist): its credit
+    int64_t credit_base = 0;  // `results` when its credit last started again (a stall)
+    TimePoint last_progress;  // its last result, or when it last went from no lease to one
   };
   // Runnable jobs in dispatch order: (-priority, submit sequence, id).
   using QueueKey = std::tuple<int, uint64_t, JobId>;
@@ -342,6 +368,17 @@ class Scheduler {
   void update_runnable(Job& job);
   std::optional<Assignment> next_for(Worker& w);
   bool blocked(const Job& job, const Worker& w) const { return job.blocklisted.count(w.stats.info.name) > 0; }
+  int credit(const Worker& w) const;
+  // The one rule for what may reach a client: a done tile, and of a passes job only once its frame
+  // is final (between passes a done tile is an intermediate result).
+  static bool deliverable(const Job& job, const Frame& frame, const Tile& tile) {
+    return tile.state == TileState::kDone && (!job.spec.passes || frame.final);
+  }
+  // A job that ended without being done frees the tile tables of its frames that are not final:
+  // nothing will render or deliver them, and they must not count against the resident limit.
+  void release_unfinished(Job& job);
+  // Workers that hold leases and returned nothing for longer than the stall limit lose them.
+  void revoke_stalled(TimePoint now);
   void fail_job(Job& job, const std::string& error);
   std::optional<Assignment> speculate_for(Worker& w);
   // Adds or removes `lease` in job.single_copies (and the job in speculable_).
@@ -371,7 +408,8 @@ class Scheduler {
   std::set<WorkerId> wanting_;        // workers with a standing request: dispatch() looks only here
   std::map<LeaseId, Lease> leases_;   // ids grow with time: begin() is the oldest lease
   uint64_t next_seq_ = 1;
-  int64_t tiles_held_ = 0;            // tiles of every job in jobs_ (frames x tiles per frame)
+  int64_t tiles_held_ = 0;            // tiles of every job in jobs_ (Job::tiles_resident summed)
+  double slowest_tile_ = 0;           // the longest render time of an accepted tile (stall limit)
   WorkerId next_worker_ = 1;
   LeaseId next_lease_ = 1;
 };

@@ -76,7 +76,15 @@ void Coordinator::lease_ended(const Lease& lease, LeaseEnd why) {
     spdlog::warn("lease {} of worker {} expired: job {} frame {} tile {} requeued", lease.id, lease.worker,
                  lease.tile.job, lease.tile.frame, lease.tile.tile);
   }
-  if (why != LeaseEnd::kLostRace && why != LeaseEnd::kCancelled && why != LeaseEnd::kBlocklisted) return;
+  if (why == LeaseEnd::kStalled) {
+    peer_warnings_.warn(lease.worker, "worker {} returned nothing for longer than the stall limit: its leases are "
+                                      "requeued (lease {}, job {} frame {} tile {})",
+                        lease.worker, lease.id, lease.tile.job, lease.tile.frame, lease.tile.tile);
+  }
+  if (why != LeaseEnd::kLostRace && why != LeaseEnd::kCancelled && why != LeaseEnd::kBlocklisted &&
+      why != LeaseEnd::kStalled) {
+    return;
+  }
   auto it = workers_.find(lease.worker);
   if (it == workers_.end()) return;
   v1::CoordinatorMessage m;
@@ -137,6 +145,7 @@ void Coordinator::worker_left(const WorkerStats& w, std::string_view reason) {
 
   spdlog::info("worker {} '{}' left ({}): {} tiles rendered, {} leases requeued", w.id, w.info.name, reason,
                w.tiles_done, w.in_flight);
+  peer_warnings_.forget(w.id);
   auto it = workers_.find(w.id);
   if (it == workers_.end()) return;
   it->second.sink->finish(Status(StatusCode::UNAVAILABLE, "coordinator dropped this worker: " + std::string(reason)));

@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
+#include <random>
 #include <set>
 
 namespace tessera::server {
@@ -28,6 +30,7 @@ class SchedulerTest : public ::testing::Test {
   SchedulerOptions opts() {
     SchedulerOptions o;
     o.lease_timeout = 10s;
+    o.initial_leases_per_thread = 0;  // unbounded; LeaseCredit* tests turn it on
     return o;
   }
   Scheduler s{opts(), [this] { return now; }, [this] { return "job" + std::to_string(++next_id); }};
@@ -568,6 +571,232 @@ TEST_F(SchedulerTest, RestoreStartsAPartlyStoredPassesFrameAgain) {
   EXPECT_EQ(j->tiles_done, 2);
   EXPECT_EQ(j->frames_done, std::vector<int>{1});
   EXPECT_EQ(s.queued_tiles(), 2u);
+}
+
+// A client attaching (finished_tiles) while a passes job's frame is between passes must not get
+// that frame's done tiles: they are intermediate results, and the frame's last pass may change them.
+TEST_F(SchedulerTest, AnAttachingClientGetsNoTileOfAFrameBetweenPasses) {
+  JobSpec j = spec(32, 16, 16, 1);  // 2 tiles
+  j.passes = true;
+  s.set_pass_planner([](const JobId&, int, int passes, const std::vector<const TileOutput*>&) {
+    PassDecision d;
+    if (passes == 1) {
+      d.final = false;
+      d.plans = {std::nullopt, std::string("p2")};  // tile 0 keeps its pilot, tile 1 goes again
+    }
+    return d;
+  });
+  const JobId id = s.submit(j);
+  const WorkerId w = worker("a");
+  for (const auto& a : pull(w, 2)) ASSERT_EQ(s.complete(w, a.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  EXPECT_TRUE(s.finished_tiles(id).empty()) << "tile 0 is done but its frame is between passes";
+  EXPECT_TRUE(s.job(id)->frames_done.empty());
+  auto second = pull(w, 1);
+  ASSERT_EQ(second.size(), 1u);
+  ASSERT_EQ(s.complete(w, second[0].lease.id, out(20)), Scheduler::ResultOutcome::kAccepted);
+  const auto tiles = s.finished_tiles(id);
+  ASSERT_EQ(tiles.size(), 2u);
+  EXPECT_EQ(tiles[1].second.rays, 20u) << "the last pass's output";
+  EXPECT_EQ(s.job(id)->frames_done, std::vector<int>{0});
+}
+
+// A session that takes tiles and never returns one holds no more than its initial credit; a
+// worker that returns results earns two more leases for each.
+TEST_F(SchedulerTest, LeaseCreditBoundsWhatASessionHoldsBeforeItRenders) {
+  SchedulerOptions o = opts();
+  o.initial_leases_per_thread = 2;
+  Scheduler sc{o, [this] { return now; }};
+  sc.submit(spec(320, 320, 16));  // 400 tiles
+  const WorkerId idle = sc.add_worker({"idle", "", 4, "AVX2"});
+  sc.request_tiles(idle, 100);
+  EXPECT_EQ(sc.dispatch().size(), 8u) << "2 per declared thread";
+  EXPECT_EQ(sc.lease_credit(idle), 0);
+  const WorkerId huge = sc.add_worker({"claims-many", "", 100000, "AVX2"});
+  sc.request_tiles(huge, 1000);
+  EXPECT_EQ(sc.dispatch().size(), size_t(2 * SchedulerOptions::kMaxCreditThreads)) << "threads are capped";
+  const WorkerId honest = sc.add_worker({"honest", "", 1, "AVX2"});
+  sc.request_tiles(honest, 10);
+  auto mine = sc.dispatch();
+  ASSERT_EQ(mine.size(), 2u);
+  ASSERT_EQ(sc.complete(honest, mine[0].lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  EXPECT_EQ(sc.lease_credit(honest), 3) << "credit 2 + 2 earned, 1 still held";
+  EXPECT_EQ(sc.dispatch().size(), 3u);
+}
+
+// Heartbeats keep a worker connected but not its leases: one that returns nothing for longer
+// than the stall timeout loses them (requeued for others) and its credit starts again.
+TEST_F(SchedulerTest, ASessionThatReturnsNothingLosesItsLeasesWhateverItsHeartbeats) {
+  SchedulerOptions o = opts();
+  o.stall_timeout = 30s;
+  o.initial_leases_per_thread = 2;
+  Scheduler sc{o, [this] { return now; }};
+  const JobId id = sc.submit(spec(64, 32, 16));  // 8 tiles
+  const WorkerId idle = sc.add_worker({"idle", "", 2, "AVX2"});
+  const WorkerId busy = sc.add_worker({"busy", "", 1, "AVX2"});
+  sc.request_tiles(idle, 3);
+  ASSERT_EQ(sc.dispatch().size(), 3u);
+  sc.request_tiles(busy, 1);
+  auto b = sc.dispatch();
+  ASSERT_EQ(b.size(), 1u);
+  for (int i = 0; i < 4; ++i) {
+    now += 10s;
+    sc.heartbeat(idle);
+    sc.heartbeat(busy);
+    if (i == 1) {  // at 20 s busy returns its tile and takes the next
+      ASSERT_EQ(sc.complete(busy, b[0].lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+      sc.request_tiles(busy, 1);
+      ASSERT_EQ(sc.dispatch().size(), 1u);
+    }
+    sc.expire();
+  }
+  EXPECT_EQ(sc.worker(idle)->in_flight, 0) << "40 s without a result";
+  EXPECT_EQ(sc.worker(busy)->in_flight, 1) << "its last result was 20 s ago";
+  EXPECT_EQ(sc.queued_tiles(), 6u) << "idle's 3 are requeued";
+  ASSERT_TRUE(sc.worker(idle)) << "still connected: it only lost the work it did not do";
+  EXPECT_EQ(sc.job(id)->tiles_done, 1);
+  sc.request_tiles(idle, 10);
+  EXPECT_EQ(sc.dispatch().size(), 4u) << "its credit started again: 2 per thread";
+}
+
+// A cancelled (or failed) job frees the tile tables of its frames that are not final at once:
+// they no longer count against the resident limit, and the final ones stay deliverable.
+TEST_F(SchedulerTest, ACancelledJobReleasesItsUnfinishedFramesAtOnce) {
+  const JobId id = s.submit(spec(32, 16, 16, 3));  // 2 tiles a frame, 3 frames
+  EXPECT_EQ(s.tiles_held(), 6);
+  const WorkerId w = worker("a");
+  auto as = pull(w, 3);  // frame 0 both tiles, frame 1 tile 0
+  for (const auto& a : as) s.complete(w, a.lease.id, out());
+  ASSERT_EQ(s.cancel(id), Scheduler::CancelResult::kCancelled);
+  EXPECT_EQ(s.tiles_held(), 2) << "frame 0 is final and not yet delivered; frames 1 and 2 are released";
+  EXPECT_EQ(s.finished_tiles(id).size(), 2u);
+  EXPECT_EQ(s.job(id)->frames_done, std::vector<int>{0});
+  EXPECT_FALSE(s.all_acknowledged(id));
+  EXPECT_EQ(s.acknowledge_frame(id, 1), Scheduler::AckResult::kNotFinished);
+  EXPECT_EQ(s.acknowledge_frame(id, 0), Scheduler::AckResult::kAcknowledged);
+  EXPECT_TRUE(s.all_acknowledged(id)) << "nothing left to deliver";
+  EXPECT_TRUE(s.forget(id));
+  EXPECT_EQ(s.tiles_held(), 0);
+}
+
+// Model-based: random interleavings of workers (fast, slow, dying), speculation, clients
+// attaching, acknowledging and a restart from what the store was told, on passes jobs and
+// fixed-spp jobs. A tile's output is a pure function of (frame, tile, plan), as a worker's is, so
+// the one rule can be checked exactly: every tile a client receives (attaching or live) is the
+// tile's final output.
+struct Delivery : SchedulerListener {
+  std::map<std::tuple<int, int>, uint64_t> live;  // tile_finished: (frame, tile) -> rays
+  std::vector<RestoredTile> stored;                 // what a JobStore would hold
+  void tile_finished(const TileKey& k, const TileOutput& o, WorkerId) override {
+    live[{k.frame, k.tile}] = o.rays;
+    stored.push_back({k.frame, k.tile, o});
+  }
+};
+
+TEST(SchedulerModel, EveryTileAClientReceivesIsFinalInEveryInterleaving) {
+  for (uint32_t seed = 1; seed <= 300; ++seed) {
+    std::mt19937 rng(seed);
+    TimePoint now{};
+    SchedulerOptions o;
+    o.lease_timeout = 10s;
+    o.stall_timeout = 20s;
+    auto sched = std::make_unique<Scheduler>(o, [&] { return now; }, [] { return JobId("j"); });
+    Delivery d;
+    sched->set_listener(&d);
+    // Output of a tile at a plan: passes - 1 plans deep; final when the planner says so.
+    const bool passes = seed % 3 != 0;
+    const int max_passes = 1 + int(seed % 4);
+    auto planner = [&](const JobId&, int frame, int done, const std::vector<const TileOutput*>&) {
+      PassDecision dec;
+      if (done < max_passes) {
+        dec.final = false;
+        dec.plans.resize(4);
+        for (int t = 0; t < 4; ++t) {
+          if ((t + frame + done) % 2 == 0) dec.plans[size_t(t)] = std::to_string(done);
+        }
+      }
+      return dec;
+    };
+    sched->set_pass_planner(planner);
+    JobSpec spec;
+    spec.width = spec.height = 32;
+    spec.tile_size = 16;
+    spec.last_frame = 2;
+    spec.spp = 4;
+    spec.passes = passes;
+    const JobId id = sched->submit(spec);
+    // The final output of every tile, computed from the plan each tile last rendered at.
+    auto output = [](int frame, int tile, const std::string& plan) {
+      return TileOutput{std::make_shared<const std::string>("x"), uint64_t(1000 * frame + 10 * tile) +
+                                                                       (plan.empty() ? 0 : 1 + std::stoull(plan)),
+                        0.01};
+    };
+    auto final_rays = [&](int frame, int tile) {
+      if (!passes) return uint64_t(1000 * frame + 10 * tile);
+      int last = -1;  // the last planned pass that re-rendered this tile (plans "1", "2", ...)
+      for (int p = 1; p < max_passes; ++p) {
+        if ((tile + frame + p) % 2 == 0) last = p;
+      }
+      return uint64_t(1000 * frame + 10 * tile) + (last < 0 ? 0 : 1 + uint64_t(last));
+    };
+    std::vector<WorkerId> ws;
+    std::map<LeaseId, Assignment> held;
+    std::set<int> acked;
+    auto check = [&](const char* where) {
+      for (const auto& [key, out] : sched->finished_tiles(id)) {
+        ASSERT_EQ(out.rays, final_rays(key.frame, key.tile))
+            << "seed " << seed << ", " << where << ": frame " << key.frame << " tile " << key.tile;
+      }
+      for (const auto& [k, rays] : d.live) {
+        ASSERT_EQ(rays, final_rays(std::get<0>(k), std::get<1>(k))) << "seed " << seed << " (live)";
+      }
+    };
+    for (int step = 0; step < 400; ++step) {
+      const int action = int(rng() % 10);
+      if (action == 0 || ws.empty()) {
+        ws.push_back(sched->add_worker({"w" + std::to_string(rng() % 4), "", 1, "AVX2"}));
+      } else if (action <= 2) {
+        const WorkerId w = ws[rng() % ws.size()];
+        sched->request_tiles(w, 1 + int(rng() % 3));
+        for (auto& a : sched->dispatch()) held[a.lease.id] = a;
+      } else if (action <= 5 && !held.empty()) {
+        auto it = std::next(held.begin(), long(rng() % held.size()));
+        const Assignment a = it->second;
+        held.erase(it);
+        sched->complete(a.lease.worker, a.lease.id, output(a.lease.tile.frame, a.lease.tile.tile, a.plan));
+      } else if (action == 6) {
+        check("attach");
+      } else if (action == 7) {
+        for (const auto& [key, out] : sched->finished_tiles(id)) {
+          if (sched->acknowledge_frame(id, key.frame) == Scheduler::AckResult::kAcknowledged) acked.insert(key.frame);
+        }
+      } else if (action == 8) {
+        now += std::chrono::seconds(rng() % 12);
+        for (WorkerId w : ws) {
+          if (rng() % 2) sched->heartbeat(w);
+        }
+        for (WorkerId gone : sched->expire()) std::erase(ws, gone);
+      } else if (action == 9 && rng() % 8 == 0) {
+        // Restart: a new scheduler from what the store holds (done tiles as they were reported,
+        // the acknowledged frames); leases in flight are lost.
+        JobRecord r;
+        r.id = id;
+        r.spec = spec;
+        r.state = JobState::kRunning;
+        r.done = d.stored;
+        r.acknowledged.assign(acked.begin(), acked.end());
+        sched = std::make_unique<Scheduler>(o, [&] { return now; }, [] { return JobId("j"); });
+        sched->set_listener(&d);
+        sched->set_pass_planner(planner);
+        sched->restore(r);
+        ws.clear();
+        held.clear();
+        check("restart");
+      }
+      if (HasFatalFailure()) return;
+    }
+    check("end");
+    if (HasFatalFailure()) return;
+  }
 }
 
 }  // namespace

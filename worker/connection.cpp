@@ -275,6 +275,7 @@ void WorkerConnection::handle_assignment(const std::shared_ptr<Session>& s, cons
     s->write(m);
     return;
   }
+  if (options_.test_fault == "idle") return;  // holds the lease, heartbeats, never renders
   pool_.post(a.lease_id(), [this, s, a] { render(s, a); });
 }
 
@@ -294,7 +295,7 @@ void WorkerConnection::inject_test_fault(v1::TileResult* r) const {
     r->mutable_tile()->clear_block_stats();
   } else if (f == "stale") {
     r->set_lease_id(r->lease_id() + (uint64_t(1) << 40));
-  } else if (f == "no-scene") {
+  } else if (f == "no-scene" || f == "long-reason") {
     throw std::runtime_error("cannot load the scene (--test-fault=no-scene)");
   } else if (f == "negative-variance") {
     std::string v = r->tile().variance_bf16();
@@ -305,6 +306,13 @@ void WorkerConnection::inject_test_fault(v1::TileResult* r) const {
     r->mutable_tile()->set_variance_bf16(v);
   } else if (f == "nan-seconds") {
     r->mutable_tile()->set_seconds(std::numeric_limits<double>::quiet_NaN());
+  } else if (f == "absurd-seconds") {  // finite, but longer than any lease has existed
+    r->mutable_tile()->set_seconds(1e300);
+  } else if (f == "absurd-spp") {
+    r->mutable_tile()->clear_spp();
+    r->mutable_tile()->set_uniform_spp(std::numeric_limits<uint32_t>::max());
+  } else if (f == "other-job") {  // an honest tile, claimed for a job that is not its lease's
+    r->mutable_tile()->set_job_id("0123456789ab");
   } else if (f == "padded") {  // honest pixels, plus fields no version of the protocol defines
     const auto unknown = [](google::protobuf::Message* m) { return m->GetReflection()->MutableUnknownFields(m); };
     unknown(r->mutable_tile())->AddLengthDelimited(999, std::string(size_t(1) << 20, 'x'));
@@ -316,7 +324,9 @@ void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assig
   const auto started = std::chrono::steady_clock::now();
   v1::WorkerMessage out;
   try {
-    auto scene = cache_.frame(a.bundle_sha256(), a.overrides().SerializeAsString(), a.frame());
+    // --test-fault other-frame: the next frame's pixels, claimed as the next frame's.
+    const int frame = a.frame() + (options_.test_fault == "other-frame" ? 1 : 0);
+    auto scene = cache_.frame(a.bundle_sha256(), a.overrides().SerializeAsString(), frame);
     const TileRect rect = farm::from_proto(a.rect());
     TileResult tile;
     if (scene->image().frame_target()) {
@@ -334,7 +344,7 @@ void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assig
     auto* r = out.mutable_result();
     r->set_lease_id(a.lease_id());
     r->mutable_tile()->set_job_id(a.job_id());
-    r->mutable_tile()->set_frame(a.frame());
+    r->mutable_tile()->set_frame(frame);
     r->mutable_tile()->set_tile_index(a.tile_index());
     r->mutable_tile()->set_worker(options_.name);
     farm::encode_tile(tile, r->mutable_tile());
@@ -347,7 +357,7 @@ void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assig
     spdlog::error("job {} frame {}: cannot render: {}", a.job_id(), a.frame(), e.what());
     out.Clear();
     out.mutable_failed()->set_lease_id(a.lease_id());
-    out.mutable_failed()->set_reason(e.what());
+    out.mutable_failed()->set_reason(options_.test_fault == "long-reason" ? std::string(20 << 20, 'r') : e.what());
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   int ask = 0;

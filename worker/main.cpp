@@ -58,11 +58,14 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 60000));
   app.add_option("--test-fault", o.test_fault,
                  "Testing only: send bad results (nan, wrong-size, stale lease, no-scene, negative-variance, "
-                 "nan-seconds, no-block-stats: a frame-target tile without its statistics) to exercise the "
-                 "coordinator's refusal and per-job blocklist, or honest results padded with 1 MiB of unknown "
-                 "fields (padded)")
+                 "nan-seconds, no-block-stats: a frame-target tile without its statistics, absurd-seconds, "
+                 "absurd-spp, other-frame: the next frame's pixels under its number, other-job, "
+                 "long-reason: a 20 MB failure reason) to exercise the coordinator's refusal and per-job "
+                 "blocklist, honest results padded with 1 MiB of unknown fields (padded), or a session that "
+                 "takes tiles and never renders them (idle)")
       ->check(CLI::IsMember({"nan", "wrong-size", "stale", "no-scene", "negative-variance", "nan-seconds", "padded",
-                             "no-block-stats"}));
+                             "no-block-stats", "absurd-seconds", "absurd-spp", "other-frame", "other-job",
+                             "long-reason", "idle"}));
   std::string token_file;
   app.add_option("--token-file", token_file, "File holding the worker token (else env TESSERA_WORKER_TOKEN)")
       ->group("Security");

@@ -9,6 +9,10 @@ Checks (each prints "ok CHECK" or raises):
   mesh-escape     a scene whose mesh is outside its bundle ('../..', absolute): INVALID_ARGUMENT
   token-roles     the worker token does not grant ClientService calls, nor the client token
                   WorkerService calls: UNAUTHENTICATED (env PROBE_WORKER_TOKEN, PROBE_CLIENT_TOKEN)
+  huge-job-id     a 1 MiB job id in GetJob, CancelJob, AckFrame and SetJobPriority: INVALID_ARGUMENT
+                  naming the field and its bound, the id not echoed
+  stray-results   a worker session that sends one TileResults of 5,000 results for leases never
+                  issued, of a job that does not exist (4 KiB job ids), then leaves
 """
 import hashlib
 import os
@@ -151,6 +155,33 @@ def main():
             assert results[4].startswith("RESOURCE_EXHAUSTED") and "--max-concurrent-uploads" in results[4], results[4]
             for i in range(4):
                 assert results[i].startswith("INVALID_ARGUMENT") and "not to the announced" in results[i], results[i]
+        elif check == "huge-job-id":
+            huge = "z" * (1 << 20)
+            for name, call in (("GetJob", lambda: stub.GetJob(cs.GetJobRequest(job_id=huge), timeout=10)),
+                               ("CancelJob", lambda: stub.CancelJob(cs.CancelJobRequest(job_id=huge), timeout=10)),
+                               ("AckFrame", lambda: stub.AckFrame(cs.AckFrameRequest(job_id=huge), timeout=10)),
+                               ("SetJobPriority",
+                                lambda: stub.SetJobPriority(cs.SetJobPriorityRequest(job_id=huge), timeout=10))):
+                expect(grpc.StatusCode.INVALID_ARGUMENT, call, f"{name} with a 1 MiB job id",
+                       "job_id: 1048576 bytes, at most 64", forbid="zzzz")
+        elif check == "stray-results":
+            from tessera.v1 import worker_service_pb2 as ws
+            from tessera.v1 import worker_service_pb2_grpc as ws_grpc
+            tile = dict(job_id="j" * 4096, frame=0)
+            batch = ws.TileResults(results=[ws.TileResult(lease_id=(1 << 40) + i,
+                                                          tile=common.TileData(tile_index=i, **tile))
+                                            for i in range(5000)])
+
+            def session():
+                yield ws.WorkerMessage(register=ws.Register(name="stray", threads=1))
+                yield ws.WorkerMessage(results=batch)
+                time.sleep(1)  # the session stays while the coordinator takes the burst
+
+            try:
+                for _ in ws_grpc.WorkerServiceStub(channel).Connect(session(), timeout=30):
+                    pass
+            except grpc.RpcError as e:
+                print(f"  session ended: {e.code().name}: {e.details()[:200]}")
         elif check == "token-roles":
             md = [("authorization", "Bearer " + os.environ["PROBE_WORKER_TOKEN"])]
             expect(grpc.StatusCode.UNAUTHENTICATED,
