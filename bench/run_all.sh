@@ -78,7 +78,7 @@ if [ $SMOKE = 1 ]; then
 else
   W=192 H=108 MAXSPP=1024 REFSPP=4096 CENTER=16 TARGETS=auto SEEDS=3
   CW=480 CH=270 CSPP=4 REPS=3
-  PW=640 PH=360 PR=4                             # povray: the size issue-31 users compare at (192x108 flattered Tessera at +A0.3: docs/performance.md)
+  PW=640 PH=360 PR=4                             # povray: the size POV-Ray's users compare at (192x108 flattered Tessera at +A0.3: docs/performance-log.md)
   POV_ADAPTIVE=("+A0.3 +AM2 +R3" "+A0.1 +AM2 +R3" "+A0.03 +AM2 +R4")
   BW=192 BH=108 BSPP=16 BREF=1024 BNOISE=0.01    # 0.01: Cycles' default noise threshold
 fi

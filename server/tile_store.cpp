@@ -23,7 +23,7 @@ namespace {
 // payload (u64): 16 bytes. Read as well: the first format, magic "TREC", length, CRC-32 of the
 // payload (12 bytes), so segments written before the change stay readable. XXH3 checks a 20 KiB
 // tile in about a microsecond; zlib's CRC-32 took several, a tenth of the coordinator's own work
-// per tile (docs/performance.md).
+// per tile (docs/performance.md, "The coordinator's cost per tile").
 constexpr uint32_t kRecordMagic = 0x33585254;     // "TRX3"
 constexpr size_t kHeaderSize = 16;
 constexpr uint32_t kCrcRecordMagic = 0x54524543;  // "TREC"

@@ -1,9 +1,10 @@
-// POV-Ray as a peer (docs/performance.md section 3): compares POV-Ray's render of bench/povray/whitted.pov
-// (rendered by bench/run_all.sh, linear EXR) with Tessera's render of scenes/whitted.json at
-// the same size, in this process: RMSE in linear light of each against a high-spp Tessera
-// reference, of the two against each other, and samples per second (wall and CPU) of each.
-// Then the lowest spp at which Tessera's error is at most POV-Ray's, and the speed-up at that
-// equal error. Prints JSON on stdout; appends markdown to --markdown. Asserts nothing about time.
+// POV-Ray as a peer (docs/performance.md, "A peer: POV-Ray 3.7"): compares POV-Ray's render of
+// bench/povray/whitted.pov (rendered by bench/run_all.sh, linear EXR) with Tessera's render of
+// scenes/whitted.json at the same size, in this process: RMSE in linear light of each against a
+// high-spp Tessera reference, of the two against each other, and samples per second (wall and CPU)
+// of each. Then the lowest spp at which Tessera's error is at most POV-Ray's, and the speed-up at
+// that equal error. Prints JSON on stdout; appends markdown to --markdown. Asserts nothing about
+// time.
 #include <spdlog/spdlog.h>
 
 #include <chrono>

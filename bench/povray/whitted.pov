@@ -1,5 +1,5 @@
 // scenes/whitted.json written by hand in POV-Ray 3.7's language, with conventions matched to
-// Tessera's renderer (bench/run_all.sh renders it; docs/performance.md lists the choices):
+// Tessera's renderer (bench/run_all.sh renders it; docs/performance.md, "A peer: POV-Ray 3.7"):
 // - coordinates: POV-Ray is left-handed; Tessera's right-handed scene maps to it with z -> -z
 //   (the camera then looks along +z, x stays to the right, y up: the image is not mirrored);
 // - camera: Tessera's vfov 40 deg becomes POV-Ray's horizontal `angle` for the image aspect;

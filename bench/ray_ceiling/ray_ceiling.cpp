@@ -1,14 +1,13 @@
-// Ray throughput against the ceiling (docs/performance.md section 2). Records the exact Embree
-// queries the renderer makes for one frame (render/ray_log.h), replays them with bare Embree calls
-// on the same RTCScene (same geometry, same user-geometry callbacks for spheres and watertight
-// triangles, no shading, no sampling; --triangles picks the triangle test):
+// Ray throughput against the ceiling (docs/performance.md, "Ray throughput against the ceiling").
+// Records the exact Embree queries the renderer makes for one frame (render/ray_log.h), replays
+// them with bare Embree calls on the same RTCScene (same geometry, same user-geometry callbacks for
+// spheres and watertight triangles, no shading, no sampling; --triangles picks the triangle test):
 // single rays, and 8-/16-wide packets. Reports the renderer's own Mrays/s (the whole render:
 // sampling, shading, accumulation) as a ratio of each, and of the ceiling that the throughput goal
 // (at least 0.5 of it for primary + shadow rays on the bunny and the armadillo, 0.3 on Whitted) is
 // read against: the same rays, in the faster of 8- and 16-wide packets, on the same scene built
-// with Embree's own robust triangles. One thread everywhere, best of --reps, timed in thread
-// CPU time.
-// Prints JSON on stdout; appends a markdown table to --markdown. Asserts nothing about time.
+// with Embree's own robust triangles. One thread everywhere, best of --reps, timed in thread CPU
+// time. Prints JSON on stdout; appends a markdown table to --markdown. Asserts nothing about time.
 #include <spdlog/spdlog.h>
 
 #include <algorithm>

@@ -1,11 +1,12 @@
 // How a worker gathers finished tiles into messages, and how many tiles it keeps on hand so that
 // gathering never leaves a render thread waiting.
 //
-// The coordinator's cost is mostly per message, not per byte (about 120 us of its CPU a message
-// on loopback; docs/performance.md): a result that waits a few milliseconds for the results
-// finishing beside it saves the coordinator most of its cost. The wait is bounded (`linger`), a
-// batch is sent at once when the worker has nothing else to render (the end of a job or a frame
-// is never held back), and a batch never outgrows what the coordinator accepts in one message.
+// The coordinator's cost is mostly per message, not per byte (about 120 us of its CPU a message on
+// loopback; docs/performance.md, "The coordinator's cost per tile"): a result that waits a few
+// milliseconds for the results finishing beside it saves the coordinator most of its cost. The wait
+// is bounded (`linger`), a batch is sent at once when the worker has nothing else to render (the
+// end of a job or a frame is never held back), and a batch never outgrows what the coordinator
+// accepts in one message.
 //
 // While results wait, their threads go on rendering: a worker keeps enough tiles requested to
 // cover the linger as well as the round trip, measured from its own tile times (`depth`).

@@ -57,7 +57,7 @@ void write_exr(const std::string& path, const ImageRGB& image, const ExrAttribut
 // whole process): 0, the default, means one per hardware thread. The bytes written do not depend
 // on it. Why: ZIP compression of a float frame is single-threaded otherwise and took as long as
 // rendering the frame (1920x1080 with error layers: 0.80 s to write, 0.89 s to render on two
-// cores; docs/performance.md). `tessera render --threads N` sets it to N.
+// cores; docs/performance.md, "EXR writing"). `tessera render --threads N` sets it to N.
 void set_exr_threads(int threads);
 
 // Reads an EXR with R, G, B channels (missing channels read as 0) into float.

@@ -26,9 +26,10 @@ constexpr float kShadowEpsilon = 1e-4f;  // relative shortening of rays aimed at
 // (no bias, unlike a hard cut-off such as POV-Ray's adc_bailout), and the error estimate sees the
 // variance it adds. Why: a glass sphere's tree doubles at every surface, and most of its rays are
 // internal reflections weighted 0.04^k; on the Whitted showcase at 16 spp, t = 0.01 keeps 2.2 M of
-// 5.3 M secondary rays for an RMSE 0.05% higher (docs/performance.md). The draw uses the parent
-// node's own sampler dimension, so a lane's result still depends only on its own sample; with
-// t = 0 no weight is below it and every branch is traced, bit for bit as without the roulette.
+// 5.3 M secondary rays for an RMSE 0.05% higher (docs/performance.md, "Russian roulette"). The
+// draw uses the parent node's own sampler dimension, so a lane's result still depends only on its
+// own sample; with t = 0 no weight is below it and every branch is traced, bit for bit as without
+// the roulette.
 constexpr uint64_t kRouletteDim = 2000003u;  // hash_combine(node, this): apart from the area lights' 1000003 + li
 
 struct Context {

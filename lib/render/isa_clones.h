@@ -7,8 +7,8 @@
 // lookups, the camera rays, the checker's floor) is plain C++ that the compiler vectorizes by
 // itself, and at the baseline it may use only SSE2: two-operand instructions, 4-wide vectors,
 // floor as a branchy integer sequence. With its AVX2 versions the renderer runs 7 % fewer
-// instructions a sample on the Whitted showcase (1450 -> 1348; docs/performance.md, "eighth
-// step").
+// instructions a sample on the Whitted showcase (1450 -> 1348; docs/performance.md, "Packets and
+// SIMD stages").
 //
 // The answers do not depend on the version: the project builds with -ffp-contract=off (no fused
 // multiply-add is formed in either), the AVX2 target does not include FMA, and every operation

@@ -65,7 +65,7 @@ class PixelEstimate {
   // (measured on the Cornell box: one such block held 88% of it). The reported estimate stays the
   // unbiased one. A floor falling as spp^-2 was tried: slightly faster on Cornell at high
   // targets, but target-error renders then estimated their own error 0.75-0.90x of the measured
-  // one, against 0.81-0.98x with this floor (docs/performance.md).
+  // one, against 0.81-0.98x with this floor (measured with bench/speed_error).
   double stratified_floor() const {
     if (n_[1] == 0) return 0.0;
     const double n = double(samples());

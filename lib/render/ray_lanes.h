@@ -1,7 +1,7 @@
 // A packet's rays as arrays of components (structure of arrays), the form they travel in from
 // the camera through the integrator to Embree's packet queries: the SIMD stages read and write
 // whole vectors of them, and no stage copies rays between a struct per ray and arrays
-// (docs/performance.md, "fifth step": 1-3 % fewer instructions a sample).
+// (docs/performance.md, "Packets and SIMD stages": 1-3 % fewer instructions a sample).
 #pragma once
 
 #include <limits>

@@ -9,8 +9,9 @@
 //
 // Why: per lane a glass hit costs two square roots and six divisions before its rays exist, and
 // done one lane at a time their latencies were the largest item of radiance_packet's own time on
-// the Whitted showcase (perf annotate; docs/performance.md). Smooth (shading-normal) hits keep
-// the scalar path: their turning normal and side checks (shading_normal.h) branch per lane.
+// the Whitted showcase (perf annotate; docs/performance.md, "Packets and SIMD stages"). Smooth
+// (shading-normal) hits keep the scalar path: their turning normal and side checks
+// (shading_normal.h) branch per lane.
 #pragma once
 
 #include <cstdint>

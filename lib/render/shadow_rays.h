@@ -10,7 +10,7 @@
 //
 // Why: per lane this set-up is two square roots, four divisions and a robust spawn per light, and
 // done one lane at a time it was the largest single item of a Whitted frame's profile after the
-// packet bookkeeping (docs/performance.md).
+// packet bookkeeping (docs/performance.md, "Packets and SIMD stages").
 #pragma once
 
 #include <cstdint>

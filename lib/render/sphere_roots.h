@@ -6,7 +6,7 @@
 //
 // Why: Embree calls a sphere's callback once for all the lanes of a packet whose rays reach its
 // box, and a lane's roots are three double square roots and a division: one lane at a time they
-// were a tenth of a Whitted frame (docs/performance.md).
+// were a tenth of a Whitted frame (docs/performance.md, "Packets and SIMD stages").
 #pragma once
 
 #include <cstdint>

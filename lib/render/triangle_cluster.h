@@ -1,12 +1,13 @@
 // Triangles in clusters of up to 8, each cluster one Embree user primitive whose callback runs the
 // watertight test (render/watertight_triangle.h) on all its triangles at once, in SIMD.
 //
-// Why: with one user primitive per triangle, Embree calls back once per triangle a ray's
-// traversal reaches, and a mesh-bound ray reaches dozens; the calls, not the arithmetic, made the
-// watertight test cost 1.65x Embree's own per frame and made packets no faster than single rays
-// (docs/performance.md). Embree's own triangles sit in leaves of 4-16 that one SIMD test covers;
-// a cluster is the same idea for our test. The clusters are the leaves of a SAH BVH that Embree's
-// own builder (rtcBuildBVH) makes over the triangles, so they are spatially tight.
+// Why: with one user primitive per triangle, Embree calls back once per triangle a ray's traversal
+// reaches, and a mesh-bound ray reaches dozens; the calls, not the arithmetic, made the watertight
+// test cost 1.65x Embree's own per frame and made packets no faster than single rays
+// (docs/performance.md, "Watertight triangle clusters"). Embree's own triangles sit in leaves of
+// 4-16 that one SIMD test covers; a cluster is the same idea for our test. The clusters are the
+// leaves of a SAH BVH that Embree's own builder (rtcBuildBVH) makes over the triangles, so they are
+// spatially tight.
 //
 // The arithmetic is the scalar test's, lane for lane: the same float shear, the same exact
 // double edge functions and the same rounding of t, u and v. Only IEEE add, subtract, multiply,

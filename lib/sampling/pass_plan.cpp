@@ -13,7 +13,7 @@ namespace {
 // an edge under the stratified samplers (N^-1.5; smooth pixels fall faster, independent samples
 // as N^-1). Measured on the showcase scenes: 1.5 lands the frame's estimate at 0.93-1.0x the
 // target, where 1 (independent samples) overshot it to 0.5-0.8x, paying for error nobody asked
-// for (docs/performance.md).
+// for (docs/performance.md, "Target-error renders against uniform spp").
 constexpr double kFirstRate = 1.5;
 
 // What the allocation shares samples by, each block's own shape (its error, or its stratified
@@ -33,7 +33,7 @@ constexpr double kFirstRate = 1.5;
 //    side held half the frame's error and 5% of its estimate, and on 2x2 blocks such an edge often
 //    lies between two blocks that each look flat inside. The neighbour across the edge shows what
 //    the block's own samples could not; the floor falls as an edge's error does under the
-//    stratified samplers (spp^-1.5). Measured (docs/performance.md, 3 seeds a target): without
+//    stratified samplers (spp^-1.5). Measured (bench/speed_error, 3 seeds a target): without
 //    it, the frame's estimate fell to 0.63-0.77x its measured error at the tightest targets on
 //    Whitted. Weights from 0.1 to 1 spend about the same samples for the same measured error
 //    (within 5-7%); larger ones make the estimate more honest and the frame overshoot its target

@@ -24,10 +24,10 @@
 
 namespace tessera {
 
-// The allocation's unit: blocks of 2x2 pixels (4x4 until 2026-11-27). With the contrast floor
-// (pass_plan.cpp) and a pilot of 2 samples, 2x2 blocks reach an error with 1.4x fewer rays than
-// 4x4 blocks and a pilot of 4 (Whitted showcase, 640x360, docs/performance.md); without the
-// floor their estimate fell to 0.63-0.77x of the measured error, which is why they were not used.
+// The allocation's unit: blocks of 2x2 pixels. With the contrast floor (pass_plan.cpp) and a
+// pilot of 2 samples, 2x2 blocks reach an error with 1.4x fewer rays than 4x4 blocks and a pilot
+// of 4 (Whitted showcase, 640x360; docs/performance.md, "Target-error renders against uniform
+// spp"); without the floor their estimate fell to 0.63-0.77x of the measured error.
 constexpr int kAllocationBlock = 2;
 constexpr int kMaxTargetPasses = 8;
 

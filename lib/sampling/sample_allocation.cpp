@@ -12,7 +12,7 @@ namespace {
 // takes the same number, so the stream difference behind the error estimate is balanced. They
 // were whole packets of 8 while a packet held one pixel's samples; since packets fill across the
 // pixels of a block (render/pixel_samples.h), a finer step wastes no lanes and lets a block stop
-// closer to what the frame needs (docs/performance.md).
+// closer to what the frame needs (docs/performance.md, "Target-error renders against uniform spp").
 constexpr uint32_t kCountStep = 2;
 uint32_t whole_steps(double n) { return uint32_t(std::ceil(n / double(kCountStep))) * kCountStep; }
 

@@ -71,8 +71,8 @@ struct ImageSettings {
   // target (its pilot pass: the least that gives each pixel two streams and an estimate; edges
   // its samples miss are found by the planner's contrast floor, sampling/pass_plan.cpp, and 2
   // reaches the Whitted showcase's loose targets with 1.4x fewer rays than 4, its estimate as
-  // honest; docs/performance.md) and 16 for the block bound (a block deciding alone needs 16 to
-  // see small features).
+  // honest; docs/performance.md, "Target-error renders against uniform spp") and 16 for the
+  // block bound (a block deciding alone needs 16 to see small features).
   int first_spp() const { return min_spp > 0 ? min_spp : frame_target() ? 2 : 16; }
 };
 

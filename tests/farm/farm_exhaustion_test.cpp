@@ -201,11 +201,11 @@ TEST(FarmExhaustion, IdleConnectionsDoNotExhaustTheCoordinatorsDescriptors) {
   EXPECT_EQ(h2.code, 0) << h2.output;
 }
 
-// Issue 26's reproduction: soft and hard limit 200, as a container or a systemd unit may set
-// them, and 300 connections that send nothing, held 3 s, then closed. gRPC 1.51 alone stops
-// accepting for good at the first EMFILE; with the accept guard (farm/accept_guard.h) the
-// coordinator sheds what it cannot take, then serves again: a health check answers and a job
-// renders, bit-identical to `tessera render`.
+// A connection flood at the descriptor limit, reproduced: soft and hard limit 200, as a container
+// or a systemd unit may set them, and 300 connections that send nothing, held 3 s, then closed.
+// gRPC 1.51 alone stops accepting for good at the first EMFILE; with the accept guard
+// (farm/accept_guard.h) the coordinator sheds what it cannot take, then serves again: a health
+// check answers and a job renders, bit-identical to `tessera render`.
 TEST(FarmExhaustion, AConnectionFloodAtTheHardLimitDoesNotStopTheCoordinator) {
   rlim_t hard = 0;
   if (!own_descriptors(1024, &hard)) GTEST_SKIP() << "this test needs 1024 descriptors, the hard limit is " << hard;
