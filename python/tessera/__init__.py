@@ -10,8 +10,9 @@
 It talks gRPC (tessera.v1, proto/tessera/v1/*.proto) to a coordinator (tessera-server) and to
 tessera-rays servers, with stubs generated from the project's .proto files when the package is
 built (`pip install ./python`: python/setup.py runs grpc_tools.protoc). Frames are bit for bit what
-`tessera render` writes, and bundles hash as the CLI's, so Python and the CLI share uploads.
-See python/README.md.
+`tessera render` writes, and bundles hash as the CLI's, so Python and the CLI share uploads. A
+refused call raises the FarmError subclass of its status (NotFound, Unauthenticated, Unavailable,
+...). See python/README.md.
 """
 
 from __future__ import annotations
@@ -26,27 +27,70 @@ except ImportError as _e:  # the source tree, not the built package
         f"python3-wheel), and import it from VENV/bin/python rather than from the source tree ({_e})") from _e
 
 from .bundle import Bundle, make_bundle, scene_dependencies
-from .errors import FarmError, IncompleteFramesError, JobCancelled, JobFailed
+from .errors import (
+    Aborted,
+    AlreadyExists,
+    Cancelled,
+    DataLoss,
+    DeadlineExceeded,
+    FailedPrecondition,
+    FarmError,
+    IncompleteFramesError,
+    Internal,
+    InvalidArgument,
+    JobCancelled,
+    JobFailed,
+    NotFound,
+    OutOfRange,
+    PermissionDenied,
+    ResourceExhausted,
+    Unauthenticated,
+    Unavailable,
+    Unimplemented,
+    Unknown,
+    exception_class_for_grpc_status,
+    from_grpc_error,
+    from_grpc_status,
+)
 from .farm import Farm, Job, read_token_file
 from .records import BundleInfo, Frame, JobStatus, Progress, RayHits, RayServerInfo, WorkerInfo
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "Aborted",
+    "AlreadyExists",
     "Bundle",
     "BundleInfo",
+    "Cancelled",
+    "DataLoss",
+    "DeadlineExceeded",
+    "FailedPrecondition",
     "Farm",
     "FarmError",
     "Frame",
     "IncompleteFramesError",
+    "Internal",
+    "InvalidArgument",
     "Job",
     "JobCancelled",
     "JobFailed",
     "JobStatus",
+    "NotFound",
+    "OutOfRange",
+    "PermissionDenied",
     "Progress",
     "RayHits",
     "RayServerInfo",
+    "ResourceExhausted",
+    "Unauthenticated",
+    "Unavailable",
+    "Unimplemented",
+    "Unknown",
     "WorkerInfo",
+    "exception_class_for_grpc_status",
+    "from_grpc_error",
+    "from_grpc_status",
     "make_bundle",
     "read_token_file",
     "scene_dependencies",
