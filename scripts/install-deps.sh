@@ -35,8 +35,9 @@ CHECK_PKGS+=(prometheus chromium chromium-driver python3-selenium)
 # tests/farm/farm_slurm_test: a single-node Slurm on localhost places workers (docker/slurm).
 CHECK_PKGS+=(slurm-wlm munge)
 # python/ and blender/: the Python package's tests (pytest) and the add-on's, headless in Blender
-# (xvfb: one test drives Blender's real UI in a virtual display).
-CHECK_PKGS+=(python3-pytest blender xvfb xauth)
+# (xvfb: one test drives Blender's real UI in a virtual display). `pip install ./python` in a venv
+# (python/README.md; its tests do it too) needs python3-venv, and python3-wheel for setuptools.
+CHECK_PKGS+=(python3-pytest python3-venv python3-wheel blender xvfb xauth)
 # Used by the benchmarks in bench/ only (pngquant is a GPL comparator, run, never linked).
 BENCH_PKGS=(bc time pngquant gnuplot-nox povray)
 

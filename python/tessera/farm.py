@@ -156,10 +156,12 @@ class Farm:
     def __repr__(self) -> str:
         return f"tessera.Farm({self.address!r})"
 
-    def _call(self, method: str, request: Any, what: str, timeout: Optional[float] = None) -> Any:
+    def _call(self, method: Callable[..., Any], request: Any, what: str, timeout: Optional[float] = None) -> Any:
+        """A unary call of a stub method (``self._stub.GetJob``) with this farm's deadline and
+        token; a failure raises the FarmError subclass of its status, naming ``what`` was done."""
         self._check_open()
         try:
-            return getattr(self._stub, method)(request, timeout=timeout or self.timeout, metadata=self._metadata)
+            return method(request, timeout=timeout or self.timeout, metadata=self._metadata)
         except grpc.RpcError as e:
             raise from_rpc(e, f"{what} ({self.address})", self.address, self._tls[0] is not None) from None
 
@@ -179,12 +181,12 @@ class Farm:
 
     def workers(self) -> list[WorkerInfo]:
         """The workers connected to the coordinator (`tessera workers`)."""
-        resp = self._call("ListWorkers", cs.ListWorkersRequest(), "listing workers")
+        resp = self._call(self._stub.ListWorkers, cs.ListWorkersRequest(), "listing workers")
         return [WorkerInfo.from_proto(w) for w in resp.workers]
 
     def jobs(self) -> list[JobStatus]:
         """Every job the coordinator knows (`tessera status`), in its order."""
-        resp = self._call("ListJobs", cs.ListJobsRequest(), "listing jobs")
+        resp = self._call(self._stub.ListJobs, cs.ListJobsRequest(), "listing jobs")
         return [JobStatus.from_proto(j) for j in resp.jobs]
 
     def job(self, job_id: str) -> "Job":
@@ -195,7 +197,7 @@ class Farm:
 
     def ray_servers(self) -> list[RayServerInfo]:
         """The tessera-rays servers announced to the coordinator (`tessera rayservers`)."""
-        resp = self._call("ListRayServers", cs.ListRayServersRequest(), "listing ray servers")
+        resp = self._call(self._stub.ListRayServers, cs.ListRayServersRequest(), "listing ray servers")
         return [RayServerInfo.from_proto(r) for r in resp.servers]
 
     # --- bundles and jobs ------------------------------------------------------------------------
@@ -207,7 +209,8 @@ class Farm:
 
     def _upload(self, b: bundles.Bundle) -> BundleInfo:
         info = dict(sha256=b.sha256, scene_file=b.scene_file, files=list(b.files), size=len(b.data))
-        if self._call("HasBundle", cs.HasBundleRequest(sha256=b.sha256), "checking for the scene bundle").present:
+        if self._call(self._stub.HasBundle, cs.HasBundleRequest(sha256=b.sha256),
+                      "checking for the scene bundle").present:
             return BundleInfo(uploaded=False, **info)
         data = b.data
 
@@ -216,7 +219,7 @@ class Farm:
                 yield common_pb2.BundleChunk(sha256=b.sha256 if off == 0 else "", data=data[off:off + UPLOAD_CHUNK])
 
         # A minute plus a second per MiB, as `tessera submit` allows.
-        self._call("UploadBundle", chunks(), "uploading the scene bundle", timeout=60.0 + (len(data) >> 20))
+        self._call(self._stub.UploadBundle, chunks(), "uploading the scene bundle", timeout=60.0 + (len(data) >> 20))
         return BundleInfo(uploaded=True, **info)
 
     def submit(self, scene: PathLike, frames: submit_args.FramesArg = None, spp: Optional[int] = None,
@@ -238,7 +241,7 @@ class Farm:
         The bundle (the scene file and every file it reads) is built exactly as the CLI builds
         it, so it has the same SHA-256; it is uploaded only if the coordinator does not have it.
         Raises FileNotFoundError (a missing scene or mesh file), ValueError (an argument out of
-        range, frames outside the scene) or FarmError (INVALID_ARGUMENT: the coordinator's
+        range, frames outside the scene) or InvalidArgument (a FarmError: the coordinator's
         parser refused the scene, with its message).
         """
         path = _scene_path(scene)
@@ -264,7 +267,7 @@ class Farm:
             req.first_frame, req.last_frame = frame_range.first, frame_range.last
         info = self._upload(bundles.make_bundle(path, dependencies))
         req.bundle_sha256 = info.sha256
-        st = self._call("SubmitJob", req, "submitting the job")
+        st = self._call(self._stub.SubmitJob, req, "submitting the job")
         return Job(self, st.job_id, bundle=info, submitted=JobStatus.from_proto(st))
 
     # --- rays ------------------------------------------------------------------------------------
@@ -318,21 +321,24 @@ class Job:
 
     def status(self) -> JobStatus:
         """The job as the coordinator reports it now (`tessera status JOB`)."""
-        return JobStatus.from_proto(self._farm._call("GetJob", cs.GetJobRequest(job_id=self.id),
-                                                     f"getting job {self.id}"))
+        farm = self._farm
+        return JobStatus.from_proto(farm._call(farm._stub.GetJob, cs.GetJobRequest(job_id=self.id),
+                                               f"getting job {self.id}"))
 
     def cancel(self) -> JobStatus:
         """Cancels the job: no more of its tiles are handed out. Returns its status."""
-        return JobStatus.from_proto(self._farm._call("CancelJob", cs.CancelJobRequest(job_id=self.id),
-                                                     f"cancelling job {self.id}"))
+        farm = self._farm
+        return JobStatus.from_proto(farm._call(farm._stub.CancelJob, cs.CancelJobRequest(job_id=self.id),
+                                               f"cancelling job {self.id}"))
 
     def set_priority(self, priority: int) -> JobStatus:
         """Moves a queued or running job in the dispatch order (higher first). Returns its status;
-        FarmError FAILED_PRECONDITION for a job that ended."""
+        FailedPrecondition for a job that ended."""
         p = submit_args.check_int("priority", priority, -2**31, 2**31 - 1)
-        return JobStatus.from_proto(self._farm._call(
-            "SetJobPriority", cs.SetJobPriorityRequest(job_id=self.id, priority=p),
-            f"changing the priority of job {self.id}"))
+        farm = self._farm
+        return JobStatus.from_proto(farm._call(farm._stub.SetJobPriority,
+                                               cs.SetJobPriorityRequest(job_id=self.id, priority=p),
+                                               f"changing the priority of job {self.id}"))
 
     def progress(self, interval: float = 0.5) -> Iterator[Progress]:
         """The job's progress as the coordinator counts it, polled every ``interval`` seconds:
@@ -387,8 +393,8 @@ class Job:
 
         Ends when the job is done. Raises JobCancelled or JobFailed after yielding every frame
         that completed; IncompleteFramesError if the job is done but a frame never arrived
-        complete; FarmError when the coordinator cannot be reached (after re-attaching up to 30
-        times in a row) or refuses the watch.
+        complete; Unavailable when the coordinator cannot be reached (after re-attaching up to 30
+        times in a row), another FarmError when it refuses the watch (NotFound: no such job).
         """
         farm = self._farm
         request = cs.WatchJobRequest(job_id=self.id, tile_batches=True)

@@ -48,6 +48,7 @@ def test_a_wrong_or_missing_token_is_unauthenticated(make_farm, scratch):
             with pytest.raises(tessera.FarmError) as raised:
                 f.workers()
             assert raised.value.code == grpc.StatusCode.UNAUTHENTICATED
+            assert type(raised.value) is tessera.Unauthenticated
             assert "UNAUTHENTICATED" in str(raised.value) and raised.value.message in str(raised.value)
             with pytest.raises(tessera.FarmError) as raised:
                 f.submit(bunny, spp=1, width=8, height=8)  # refused at HasBundle, before any upload
@@ -92,7 +93,7 @@ def test_a_scene_the_coordinator_refuses_is_invalid_argument_with_its_message(ba
         with pytest.raises(tessera.FarmError) as raised:
             f.submit(bad)
     e = raised.value
-    assert e.code == grpc.StatusCode.INVALID_ARGUMENT
+    assert e.code == grpc.StatusCode.INVALID_ARGUMENT and type(e) is tessera.InvalidArgument
     assert e.message.startswith("invalid scene: bad.json: ") and "radius" in e.message
     # The parser's words, as `tessera render` reports them for the same file.
     r = harness.run_cli("render", bad, "-o", os.path.join(scratch, "x.exr"), check=False)

@@ -115,15 +115,25 @@ def test_progress_iterator_follows_the_job_to_its_end(worker_farm, scratch):
     assert sorted(f.index for f in frames) == [0, 1]
 
 
-def test_the_readme_example_runs_against_a_real_farm(worker_farm):
-    """The ```python block of README.md's "From Python" section, run as written (from the
-    repository root, the coordinator's address in TESSERA_COORDINATOR)."""
+def test_the_readme_example_runs_against_a_real_farm(worker_farm, scratch):
+    """README.md's "From Python" section as written: its install command (in a scratch folder
+    whose python/ and proto/ are the repository's, so the venv it makes lands there), then its
+    ```python block with that venv's python, from the repository root, the coordinator's address
+    in TESSERA_COORDINATOR."""
     with open(os.path.join(harness.SOURCE_DIR, "README.md"), encoding="utf-8") as f:
         readme = f.read()
     section = readme.split("## From Python", 1)[1].split("\n## ", 1)[0]
+    install = section.split("```sh\n", 1)[1].split("```", 1)[0]
     code = section.split("```python\n", 1)[1].split("```", 1)[0]
-    env = dict(os.environ, TESSERA_COORDINATOR=worker_farm.address)
-    r = subprocess.run(["/usr/bin/python3", "-c", code], cwd=harness.SOURCE_DIR, env=env, capture_output=True,
-                       text=True, timeout=120)
+    for folder in ("python", "proto"):
+        os.symlink(os.path.join(harness.SOURCE_DIR, folder), os.path.join(scratch, folder))
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    r = subprocess.run(["bash", "-euc", install], cwd=scratch, env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stdout + r.stderr
+    venv_python = os.path.join(scratch, ".venv", "bin", "python")
+    assert os.path.isfile(venv_python), install
+    env["TESSERA_COORDINATOR"] = worker_farm.address
+    r = subprocess.run([venv_python, "-c", code], cwd=harness.SOURCE_DIR, env=env, capture_output=True, text=True,
+                       timeout=120)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "frame 0: (180, 320, 3)" in r.stdout, r.stdout

@@ -73,4 +73,4 @@ def test_a_raised_priority_runs_first_and_an_ended_job_refuses_a_new_one(make_fa
         list(first.frames())
         list(second.frames())
     assert s2.submitted_unix + s2.elapsed_seconds < s1.submitted_unix + s1.elapsed_seconds
-    assert raised.value.code == grpc.StatusCode.FAILED_PRECONDITION
+    assert raised.value.code == grpc.StatusCode.FAILED_PRECONDITION and type(raised.value) is tessera.FailedPrecondition
