@@ -17,7 +17,7 @@
 #include "farm/bundle.h"
 #include "farm/channel.h"
 #include "farm_client.h"
-#include "ray_codec.h"
+#include "rays/ray_codec.h"
 #include "rays/hit_fields.h"
 #include "rays/parallel_trace.h"
 #include "rays/ray_csv.h"

@@ -15,15 +15,16 @@
 #include "farm/bundle.h"
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
-#include "ray_codec.h"
+#include "rays/ray_codec.h"
 #include "rays/parallel_trace.h"
 #include "scene/scene_parser.h"
 
-namespace tessera::rays {
+namespace tessera::rayserver {
 namespace {
 
 namespace fs = std::filesystem;
 namespace v1 = tessera::v1;
+using namespace tessera::rays;  // lib/rays: the tracer the answers are checked against, the codec
 
 constexpr const char* kHash = "aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa";
 constexpr const char* kSceneJson = R"({"camera": {"position": [0, 0, -5], "look_at": [0, 0, 10]},
@@ -598,4 +599,4 @@ TEST_F(RayServiceTest, BundleScenesMapsTheCoordinatorsAnswers) {
 }
 
 }  // namespace
-}  // namespace tessera::rays
+}  // namespace tessera::rayserver

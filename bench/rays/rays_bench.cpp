@@ -30,7 +30,7 @@
 #include <thread>
 
 #include "../bench_host.h"
-#include "ray_codec.h"
+#include "rays/ray_codec.h"
 #include "large_buffers.h"
 #include "ray_service.h"
 #include "render/embree_device.h"
@@ -40,6 +40,7 @@
 namespace fs = std::filesystem;
 using namespace tessera;
 using namespace tessera::rays;
+using namespace tessera::rayserver;  // the ray server (rays/), measured in this process
 using Clock = std::chrono::steady_clock;
 using bench::cpu_model;
 using bench::process_cpu_seconds;
