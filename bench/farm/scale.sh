@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Farm scaling on a many-core machine (issue 29, goal 3), every process on CPUs of its own:
+# Farm scaling on a many-core machine (the farm-scaling goal of docs/performance.md), every process on CPUs of its own:
 #  1. N one-thread workers against `tessera render --threads N` on the same CPUs, the coordinator
 #     on one CPU and the client on another (farm_overhead.py --pin), at 16 spp, and at 64 spp for
 #     the two largest N;

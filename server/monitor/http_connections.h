@@ -1,5 +1,5 @@
 // The HTTP side's connections (cpp-httplib serves each on a thread of a pool) with deadlines per
-// request, not per byte, so that slow or many clients cannot starve the others (issue 26).
+// request, not per byte, so that slow or many clients cannot starve the others.
 //
 // cpp-httplib 0.11 (Debian bookworm) times out each read on its own: a client that sends one
 // header byte a second holds its thread for as long as it likes, and 16 such clients held the

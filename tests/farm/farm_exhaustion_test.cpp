@@ -201,7 +201,7 @@ TEST(FarmExhaustion, IdleConnectionsDoNotExhaustTheCoordinatorsDescriptors) {
   EXPECT_EQ(h2.code, 0) << h2.output;
 }
 
-// Issue 26's reproduction: soft and hard limit 200, as a container or a systemd unit may set
+// The descriptor-exhaustion reproduction: soft and hard limit 200, as a container or a systemd unit may set
 // them, and 300 connections that send nothing, held 3 s, then closed. gRPC 1.51 alone stops
 // accepting for good at the first EMFILE; with the accept guard (farm/accept_guard.h) the
 // coordinator sheds what it cannot take, then serves again: a health check answers and a job

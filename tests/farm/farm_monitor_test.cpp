@@ -247,7 +247,7 @@ TEST(MonitorHttp, ClientsThatLeaveMidAnswerCostOnlyTheirConnection) {
   }
 }
 
-// Issue 26's reproduction: 40 connections send a request line, then one header byte a second.
+// The slow-client reproduction: 40 connections send a request line, then one header byte a second.
 // While they do, /metrics answers everyone else at once (before: it timed out, 8 s, and
 // Prometheus would mark the farm down); and the server closes each of them once its request
 // head has taken longer than the 10 s a request gets (http_connections.h), not at the client's
