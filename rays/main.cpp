@@ -22,6 +22,7 @@
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
 #include "farm/request_limits.h"
+#include "farm/server_connections.h"
 #include "farm/stop_signals.h"
 #include "large_buffers.h"
 #include "ray_service.h"
@@ -36,7 +37,7 @@ constexpr const char* kVersion = "tessera-rays 0.1.0";
 // Everything the command line sets, with its defaults (some from the environment and the machine).
 struct RaysFlags {
   std::string listen = "127.0.0.1:7879";
-  std::string coordinator = "127.0.0.1:7878";
+  std::string coordinator = farm::kDefaultCoordinator;
   std::string cache = (std::filesystem::temp_directory_path() / "tessera-rays-cache").string();
   std::string log_level = "info";
   rayserver::RayServiceOptions options;
@@ -118,13 +119,10 @@ std::unique_ptr<grpc::Server> start_grpc_server(const RaysFlags& f,
   builder.RegisterService(&service);
   builder.SetMaxReceiveMessageSize(int(f.max_message_bytes));
   builder.SetMaxSendMessageSize(int(f.max_message_bytes));
-  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
-  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5000);
-  builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
-  // As the coordinator: a connection that has not finished its handshake in 10 s gives its
-  // descriptor back, and running out of descriptors sheds connections instead of ending the
-  // listener (farm/accept_guard.h).
-  builder.AddChannelArgument(GRPC_ARG_SERVER_HANDSHAKE_TIMEOUT_MS, 10000);
+  // As the coordinator: keepalive pings accepted, a connection that has not finished its
+  // handshake in 10 s gives its descriptor back, and running out of descriptors sheds
+  // connections instead of ending the listener (farm/accept_guard.h).
+  farm::set_server_connection_args(builder);
   farm::install_accept_guard();
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || *port == 0) return nullptr;

@@ -2,8 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
-#include "rays/ray_codec.h"
 #include "rays/parallel_trace.h"
+#include "rays/ray_codec.h"
 #include "render/embree_device.h"
 
 namespace tessera::rayserver {

@@ -15,8 +15,8 @@
 #include "farm/bundle.h"
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
-#include "rays/ray_codec.h"
 #include "rays/parallel_trace.h"
+#include "rays/ray_codec.h"
 #include "scene/scene_parser.h"
 
 namespace tessera::rayserver {

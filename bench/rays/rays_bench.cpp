@@ -30,9 +30,9 @@
 #include <thread>
 
 #include "../bench_host.h"
-#include "rays/ray_codec.h"
 #include "large_buffers.h"
 #include "ray_service.h"
+#include "rays/ray_codec.h"
 #include "render/embree_device.h"
 #include "render/render_scene_embree.h"
 #include "scene/scene_parser.h"
