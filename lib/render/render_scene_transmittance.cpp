@@ -9,7 +9,7 @@
 
 #include "render/plane.h"
 #include "render/ray_log.h"
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 #include "render/render_scene_embree.h"
 
 namespace tessera {
