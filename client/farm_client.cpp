@@ -10,7 +10,7 @@ std::string resolve_coordinator(const std::string& flag) {
   if (!flag.empty()) return flag;
   const char* env = std::getenv("TESSERA_COORDINATOR");
   if (env && *env) return env;
-  return kDefaultCoordinator;
+  return farm::kDefaultCoordinator;
 }
 
 farm::ChannelSecurity resolve_security(const SecurityFlags& flags) {

@@ -13,9 +13,7 @@
 
 namespace tessera::cli {
 
-inline constexpr const char* kDefaultCoordinator = "127.0.0.1:7878";
-
-// --coordinator if given, else $TESSERA_COORDINATOR, else 127.0.0.1:7878.
+// --coordinator if given, else $TESSERA_COORDINATOR, else farm::kDefaultCoordinator.
 std::string resolve_coordinator(const std::string& flag);
 
 // --token-file, --tls-ca, --tls-cert, --tls-key of the farm commands.

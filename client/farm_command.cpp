@@ -32,12 +32,18 @@ tessera::v1::JobStatus get_job(FarmClient& client, const std::string& job) {
 
 void add_coordinator_option(CLI::App* cmd, std::string* target, SecurityFlags* security) {
   cmd->add_option("--coordinator", *target,
-                  "Coordinator HOST:PORT (default: $TESSERA_COORDINATOR, else 127.0.0.1:7878)");
+                  std::string("Coordinator HOST:PORT (default: $TESSERA_COORDINATOR, else ") +
+                      farm::kDefaultCoordinator + ")");
+  add_security_flags(cmd, security);
+}
+
+void add_security_flags(CLI::App* cmd, SecurityFlags* security, const std::string& peer) {
   cmd->add_option("--token-file", security->token_file, "File holding the client token (else $TESSERA_CLIENT_TOKEN)")
       ->group("Security");
-  cmd->add_option("--tls-ca", security->tls_ca, "PEM CA certificate of the coordinator: connect with TLS "
-                                                "(else $TESSERA_TLS_CA)")->group("Security");
-  cmd->add_option("--tls-cert", security->tls_cert, "PEM client certificate, for a coordinator that asks for one")
+  cmd->add_option("--tls-ca", security->tls_ca,
+                  "PEM CA certificate of the " + peer + ": connect with TLS (else $TESSERA_TLS_CA)")
+      ->group("Security");
+  cmd->add_option("--tls-cert", security->tls_cert, "PEM client certificate, for a " + peer + " that asks for one")
       ->group("Security");
   cmd->add_option("--tls-key", security->tls_key, "PEM private key of --tls-cert")->group("Security");
 }

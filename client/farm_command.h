@@ -34,8 +34,12 @@ FarmClient connect(const std::string& coordinator, const SecurityFlags& flags);
 // unknown job id).
 tessera::v1::JobStatus get_job(FarmClient& client, const std::string& job);
 
-// Adds --coordinator and the security flags (--token-file, --tls-ca, --tls-cert, --tls-key).
+// Adds --coordinator and the security flags (add_security_flags).
 void add_coordinator_option(CLI::App* cmd, std::string* target, SecurityFlags* security);
+
+// Adds --token-file, --tls-ca, --tls-cert and --tls-key (help group "Security"), the same for
+// every command that talks to a server. `peer` names the servers in the help.
+void add_security_flags(CLI::App* cmd, SecurityFlags* security, const std::string& peer = "coordinator");
 
 // Runs a command, turning FarmError into a message and an exit code for CLI11.
 void guarded(const char* name, const std::function<int()>& command);

@@ -14,6 +14,7 @@
 #include "commands.h"
 #include "farm/channel.h"
 #include "farm_client.h"
+#include "farm_command.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 
 namespace tessera::cli {
@@ -83,15 +84,7 @@ void register_health_command(CLI::App& app) {
   auto a = std::make_shared<HealthArgs>();
   CLI::App* cmd = app.add_subcommand(
       "health", "Ask a coordinator's gRPC health service whether it is serving (exit 0 yes, 1 no)");
-  cmd->add_option("--coordinator", a->coordinator,
-                  "Coordinator HOST:PORT (default: $TESSERA_COORDINATOR, else 127.0.0.1:7878)");
-  cmd->add_option("--token-file", a->security.token_file, "File holding the client token (else $TESSERA_CLIENT_TOKEN)")
-      ->group("Security");
-  cmd->add_option("--tls-ca", a->security.tls_ca, "PEM CA certificate of the coordinator: connect with TLS "
-                                                  "(else $TESSERA_TLS_CA)")->group("Security");
-  cmd->add_option("--tls-cert", a->security.tls_cert, "PEM client certificate, for a coordinator that asks for one")
-      ->group("Security");
-  cmd->add_option("--tls-key", a->security.tls_key, "PEM private key of --tls-cert")->group("Security");
+  add_coordinator_option(cmd, &a->coordinator, &a->security);
   cmd->add_option("--service", a->service, "Service name to ask about (default: the whole server)");
   cmd->add_option("--timeout", a->timeout_s, "Seconds to wait for an answer")
       ->check(CLI::Range(0.1, 3600.0))

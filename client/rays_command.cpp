@@ -17,9 +17,10 @@
 #include "farm/bundle.h"
 #include "farm/channel.h"
 #include "farm_client.h"
-#include "ray_codec.h"
+#include "farm_command.h"
 #include "rays/hit_fields.h"
 #include "rays/parallel_trace.h"
+#include "rays/ray_codec.h"
 #include "rays/ray_csv.h"
 #include "rays/ray_npy.h"
 #include "scene/scene_parser.h"
@@ -33,14 +34,6 @@ using rays::HitTable;
 using rays::RayTable;
 
 namespace {
-
-constexpr int kExitFailure = 1;
-constexpr int kExitBadInput = 2;
-
-struct RaysError {
-  int code;
-  std::string message;
-};
 
 struct RaysArgs {
   std::string scene, in, out, server, coordinator;
@@ -61,7 +54,7 @@ RayTable read_rays(const std::string& path) {
     if (!in) throw std::runtime_error(path + ": cannot open");
     return rays::read_rays_csv(in, path);
   } catch (const std::runtime_error& e) {
-    throw RaysError{kExitBadInput, e.what()};
+    throw FarmError{kExitBadInput, e.what()};
   }
 }
 
@@ -73,7 +66,7 @@ void write_hits(const std::string& path, const RayTable& rays, const HitTable& h
     out.close();
     if (!out) throw std::runtime_error(path + ": cannot write");
   } catch (const std::runtime_error& e) {
-    throw RaysError{kExitFailure, e.what()};
+    throw FarmError{kExitFailure, e.what()};
   }
 }
 
@@ -81,7 +74,7 @@ void write_hits(const std::string& path, const RayTable& rays, const HitTable& h
 void check_rays(const RayTable& t, const std::string& source) {
   for (size_t i = 0; i < t.rays.size(); ++i) {
     if (auto p = rays::check_ray(t.rays[i], i)) {
-      throw RaysError{kExitBadInput, source + ": " + p->message + " (rays count from 0 in file order)"};
+      throw FarmError{kExitBadInput, source + ": " + p->message + " (rays count from 0 in file order)"};
     }
   }
 }
@@ -92,13 +85,13 @@ void check_rays(const RayTable& t, const std::string& source) {
 HitFields fields_of(const RaysArgs& a) {
   if (!a.fields) return HitFields::all();
   if (a.occlusion) {
-    throw RaysError{kExitBadInput, "--fields chooses the columns of nearest hits; --occlusion answers hit alone: "
+    throw FarmError{kExitBadInput, "--fields chooses the columns of nearest hits; --occlusion answers hit alone: "
                                    "pass one or the other"};
   }
   try {
     return rays::parse_hit_fields(*a.fields);
   } catch (const std::invalid_argument& e) {
-    throw RaysError{kExitBadInput, std::string("--fields: ") + e.what()};
+    throw FarmError{kExitBadInput, std::string("--fields: ") + e.what()};
   }
 }
 
@@ -107,13 +100,13 @@ HitTable trace_locally(const RaysArgs& a, const RayTable& rays) {
   try {
     scene = std::make_shared<const Scene>(load_scene(a.scene));
   } catch (const SceneError& e) {
-    throw RaysError{kExitBadInput, e.what()};
+    throw FarmError{kExitBadInput, e.what()};
   }
   if (a.frame < 0 || a.frame >= scene->frame_count()) {
-    throw RaysError{kExitBadInput, "--frame " + std::to_string(a.frame) + ": the scene has frames 0-" +
+    throw FarmError{kExitBadInput, "--frame " + std::to_string(a.frame) + ": the scene has frames 0-" +
                                        std::to_string(scene->frame_count() - 1)};
   }
-  const rays::RayTracer tracer(scene, std::make_shared<const RenderScene>(*scene, a.frame));
+  const rays::RayTracer tracer(scene, make_render_scene(*scene, a.frame));
   HitTable h;
   for (const SceneObject& o : scene->objects) h.objects.push_back(o.name);
   for (const Material& m : scene->materials) h.materials.push_back(m.name);
@@ -139,18 +132,18 @@ std::vector<std::string> listed_ray_servers(FarmClient& coordinator, bool tls) {
   v1::ListRayServersResponse resp;
   auto ctx = coordinator.context();
   const grpc::Status s = coordinator.stub().ListRayServers(ctx.get(), {}, &resp);
-  if (!s.ok()) throw RaysError{kExitFailure, coordinator.describe(s, "listing ray servers")};
+  if (!s.ok()) throw FarmError{kExitFailure, coordinator.describe(s, "listing ray servers")};
   std::vector<v1::RayServerDescription> usable;
   for (const v1::RayServerInfo& r : resp.servers()) {
     if (r.server().tls() == tls) usable.push_back(r.server());
   }
   const std::string& at = coordinator.address();
   if (resp.servers().empty()) {
-    throw RaysError{kExitFailure, "no ray server is announced to the coordinator at " + at +
+    throw FarmError{kExitFailure, "no ray server is announced to the coordinator at " + at +
                                       "; start tessera-rays --coordinator " + at + ", or pass --server HOST:PORT"};
   }
   if (usable.empty()) {
-    throw RaysError{kExitFailure, std::to_string(resp.servers_size()) + " ray server(s) announced to the coordinator at " +
+    throw FarmError{kExitFailure, std::to_string(resp.servers_size()) + " ray server(s) announced to the coordinator at " +
                                       at + ", but " +
                                       (tls ? "none speaks TLS, which this client uses (--tls-ca / $TESSERA_TLS_CA)"
                                            : "all need TLS: pass --tls-ca CA.pem (or set TESSERA_TLS_CA)")};
@@ -198,14 +191,14 @@ std::optional<v1::SceneDescription> describe_on(v1::RayService::Stub& stub, grpc
     return std::nullopt;
   }
   if (s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED) {
-    throw RaysError{kExitFailure, "the ray service at " + address + " did not describe the scene within --timeout"};
+    throw FarmError{kExitFailure, "the ray service at " + address + " did not describe the scene within --timeout"};
   }
-  throw RaysError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
+  throw FarmError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
                   describe_rays_server(s, address)};
 }
 
 // Traces the rays on the server at `used` (which described the scene `ref`), appending the hits
-// to h->hits; throws RaysError if the stream fails or ends early.
+// to h->hits; throws FarmError if the stream fails or ends early.
 void trace_stream(v1::RayService::Stub& stub, const v1::SceneRef& ref, const RaysArgs& a, const RayTable& rays,
                   HitFields fields, std::chrono::system_clock::time_point deadline, const std::string& used,
                   HitTable* h) {
@@ -244,16 +237,16 @@ void trace_stream(v1::RayService::Stub& stub, const v1::SceneRef& ref, const Ray
   }
   writer.join();
   const grpc::Status s = stream->Finish();
-  if (!problem.empty()) throw RaysError{kExitFailure, "the ray service at " + used + " answered badly: " + problem};
+  if (!problem.empty()) throw FarmError{kExitFailure, "the ray service at " + used + " answered badly: " + problem};
   if (s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED) {
-    throw RaysError{kExitFailure, "the ray service at " + used + " did not answer all " + std::to_string(n) +
+    throw FarmError{kExitFailure, "the ray service at " + used + " did not answer all " + std::to_string(n) +
                                       " rays within --timeout " + std::to_string(a.timeout) + " s"};
   }
   if (!s.ok()) {
-    throw RaysError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
+    throw FarmError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
                     describe_rays_server(s, used)};
   }
-  if (h->hits.size() != n) throw RaysError{kExitFailure, "the ray service at " + used + " ended the stream early"};
+  if (h->hits.size() != n) throw FarmError{kExitFailure, "the ray service at " + used + " ended the stream early"};
 }
 
 // Traces on --server, or on the first ray server the coordinator lists that answers; `*used`
@@ -264,7 +257,7 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, HitFields field
   try {
     scene = load_scene(a.scene);
   } catch (const SceneError& e) {
-    throw RaysError{kExitBadInput, e.what()};
+    throw FarmError{kExitBadInput, e.what()};
   }
   farm::ChannelSecurity security;
   farm::BuiltBundle bundle;
@@ -280,7 +273,7 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, HitFields field
                    coordinator.address().c_str());
     }
   } catch (const std::exception& e) {
-    throw RaysError{kExitFailure, e.what()};
+    throw FarmError{kExitFailure, e.what()};
   }
   v1::SceneRef ref;
   ref.set_bundle_sha256(bundle.sha256);
@@ -305,7 +298,7 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, HitFields field
     unreachable += (unreachable.empty() ? "" : "; ") + address + ": " + why;
   }
   if (!stub) {
-    throw RaysError{kExitFailure, "none of the " + std::to_string(servers.size()) +
+    throw FarmError{kExitFailure, "none of the " + std::to_string(servers.size()) +
                                       " ray server(s) the coordinator lists answered (" + unreachable +
                                       "); pass --server HOST:PORT to name one"};
   }
@@ -350,29 +343,17 @@ void register_rays_command(CLI::App& app) {
                   "(default: all)");
   cmd->add_option("--server", a->server, "tessera-rays HOST:PORT: trace there instead of in-process");
   cmd->add_option("--coordinator", a->coordinator,
-                  "The coordinator the bundle is uploaded to (with --server; default: $TESSERA_COORDINATOR, else "
-                  "127.0.0.1:7878). Without --server: also trace on a ray server it lists (`tessera rayservers`)");
+                  std::string("The coordinator the bundle is uploaded to (with --server; default: "
+                              "$TESSERA_COORDINATOR, else ") +
+                      farm::kDefaultCoordinator +
+                      "). Without --server: also trace on a ray server it lists (`tessera rayservers`)");
   cmd->add_option("--batch", a->batch, "With a ray server: rays per request")
       ->check(CLI::Range(1, 1 << 24))->capture_default_str();
   cmd->add_option("--timeout", a->timeout, "With a ray server: seconds the whole run may take")
       ->check(CLI::Range(1, 7 * 24 * 3600))->capture_default_str();
   // The farm commands' flags: one client token and CA for the coordinator and the ray server.
-  cmd->add_option("--token-file", a->security.token_file, "File holding the client token (else $TESSERA_CLIENT_TOKEN)")
-      ->group("Security");
-  cmd->add_option("--tls-ca", a->security.tls_ca, "PEM CA certificate of the servers (else $TESSERA_TLS_CA)")
-      ->group("Security");
-  cmd->add_option("--tls-cert", a->security.tls_cert, "PEM client certificate")->group("Security");
-  cmd->add_option("--tls-key", a->security.tls_key, "PEM private key of --tls-cert")->group("Security");
-  cmd->callback([a] {
-    int rc = 0;
-    try {
-      rc = run_rays(*a);
-    } catch (const RaysError& e) {
-      std::cerr << "tessera rays: " << e.message << "\n";
-      rc = e.code;
-    }
-    if (rc != 0) throw CLI::RuntimeError(rc);
-  });
+  add_security_flags(cmd, &a->security, "coordinator or ray server");
+  cmd->callback([a] { guarded("rays", [a] { return run_rays(*a); }); });
 }
 
 }  // namespace tessera::cli

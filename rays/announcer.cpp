@@ -6,7 +6,7 @@
 #include <random>
 #include <stdexcept>
 
-namespace tessera::rays {
+namespace tessera::rayserver {
 
 namespace v1 = tessera::v1;
 using namespace std::chrono_literals;
@@ -123,4 +123,4 @@ std::string new_server_id() {
   return buf;
 }
 
-}  // namespace tessera::rays
+}  // namespace tessera::rayserver

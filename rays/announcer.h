@@ -17,7 +17,7 @@
 
 #include "tessera/v1/worker_service.grpc.pb.h"
 
-namespace tessera::rays {
+namespace tessera::rayserver {
 
 class Announcer {
  public:
@@ -56,4 +56,4 @@ std::string advertised_address(const std::string& listen, const std::string& adv
 // A random id for this run of the server (16 hex digits).
 std::string new_server_id();
 
-}  // namespace tessera::rays
+}  // namespace tessera::rayserver

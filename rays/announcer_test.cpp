@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-namespace tessera::rays {
+namespace tessera::rayserver {
 namespace {
 
 TEST(AdvertisedAddress, ListenHostWithTheBoundPort) {
@@ -40,4 +40,4 @@ TEST(ServerId, SixteenHexDigitsAndFresh) {
 }
 
 }  // namespace
-}  // namespace tessera::rays
+}  // namespace tessera::rayserver

@@ -4,12 +4,13 @@
 #include "farm/bundle_fetch.h"
 #include "scene/scene_parser.h"
 
-namespace tessera::rays {
+namespace tessera::rayserver {
 
 BundleScenes::BundleScenes(std::filesystem::path cache_dir, farm::BundleCache::FetchFn fetch, size_t max_frames)
     : cache_(std::move(cache_dir), std::move(fetch), max_frames) {}
 
-grpc::Status BundleScenes::get(const std::string& sha256, int frame, std::shared_ptr<const RayTracer>* tracer) {
+grpc::Status BundleScenes::get(const std::string& sha256, int frame,
+                               std::shared_ptr<const rays::RayTracer>* tracer) {
   using grpc::Status;
   using grpc::StatusCode;
   if (!farm::is_sha256_hex(sha256)) {
@@ -24,7 +25,7 @@ grpc::Status BundleScenes::get(const std::string& sha256, int frame, std::shared
                                                       sha256.substr(0, 12) + " (frames 0-" +
                                                       std::to_string(scene->frame_count() - 1) + ")");
     }
-    *tracer = std::make_shared<const RayTracer>(scene, cache_.frame(sha256, "", frame));
+    *tracer = std::make_shared<const rays::RayTracer>(scene, cache_.frame(sha256, "", frame));
     return Status::OK;
   } catch (const farm::FetchError& e) {
     if (e.code() == StatusCode::NOT_FOUND) {
@@ -38,4 +39,4 @@ grpc::Status BundleScenes::get(const std::string& sha256, int frame, std::shared
   }
 }
 
-}  // namespace tessera::rays
+}  // namespace tessera::rayserver

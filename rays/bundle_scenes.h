@@ -9,15 +9,15 @@
 #include "farm/bundle_cache.h"
 #include "scene_source.h"
 
-namespace tessera::rays {
+namespace tessera::rayserver {
 
 class BundleScenes {
  public:
   // `fetch` downloads a bundle (farm::fetch_bundle); it throws farm::FetchError.
   BundleScenes(std::filesystem::path cache_dir, farm::BundleCache::FetchFn fetch, size_t max_frames = 8);
-  grpc::Status get(const std::string& sha256, int frame, std::shared_ptr<const RayTracer>* tracer);
+  grpc::Status get(const std::string& sha256, int frame, std::shared_ptr<const rays::RayTracer>* tracer);
   SceneSource source() {
-    return [this](const std::string& sha256, int frame, std::shared_ptr<const RayTracer>* t) {
+    return [this](const std::string& sha256, int frame, std::shared_ptr<const rays::RayTracer>* t) {
       return get(sha256, frame, t);
     };
   }
@@ -26,4 +26,4 @@ class BundleScenes {
   farm::BundleCache cache_;
 };
 
-}  // namespace tessera::rays
+}  // namespace tessera::rayserver

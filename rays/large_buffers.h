@@ -6,7 +6,7 @@
 
 #include <malloc.h>
 
-namespace tessera::rays {
+namespace tessera::rayserver {
 
 // Call once at startup, before threads: allocations up to 256 MiB come from the heap, and the
 // heap is trimmed only when 1 GiB is free at its top.
@@ -15,4 +15,4 @@ inline void keep_large_buffers() {
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
 }
 
-}  // namespace tessera::rays
+}  // namespace tessera::rayserver

@@ -22,6 +22,7 @@
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
 #include "farm/request_limits.h"
+#include "farm/server_connections.h"
 #include "farm/stop_signals.h"
 #include "large_buffers.h"
 #include "ray_service.h"
@@ -36,10 +37,10 @@ constexpr const char* kVersion = "tessera-rays 0.1.0";
 // Everything the command line sets, with its defaults (some from the environment and the machine).
 struct RaysFlags {
   std::string listen = "127.0.0.1:7879";
-  std::string coordinator = "127.0.0.1:7878";
+  std::string coordinator = farm::kDefaultCoordinator;
   std::string cache = (std::filesystem::temp_directory_path() / "tessera-rays-cache").string();
   std::string log_level = "info";
-  rays::RayServiceOptions options;
+  rayserver::RayServiceOptions options;
   int64_t max_message_bytes = farm::Limits{}.max_message_bytes;
   int max_frames = 8;
   std::string advertise;
@@ -111,20 +112,17 @@ std::optional<int> parse_flags(int argc, char** argv, RaysFlags& f) {
 // Builds and starts the gRPC server; null when it cannot listen. `*port` is the port bound.
 std::unique_ptr<grpc::Server> start_grpc_server(const RaysFlags& f,
                                                 const std::shared_ptr<grpc::ServerCredentials>& credentials,
-                                                rays::RayServiceImpl& service, int* port) {
+                                                rayserver::RayServiceImpl& service, int* port) {
   grpc::EnableDefaultHealthCheckService(true);
   grpc::ServerBuilder builder;
   builder.AddListeningPort(f.listen, credentials, port);
   builder.RegisterService(&service);
   builder.SetMaxReceiveMessageSize(int(f.max_message_bytes));
   builder.SetMaxSendMessageSize(int(f.max_message_bytes));
-  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
-  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5000);
-  builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
-  // As the coordinator: a connection that has not finished its handshake in 10 s gives its
-  // descriptor back, and running out of descriptors sheds connections instead of ending the
-  // listener (farm/accept_guard.h).
-  builder.AddChannelArgument(GRPC_ARG_SERVER_HANDSHAKE_TIMEOUT_MS, 10000);
+  // As the coordinator: keepalive pings accepted, a connection that has not finished its
+  // handshake in 10 s gives its descriptor back, and running out of descriptors sheds
+  // connections instead of ending the listener (farm/accept_guard.h).
+  farm::set_server_connection_args(builder);
   farm::install_accept_guard();
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || *port == 0) return nullptr;
@@ -133,15 +131,16 @@ std::unique_ptr<grpc::Server> start_grpc_server(const RaysFlags& f,
 
 // Announces this server to the coordinator every --announce-seconds, with the service's counters;
 // null (and said) with --no-announce.
-std::unique_ptr<rays::Announcer> start_announcer(const RaysFlags& f, const farm::Authenticator& auth,
-                                                 v1::WorkerService::Stub& stub, rays::RayServiceImpl& service,
-                                                 const std::string& advertised) {
+std::unique_ptr<rayserver::Announcer> start_announcer(const RaysFlags& f, const farm::Authenticator& auth,
+                                                      v1::WorkerService::Stub& stub,
+                                                      rayserver::RayServiceImpl& service,
+                                                      const std::string& advertised) {
   if (f.no_announce) {
     spdlog::info("not announced to the coordinator (--no-announce): clients must name this server with --server");
     return nullptr;
   }
   v1::RayServerDescription self;
-  self.set_server_id(rays::new_server_id());
+  self.set_server_id(rayserver::new_server_id());
   self.set_address(advertised);
   self.set_threads(f.options.threads);
   self.set_embree_isa(embree_isa());
@@ -151,10 +150,10 @@ std::unique_ptr<rays::Announcer> start_announcer(const RaysFlags& f, const farm:
   self.set_version(kVersion);
   spdlog::info("announcing {} as ray server {} to the coordinator every {} s", advertised, self.server_id(),
                f.announce_seconds);
-  return std::make_unique<rays::Announcer>(
+  return std::make_unique<rayserver::Announcer>(
       stub, f.coordinator, std::chrono::milliseconds(int64_t(f.announce_seconds * 1000)), [&service, self] {
         v1::RayServerDescription d = self;
-        const rays::RayServiceCounters c = service.counters();
+        const rayserver::RayServiceCounters c = service.counters();
         d.set_requests(c.requests);
         d.set_rays(c.rays);
         d.set_rays_in_flight(c.rays_in_flight);
@@ -166,7 +165,7 @@ std::unique_ptr<rays::Announcer> start_announcer(const RaysFlags& f, const farm:
 
 int main(int argc, char** argv) {
   const sigset_t sigs = farm::block_stop_signals();  // first: gRPC's threads start with the credentials
-  rays::keep_large_buffers();
+  rayserver::keep_large_buffers();
   RaysFlags flags;
   if (std::optional<int> exit_code = parse_flags(argc, argv, flags)) return *exit_code;
 
@@ -184,10 +183,10 @@ int main(int argc, char** argv) {
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ [rays] %v");
 
   std::unique_ptr<v1::WorkerService::Stub> stub;
-  std::unique_ptr<rays::BundleScenes> scenes;
+  std::unique_ptr<rayserver::BundleScenes> scenes;
   try {
     stub = v1::WorkerService::NewStub(farm::make_coordinator_channel(flags.coordinator, flags.outbound));
-    scenes = std::make_unique<rays::BundleScenes>(
+    scenes = std::make_unique<rayserver::BundleScenes>(
         flags.cache, [&](const std::string& sha256) { return farm::fetch_bundle(*stub, sha256); },
         size_t(flags.max_frames));
   } catch (const std::exception& e) {
@@ -196,13 +195,13 @@ int main(int argc, char** argv) {
   }
   if (!flags.no_announce) {
     try {
-      rays::advertised_address(flags.listen, flags.advertise, 0);  // refuses a wildcard --listen before it is bound
+      rayserver::advertised_address(flags.listen, flags.advertise, 0);  // refuses a wildcard --listen before it is bound
     } catch (const std::invalid_argument& e) {
       std::cerr << "tessera-rays: " << e.what() << "\n";
       return 2;
     }
   }
-  rays::RayServiceImpl service(scenes->source(), auth, flags.options);
+  rayserver::RayServiceImpl service(scenes->source(), auth, flags.options);
 
   int port = 0;
   std::unique_ptr<grpc::Server> server = start_grpc_server(flags, credentials, service, &port);
@@ -211,7 +210,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   const std::string advertised =
-      flags.no_announce ? "" : rays::advertised_address(flags.listen, flags.advertise, port);
+      flags.no_announce ? "" : rayserver::advertised_address(flags.listen, flags.advertise, port);
   const std::string host = flags.listen.substr(0, flags.listen.rfind(':'));
   spdlog::info("{}: bundles from {}, {} threads per batch, at most {} rays per batch, Embree {}", kVersion,
                flags.coordinator, flags.options.threads, flags.options.max_batch_rays, embree_isa());
@@ -219,7 +218,7 @@ int main(int argc, char** argv) {
                auth.open(farm::PeerRole::kClient) ? "open" : "need the client token");
   std::printf("listening on %s:%d\n", host.c_str(), port);  // the line tests and scripts wait for
   std::fflush(stdout);
-  std::unique_ptr<rays::Announcer> announcer = start_announcer(flags, auth, *stub, service, advertised);
+  std::unique_ptr<rayserver::Announcer> announcer = start_announcer(flags, auth, *stub, service, advertised);
 
   spdlog::info("signal {}: shutting down", farm::wait_for_signal(sigs));
   announcer.reset();

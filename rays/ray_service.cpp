@@ -2,20 +2,32 @@
 
 #include <spdlog/spdlog.h>
 
-#include "ray_codec.h"
 #include "rays/parallel_trace.h"
+#include "rays/ray_codec.h"
 #include "render/embree_device.h"
 
-namespace tessera::rays {
+namespace tessera::rayserver {
 
 namespace v1 = tessera::v1;
 using grpc::Status;
 using grpc::StatusCode;
+// lib/rays: the tracer and the wire form of its rays and hits.
+using rays::check_rays;
+using rays::for_each_chunk;
+using rays::hit_field_names;
+using rays::HitArrays;
+using rays::HitFields;
+using rays::kParallelBatch;
+using rays::read_fields;
+using rays::read_rays;
+using rays::WorldHit;
+using rays::WorldRay;
 
 RayServiceImpl::RayServiceImpl(SceneSource scenes, farm::Authenticator auth, RayServiceOptions options)
     : scenes_(std::move(scenes)), auth_(std::move(auth)), options_(options), arena_(std::max(1, options.threads)) {}
 
-Status RayServiceImpl::answer(const RayTracer& tracer, const v1::TraceRequest& req, v1::TraceResponse* resp) {
+Status RayServiceImpl::answer(const rays::RayTracer& tracer, const v1::TraceRequest& req,
+                              v1::TraceResponse* resp) {
   const int64_t n = req.directions_size() / 3;
   if (n > options_.max_batch_rays) {
     // Counted before anything is decoded: a huge batch costs its parse only.
@@ -76,7 +88,7 @@ Status RayServiceImpl::answer(const RayTracer& tracer, const v1::TraceRequest& r
 Status RayServiceImpl::Trace(grpc::ServerContext* ctx, const v1::TraceRequest* req, v1::TraceResponse* resp) {
   if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) return s;
   if (!req->has_scene()) return Status(StatusCode::INVALID_ARGUMENT, "scene: required (bundle_sha256 and frame)");
-  std::shared_ptr<const RayTracer> tracer;
+  std::shared_ptr<const rays::RayTracer> tracer;
   if (Status s = scenes_(req->scene().bundle_sha256(), req->scene().frame(), &tracer); !s.ok()) return s;
   return answer(*tracer, *req, resp);
 }
@@ -84,7 +96,7 @@ Status RayServiceImpl::Trace(grpc::ServerContext* ctx, const v1::TraceRequest* r
 Status RayServiceImpl::TraceStream(grpc::ServerContext* ctx,
                                    grpc::ServerReaderWriter<v1::TraceResponse, v1::TraceRequest>* stream) {
   if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) return s;
-  std::shared_ptr<const RayTracer> tracer;
+  std::shared_ptr<const rays::RayTracer> tracer;
   v1::SceneRef current;
   // Read() parses into `req` and answer() fills `resp` keeping their arrays' capacity, so these
   // are allocated by the first batch only.
@@ -111,7 +123,7 @@ Status RayServiceImpl::TraceStream(grpc::ServerContext* ctx,
 
 Status RayServiceImpl::DescribeScene(grpc::ServerContext* ctx, const v1::SceneRef* req, v1::SceneDescription* resp) {
   if (Status s = auth_.check(*ctx, farm::PeerRole::kClient); !s.ok()) return s;
-  std::shared_ptr<const RayTracer> tracer;
+  std::shared_ptr<const rays::RayTracer> tracer;
   if (Status s = scenes_(req->bundle_sha256(), req->frame(), &tracer); !s.ok()) return s;
   const Scene& scene = tracer->scene();
   for (const SceneObject& o : scene.objects) {
@@ -122,7 +134,7 @@ Status RayServiceImpl::DescribeScene(grpc::ServerContext* ctx, const v1::SceneRe
   }
   for (const Material& m : scene.materials) resp->add_materials(m.name);
   resp->set_frame_count(scene.frame_count());
-  resp->set_triangles(tracer->frame().triangle_count());
+  resp->set_triangles(triangle_count(tracer->frame()));
   resp->set_embree_isa(embree_isa());
   resp->set_max_batch_rays(options_.max_batch_rays);
   return Status::OK;
@@ -132,4 +144,4 @@ RayServiceCounters RayServiceImpl::counters() const {
   return RayServiceCounters{requests_.load(), rays_.load(), in_flight_.load()};
 }
 
-}  // namespace tessera::rays
+}  // namespace tessera::rayserver

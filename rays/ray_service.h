@@ -12,7 +12,7 @@
 #include "scene_source.h"
 #include "tessera/v1/ray_service.grpc.pb.h"
 
-namespace tessera::rays {
+namespace tessera::rayserver {
 
 struct RayServiceOptions {
   // Rays per request. A request of 2^18 rays is ~16 MiB and its answer ~21 MiB, inside the
@@ -45,8 +45,8 @@ class RayServiceImpl final : public tessera::v1::RayService::Service {
  private:
   // One batch on a tracer, answered with the fields its mask asks for: INVALID_ARGUMENT naming
   // the ray and field (or fields[k]) for bad input.
-  grpc::Status answer(const RayTracer& tracer, const tessera::v1::TraceRequest& req,
-                           tessera::v1::TraceResponse* resp);
+  grpc::Status answer(const rays::RayTracer& tracer, const tessera::v1::TraceRequest& req,
+                      tessera::v1::TraceResponse* resp);
 
   SceneSource scenes_;
   farm::Authenticator auth_;
@@ -55,4 +55,4 @@ class RayServiceImpl final : public tessera::v1::RayService::Service {
   std::atomic<uint64_t> requests_{0}, rays_{0}, in_flight_{0};
 };
 
-}  // namespace tessera::rays
+}  // namespace tessera::rayserver

@@ -15,15 +15,16 @@
 #include "farm/bundle.h"
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
-#include "ray_codec.h"
 #include "rays/parallel_trace.h"
+#include "rays/ray_codec.h"
 #include "scene/scene_parser.h"
 
-namespace tessera::rays {
+namespace tessera::rayserver {
 namespace {
 
 namespace fs = std::filesystem;
 namespace v1 = tessera::v1;
+using namespace tessera::rays;  // lib/rays: the tracer the answers are checked against, the codec
 
 constexpr const char* kHash = "aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa";
 constexpr const char* kSceneJson = R"({"camera": {"position": [0, 0, -5], "look_at": [0, 0, 10]},
@@ -38,7 +39,7 @@ class RayServiceTest : public ::testing::Test {
     fs::create_directories(dir_);
     std::ofstream(dir_ / "scene.json") << kSceneJson;
     auto scene = std::make_shared<const Scene>(load_scene((dir_ / "scene.json").string()));
-    tracer_ = std::make_shared<const RayTracer>(scene, std::make_shared<const RenderScene>(*scene, 0));
+    tracer_ = std::make_shared<const RayTracer>(scene, make_render_scene(*scene, 0));
   }
   void TearDown() override {
     if (server_) server_->Shutdown();
@@ -598,4 +599,4 @@ TEST_F(RayServiceTest, BundleScenesMapsTheCoordinatorsAnswers) {
 }
 
 }  // namespace
-}  // namespace tessera::rays
+}  // namespace tessera::rayserver

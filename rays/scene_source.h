@@ -10,12 +10,12 @@
 
 #include "rays/ray_tracer.h"
 
-namespace tessera::rays {
+namespace tessera::rayserver {
 
 // OK and *tracer set, or a status for the client: INVALID_ARGUMENT naming the field
 // (scene.bundle_sha256 unknown or malformed, scene.frame out of range), UNAVAILABLE when the
 // coordinator cannot be asked, FAILED_PRECONDITION when the bundle's scene does not load.
-using SceneSource =
-    std::function<grpc::Status(const std::string& sha256, int frame, std::shared_ptr<const RayTracer>* tracer)>;
+using SceneSource = std::function<grpc::Status(const std::string& sha256, int frame,
+                                               std::shared_ptr<const rays::RayTracer>* tracer)>;
 
-}  // namespace tessera::rays
+}  // namespace tessera::rayserver

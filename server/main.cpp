@@ -17,8 +17,10 @@
 #include "coordinator.h"
 #include "farm/accept_guard.h"
 #include "farm/auth.h"
+#include "farm/channel.h"
 #include "farm/command_line.h"
 #include "farm/request_limits.h"
+#include "farm/server_connections.h"
 #include "farm/stop_signals.h"
 #include "job_store.h"
 #include "metrics/farm_metrics.h"
@@ -34,7 +36,7 @@ namespace {
 
 // Everything the command line sets.
 struct ServerFlags {
-  std::string listen = "127.0.0.1:7878";
+  std::string listen = farm::kDefaultCoordinator;
   std::string data_dir = "tessera-data";
   std::string log_level = "info";
   int heartbeat_ms = 1000;
@@ -146,7 +148,8 @@ bool open_http_side(const ServerFlags& f, Coordinator& coordinator, JobStore* jo
     std::cerr << "tessera-server: " << e.what() << "\n";
     return false;
   }
-  out->metrics = std::make_unique<FarmMetrics>(coordinator, jobs);
+  out->metrics = std::make_unique<FarmMetrics>(coordinator);
+  if (jobs) jobs->set_batch_observer([m = out->metrics.get()](double s, uint64_t bytes) { m->store_batch(s, bytes); });
   out->feed = std::make_unique<MonitorFeed>(coordinator);
   MonitorRoutes{coordinator, *out->feed, out->metrics.get(), auth, {f.admins.begin(), f.admins.end()}}.install(
       out->http->server());
@@ -166,13 +169,7 @@ std::unique_ptr<grpc::Server> start_grpc_server(const ServerFlags& f,
   builder.RegisterService(&client_service);
   builder.RegisterService(&worker_service);
   builder.SetMaxReceiveMessageSize(int(f.limits.max_message_bytes));  // a 256x256 tile is 1 MiB; bundles: 1 MiB chunks
-  // Clients and workers ping to keep long-lived streams honest; accept their pings.
-  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
-  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5000);
-  builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
-  // A connection that has not completed its handshake (TLS and HTTP/2 preface) within 10 s is
-  // closed (gRPC's default is 120 s): idle or garbage connections cannot hold descriptors long.
-  builder.AddChannelArgument(GRPC_ARG_SERVER_HANDSHAKE_TIMEOUT_MS, 10000);
+  farm::set_server_connection_args(builder);  // keepalive pings accepted, 10 s handshakes
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || *port == 0) return nullptr;
   // Probes may ask about each service by name, not only the whole server ("").

@@ -24,7 +24,7 @@
 namespace tessera::worker {
 
 struct WorkerOptions {
-  std::string coordinator = "127.0.0.1:7878";
+  std::string coordinator = farm::kDefaultCoordinator;
   std::string name;
   int threads = 1;
   std::filesystem::path cache_dir;

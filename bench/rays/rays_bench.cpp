@@ -30,9 +30,9 @@
 #include <thread>
 
 #include "../bench_host.h"
-#include "ray_codec.h"
 #include "large_buffers.h"
 #include "ray_service.h"
+#include "rays/ray_codec.h"
 #include "render/embree_device.h"
 #include "render/render_scene_embree.h"
 #include "scene/scene_parser.h"
@@ -40,6 +40,7 @@
 namespace fs = std::filesystem;
 using namespace tessera;
 using namespace tessera::rays;
+using namespace tessera::rayserver;  // the ray server (rays/), measured in this process
 using Clock = std::chrono::steady_clock;
 using bench::cpu_model;
 using bench::process_cpu_seconds;

@@ -10,6 +10,10 @@
 
 namespace tessera::farm {
 
+// The coordinator's address when none is given: where tessera-server listens by default, and
+// where workers, ray servers and the CLI look for it.
+inline constexpr const char* kDefaultCoordinator = "127.0.0.1:7878";
+
 // How a peer proves who it is and checks the coordinator. All empty: plaintext, no token (a
 // coordinator without tokens, on a trusted network or loopback).
 struct ChannelSecurity {

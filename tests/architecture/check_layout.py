@@ -2,11 +2,17 @@
 """Checks the rules of docs/architecture.md that a reader could break without noticing.
 
 - Rooms: which product folders may include which headers (server/ never reaches lib/render,
-  rays/ nothing of server/ or worker/, lib/tile nothing of Embree or gRPC, lib/color no
-  command-line parsing, programs not each other's code), and, when a build folder is given, that
-  the programs' link lines agree (tessera-server links no renderer or Embree; tessera-rays no
+  lib/tile nothing of Embree or gRPC, lib/color no command-line parsing, lib/rays no gRPC, nothing
+  outside lib/render the RenderScene's internals), and, when a build folder is given, that the
+  programs' link lines agree (tessera-server links no renderer or Embree; tessera-rays no
   coordinator or worker library).
+- Programs' includes and links: an include of a program's file resolves as its build finds it
+  (beside the file, the program's own folder, lib/, proto/) and must not land in another
+  program's folder; no program's executable links a library defined under another program's
+  folder. "rays/ray_check.h" is lib/rays; the ray server's own headers are included bare.
 - Size: no product source file over 700 lines, no function over 150 lines.
+- No tracker numbers: no source, test, doc or script cites the issue tracker by number
+  (tracker_citations.py says which forms count).
 
 Usage: check_layout.py SOURCE_DIR [BUILD_DIR]. Prints every breach and exits 1 if there is one.
 """
@@ -14,20 +20,23 @@ import os
 import re
 import sys
 
+from tracker_citations import tracker_citations
+
 MAX_FILE_LINES = 700
 MAX_FUNCTION_LINES = 150
 PRODUCT_ROOMS = ["lib", "server", "worker", "client", "rays"]
+# Each program's folder and its executable's path in the build folder.
+PROGRAMS = {"server": "server/tessera-server", "worker": "worker/tessera-worker", "client": "client/tessera",
+            "rays": "rays/tessera-rays"}
 
-# (room prefix, regex of a forbidden #include target, why)
+# (room prefix, regex of a forbidden #include target, why). A program's includes of another
+# program's code are found by where they land, not by name (program_include_breaches).
 INCLUDE_RULES = [
     ("server/", r'^render/|^embree3/|^rays/', "the coordinator must not reach the renderer"),
-    ("server/", r'^(bundle_cache|connection|render_pool)\.h$', "the coordinator must not use the worker's code"),
-    ("rays/", r'^(coordinator|scheduler|job_store|client_service|worker_service|connection|render_pool)\.h$',
-     "the ray server must not use the coordinator's or the worker's code"),
-    ("worker/", r'^(coordinator|scheduler|job_store|client_service|worker_service)\.h$',
-     "the worker must not use the coordinator's code"),
-    ("client/", r'^(coordinator|scheduler|job_store|client_service|worker_service|connection|render_pool)\.h$',
-     "the CLI must not use the coordinator's or the worker's code"),
+    ("server/monitor/", r'^(coordinator|job_store|client_service|worker_service)\.h$',
+     "the monitor reads the farm through farm_view.h (and farm_control.h), not the coordinator itself"),
+    ("server/metrics/", r'^(coordinator|job_store|client_service|worker_service)\.h$',
+     "the metrics read the farm through farm_view.h, not the coordinator itself"),
     ("lib/tile/", r'^(render|farm|scene|color|rays)/|^embree3/|^grpcpp/|^Imf|^OpenEXR/',
      "tiles are plain values: no renderer, no wire, no OpenEXR"),
     ("lib/color/", r'^CLI/', "command-line parsing belongs to the programs"),
@@ -36,9 +45,15 @@ INCLUDE_RULES = [
     ("lib/sampling/", r'^(render|farm|color|rays)/|^embree3/|^grpcpp/',
      "where samples go is plain arithmetic the coordinator shares: no renderer, no wire"),
     ("lib/farm/", r'^(rays|color)/', "the shared room holds what the programs share on the wire"),
+    ("lib/rays/", r'^(farm|color)/|^grpcpp/', "ray queries know nothing of the farm or gRPC (the codec speaks "
+     "messages only)"),
 ]
 # Only these files of lib/farm may include the renderer: the bundle cache of render scenes.
 FARM_RENDER_FILES = {"lib/farm/bundle_cache.h", "lib/farm/bundle_cache.cpp"}
+# lib/render's own headers: the whole RenderScene (its packet and ISA-cloned internals) and its
+# Embree side. Everyone else sees a RenderScene through render/render_scene.h.
+RENDER_INTERNAL = r'^render/render_scene_(internal|embree)\.h$'
+
 
 # (executable's path in the build folder, forbidden library regex)
 LINK_RULES = [
@@ -66,7 +81,7 @@ def link_line(build, exe):
     m = re.search(r'^build ' + re.escape(exe) + r':.*?(?=\n\n)', text, flags=re.S | re.M)
     return m.group(0) if m else None
 
-INCLUDE = re.compile(r'^\s*#\s*include\s*[<"]([^">]+)[">]')
+INCLUDE = re.compile(r'^\s*#\s*include\s*([<"])([^">]+)[">]')  # the delimiter, then the path
 
 
 def product_files(src):
@@ -181,6 +196,78 @@ def reaches(src, rel, forbidden_prefix, seen=None):
     return None
 
 
+def program_dirs(src, program):
+    """The program's folder and every folder under it, relative to `src`."""
+    return [os.path.relpath(root, src) for root, _, _ in sorted(os.walk(os.path.join(src, program)))]
+
+
+def resolve_include(src, rel, target, quoted, dirs):
+    """The file, relative to `src`, that an #include of program file `rel` names: beside `rel`
+    (quoted only), in its program's own folders, in lib/, in proto/, as the build finds it. Failing
+    those, where it would land if another program's folder (or the source folder itself) were on
+    the include path: that is a breach the caller reports. None for a system, third-party or
+    generated header."""
+    program = rel.split("/")[0]
+    here = [os.path.dirname(rel)] if quoted else []
+    others = [d for p in PROGRAMS if p != program for d in dirs[p]]
+    for base in here + dirs[program] + ["lib", "proto", "."] + others:
+        cand = os.path.normpath(os.path.join(base, target))
+        if os.path.isfile(os.path.join(src, cand)):
+            return cand
+    return None
+
+
+def program_include_breaches(src):
+    """Every include of a program's file (its tests too) that lands in another program's folder."""
+    dirs = {p: program_dirs(src, p) for p in PROGRAMS}
+    breaches = []
+    for program in PROGRAMS:
+        for root, _, files in sorted(os.walk(os.path.join(src, program))):
+            for f in sorted(files):
+                if not f.endswith((".cpp", ".h")):
+                    continue
+                rel = os.path.relpath(os.path.join(root, f), src)
+                with open(os.path.join(src, rel), encoding="utf-8", errors="replace") as fh:
+                    lines = fh.read().splitlines()
+                for k, l in enumerate(lines, 1):
+                    m = INCLUDE.match(l)
+                    if not m:
+                        continue
+                    found = resolve_include(src, rel, m.group(2), m.group(1) == '"', dirs)
+                    owner = found.split("/")[0] if found else None
+                    if owner in PROGRAMS and owner != program:
+                        breaches.append(f"{rel}:{k}: includes {m.group(2)}, which is {found}: programs share code "
+                                        "only through lib/")
+    return breaches
+
+
+def program_libraries(src, program):
+    """The libraries the CMake files under a program's folder define."""
+    names = set()
+    for root, _, files in os.walk(os.path.join(src, program)):
+        if "CMakeLists.txt" in files:
+            with open(os.path.join(root, "CMakeLists.txt")) as f:
+                names.update(re.findall(r'add_library\(\s*([A-Za-z0-9_]+)', f.read()))
+    return names
+
+
+def program_link_breaches(src, build):
+    """Each program executable linking a library that another program's folder defines."""
+    breaches = []
+    for program, exe in PROGRAMS.items():
+        line = link_line(build, exe)
+        if line is None:
+            continue  # said by the link rules below
+        for other in PROGRAMS:
+            if other == program:
+                continue
+            for lib in sorted(program_libraries(src, other)):
+                if re.search(r'(^|[/\s])lib' + re.escape(lib) + r'\.a\b', line):
+                    breaches.append(f"{exe} links lib{lib}.a, a library of {other}/: programs share code only "
+                                    "through lib/")
+    return breaches
+
+
 def main():
     src = sys.argv[1]
     build = sys.argv[2] if len(sys.argv) > 2 else None
@@ -197,17 +284,22 @@ def main():
             m = INCLUDE.match(l)
             if not m:
                 continue
-            target = m.group(1)
+            target = m.group(2)
             for room, pattern, why in INCLUDE_RULES:
                 if rel.startswith(room) and re.search(pattern, target):
                     breaches.append(f"{rel}:{k}: includes {target}: {why}")
             if rel.startswith("lib/farm/") and rel not in FARM_RENDER_FILES and re.search(r'^render/|^embree3/', target):
                 breaches.append(f"{rel}:{k}: includes {target}: only the bundle cache of lib/farm may use the renderer")
+            if not rel.startswith("lib/render/") and re.search(RENDER_INTERNAL, target):
+                breaches.append(f"{rel}:{k}: includes {target}, lib/render's own: use render/render_scene.h")
         if rel.startswith("server/"):
             chain = reaches(src, rel, "lib/render/")
             if chain:
                 breaches.append(f"{rel}: reaches the renderer through {' -> '.join(chain)}")
+    breaches += program_include_breaches(src)
+    breaches += tracker_citations(src)
     if build:
+        breaches += program_link_breaches(src, build)
         for exe, pattern in LINK_RULES:
             line = link_line(build, exe)
             if line is None:

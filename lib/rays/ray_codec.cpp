@@ -1,4 +1,4 @@
-#include "ray_codec.h"
+#include "rays/ray_codec.h"
 
 #include <cfloat>
 #include <cmath>
