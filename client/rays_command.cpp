@@ -106,7 +106,7 @@ HitTable trace_locally(const RaysArgs& a, const RayTable& rays) {
     throw FarmError{kExitBadInput, "--frame " + std::to_string(a.frame) + ": the scene has frames 0-" +
                                        std::to_string(scene->frame_count() - 1)};
   }
-  const rays::RayTracer tracer(scene, std::make_shared<const RenderScene>(*scene, a.frame));
+  const rays::RayTracer tracer(scene, make_render_scene(*scene, a.frame));
   HitTable h;
   for (const SceneObject& o : scene->objects) h.objects.push_back(o.name);
   for (const Material& m : scene->materials) h.materials.push_back(m.name);

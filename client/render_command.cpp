@@ -108,10 +108,10 @@ int run_render(const RenderArgs& a) {
 
   const auto t0 = std::chrono::steady_clock::now();
   const RenderOptions options;  // the defaults, as on every farm worker
-  RenderScene rs(scene, a.frame, options);
+  const std::shared_ptr<const RenderScene> rs = make_render_scene(scene, a.frame, options);
   const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const bool tty = !a.quiet && isatty(fileno(stderr));
-  const FrameResult r = render_frame(rs, a.tile, a.threads, [&](int done, int total) {
+  const FrameResult r = render_frame(*rs, a.tile, a.threads, [&](int done, int total) {
     if (tty && (done % 16 == 0 || done == total)) {
       std::fprintf(stderr, "\r  %d/%d tiles (%.0f%%)", done, total, 100.0 * done / total);
       if (done == total) std::fprintf(stderr, "\n");

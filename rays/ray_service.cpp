@@ -134,7 +134,7 @@ Status RayServiceImpl::DescribeScene(grpc::ServerContext* ctx, const v1::SceneRe
   }
   for (const Material& m : scene.materials) resp->add_materials(m.name);
   resp->set_frame_count(scene.frame_count());
-  resp->set_triangles(tracer->frame().triangle_count());
+  resp->set_triangles(triangle_count(tracer->frame()));
   resp->set_embree_isa(embree_isa());
   resp->set_max_batch_rays(options_.max_batch_rays);
   return Status::OK;

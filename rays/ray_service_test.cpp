@@ -39,7 +39,7 @@ class RayServiceTest : public ::testing::Test {
     fs::create_directories(dir_);
     std::ofstream(dir_ / "scene.json") << kSceneJson;
     auto scene = std::make_shared<const Scene>(load_scene((dir_ / "scene.json").string()));
-    tracer_ = std::make_shared<const RayTracer>(scene, std::make_shared<const RenderScene>(*scene, 0));
+    tracer_ = std::make_shared<const RayTracer>(scene, make_render_scene(*scene, 0));
   }
   void TearDown() override {
     if (server_) server_->Shutdown();

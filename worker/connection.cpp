@@ -319,7 +319,7 @@ void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assig
     auto scene = cache_.frame(a.bundle_sha256(), a.overrides().SerializeAsString(), a.frame());
     const TileRect rect = farm::from_proto(a.rect());
     TileResult tile;
-    if (scene->image().frame_target()) {
+    if (image_settings(*scene).frame_target()) {
       // A pass of a frame target: the tile's blocks to the counts the coordinator planned from the
       // frame's last pass (sampling/pass_plan.h); the result carries their statistics.
       SamplePlan plan;

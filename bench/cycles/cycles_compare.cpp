@@ -42,6 +42,7 @@
 #include "../bench_host.h"
 #include "image/exr_io.h"
 #include "render/embree_device.h"
+#include "render/render_scene_internal.h"
 #include "render/tile_renderer.h"
 #include "scene/scene_parser.h"
 

@@ -97,7 +97,7 @@ std::shared_ptr<const RenderScene> BundleCache::frame(const std::string& sha256,
   if (mine) {
     try {
       auto s = scene(sha256, overrides);
-      promise.set_value(std::make_shared<const RenderScene>(*s, frame));
+      promise.set_value(make_render_scene(*s, frame));
     } catch (...) {
       {
         std::lock_guard lock(mu_);

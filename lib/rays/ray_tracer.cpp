@@ -45,17 +45,19 @@ bool cube_span(const Vec3d& o, const Vec3d& d, double L, double* t_in, double* t
 }  // namespace
 
 RayTracer::RayTracer(std::shared_ptr<const Scene> scene, std::shared_ptr<const RenderScene> frame)
-    : scene_(std::move(scene)), frame_(std::move(frame)) {}
+    : scene_(std::move(scene)),
+      frame_(std::move(frame)),
+      origin_(render_origin(*frame_)),
+      bounds_radius_(bounds_radius(*frame_)) {}
 
 // Inlined: called once per ray by both queries (the call and the struct copy showed in callgrind).
 [[gnu::always_inline]] inline RayTracer::Query RayTracer::query(const WorldRay& w) const {
-  const RenderScene& rs = *frame_;
   Query q;
   q.dd = unit_direction(w.d);
   const Vec3f d(q.dd);
   // Render space is world minus the eye, formed in double. A ray from the eye (a camera ray)
   // starts at exactly 0, as the renderer's do.
-  const Vec3d o = w.o - rs.origin();
+  const Vec3d o = w.o - origin_;
   // Where the float ray starts, as a distance along the ray: t_min (the query asks nothing
   // before it), or further for a far origin. The renderer itself only traces rays from the
   // eye or from surfaces; a client may start one a million units away, where float spacing
@@ -67,7 +69,7 @@ RayTracer::RayTracer(std::shared_ptr<const Scene> scene, std::shared_ptr<const R
   // Distances are floats: a plane met 1e52 away (a near-parallel ray from far off) is beyond
   // what t can say, so it counts as no hit rather than a hit at t = infinity.
   const double tmax = std::min(double(w.tmax), double(std::numeric_limits<float>::max()));
-  const double R = double(rs.bounds_radius());
+  const double R = double(bounds_radius_);
   const Vec3d start = o + q.dd * q.shift;
   double t_in = 0.0, t_out = 0.0;
   if (R > 0.0 && max_component(abs(start)) > far_limit() && cube_span(start, q.dd, 2.0 * R, &t_in, &t_out) &&
@@ -87,8 +89,8 @@ bool RayTracer::trace(const WorldRay& w, WorldHit* out) const {
   const RenderScene& rs = *frame_;
   const Query q = query(w);
   Hit h;
-  if (q.has_before && rs.intersect(q.before, PrimRef{}, &h)) return to_world(h, q.shift, Vec3f(q.dd), out);
-  return rs.intersect(q.after, PrimRef{}, &h) && to_world(h, q.after_shift, Vec3f(q.dd), out);
+  if (q.has_before && intersect(rs, q.before, PrimRef{}, &h)) return to_world(h, q.shift, Vec3f(q.dd), out);
+  return intersect(rs, q.after, PrimRef{}, &h) && to_world(h, q.after_shift, Vec3f(q.dd), out);
 }
 
 bool RayTracer::to_world(const Hit& h, double shift, const Vec3f& d, WorldHit* out) const {
@@ -97,7 +99,7 @@ bool RayTracer::to_world(const Hit& h, double shift, const Vec3f& d, WorldHit* o
   if (!std::isfinite(h.t) || !is_finite(h.p)) return false;
   // t: exact when nothing moved (shift 0), else the moved start's distance added in double.
   out->t = shift == 0.0 ? h.t : float(shift + double(h.t));
-  out->p = rs.origin() + Vec3d(h.p);
+  out->p = origin_ + Vec3d(h.p);
   out->n = h.n;
   // The integrator shades with the normal turned towards the side the ray came from
   // (integrator.cpp: front = dot(d, n) < 0): the geometric one, or a mesh's interpolated one.
@@ -117,7 +119,7 @@ bool RayTracer::to_world(const Hit& h, double shift, const Vec3f& d, WorldHit* o
   }
   out->u = h.u;
   out->v = h.v;
-  const RenderScene::Source src = rs.source_of(h.prim);
+  const PrimSource src = source_of(rs, h.prim);
   out->object = src.object;
   out->primitive = src.primitive;
   out->material = h.material;
@@ -129,12 +131,12 @@ bool RayTracer::blocked(const WorldRay& w) const {
   const Query q = query(w);
   // any_hit() turns down a plane point beyond float range, as trace() does below. (A point on
   // `before` never is: it lies between the start and the geometry's cube.)
-  return (q.has_before && rs.any_hit(q.before, PrimRef{})) || rs.any_hit(q.after, PrimRef{});
+  return (q.has_before && any_hit(rs, q.before, PrimRef{})) || any_hit(rs, q.after, PrimRef{});
 }
 
 template <class Emit>
 void RayTracer::nearest_each(const WorldRay* rays, size_t n, Emit& emit) const {
-  // Rays go to RenderScene::intersect_batch kRayBatch at a time, as arrays of components, so
+  // Rays go to intersect_batch() kRayBatch at a time, as arrays of components, so
   // that the arithmetic around each Embree query runs in SIMD across rays (world_batch.h,
   // render/ray_batch.h); each answer is still intersect()'s for that ray alone, bit for bit. A
   // far ray, which needs two queries, goes alone (trace()).
@@ -148,7 +150,7 @@ void RayTracer::nearest_each(const WorldRay* rays, size_t n, Emit& emit) const {
     return;
   }
   const RenderScene& rs = *frame_;
-  const Vec3d origin = rs.origin();
+  const Vec3d origin = origin_;
   const double far = far_limit();
   RayBatch batch;
   HitBatch found;
@@ -157,7 +159,7 @@ void RayTracer::nearest_each(const WorldRay* rays, size_t n, Emit& emit) const {
   for (size_t base = 0; base < n; base += kRayBatch) {
     const size_t m = std::min(kRayBatch, n - base);
     world_to_render(rays + base, m, origin, far, &batch, shift);
-    rs.intersect_batch(batch, m, &found);
+    intersect_batch(rs, batch, m, &found);
     tessera::rays::to_world(found, batch, shift, m, origin, &answers);
     emit.batch(base, answers, m);  // every lane (a miss's defaults included); the scalar code's below
     const size_t ahead = std::min(n - base - m, kRayBatch);  // the next batch's rays
@@ -226,8 +228,8 @@ void RayTracer::occluded(const WorldRay* rays, size_t n, WorldHit* hits) const {
   uint8_t flag[kRayBatch];
   for (size_t base = 0; base < n; base += kRayBatch) {
     const size_t m = std::min(kRayBatch, n - base);
-    world_to_render(rays + base, m, rs.origin(), far_limit(), &batch, shift);
-    rs.any_hit_batch(batch, m, flag);
+    world_to_render(rays + base, m, origin_, far_limit(), &batch, shift);
+    any_hit_batch(rs, batch, m, flag);
     for (size_t j = 0; j < m; ++j) {
       hits[base + j] = WorldHit{};
       hits[base + j].hit = batch.skip[j] ? blocked(rays[base + j]) : flag[j] != 0;

@@ -1,7 +1,7 @@
 // Nearest-hit and occlusion queries for world-space rays on one frame of a scene, answered by
-// RenderScene::intersect: the renderer's own code (watertight triangles, double-precision
-// spheres and planes, the renderer's tie-breaking), so a query's hit is the one the renderer
-// would find. Knows nothing of gRPC or files.
+// the RenderScene's intersect() (render/render_scene.h): the renderer's own code (watertight
+// triangles, double-precision spheres and planes, the renderer's tie-breaking), so a query's
+// hit is the one the renderer would find. Knows nothing of gRPC or files.
 #pragma once
 
 #include <cstddef>
@@ -26,8 +26,9 @@ class RayTracer {
   // ray service sends, without the copy through WorldHit.
   void nearest_into(const WorldRay* rays, size_t n, const HitColumns& out, size_t offset) const;
   // Sets only hits[i].hit: whether any surface lies in (tmin, tmax], by an any-hit traversal
-  // (RenderScene::any_hit: it stops at the first surface met) of the same render-space rays with
-  // the same primitive tests, so "occluded" and "has a nearest hit" never disagree.
+  // (any_hit(), render/render_scene.h: it stops at the first surface met) of the same
+  // render-space rays with the same primitive tests, so "occluded" and "has a nearest hit" never
+  // disagree.
   void occluded(const WorldRay* rays, size_t n, WorldHit* hits) const;
 
   const Scene& scene() const { return *scene_; }
@@ -46,7 +47,7 @@ class RayTracer {
   Query query(const WorldRay& ray) const;
   // Where a ray's start counts as far (max norm, render space): 16x the radius of all bounded
   // geometry, the renderer's own threshold; query() moves such a start.
-  double far_limit() const { return 16.0 * double(frame_->bounds_radius()); }
+  double far_limit() const { return 16.0 * double(bounds_radius_); }
   bool trace(const WorldRay& ray, WorldHit* hit) const;
   // The world-space answer for a render-space hit on a ray that started `shift` along the query.
   bool to_world(const Hit& h, double shift, const Vec3f& d, WorldHit* out) const;
@@ -59,6 +60,9 @@ class RayTracer {
 
   std::shared_ptr<const Scene> scene_;
   std::shared_ptr<const RenderScene> frame_;
+  // The frame's render_origin() and bounds_radius(), read on every ray: kept here, not asked.
+  Vec3d origin_;
+  float bounds_radius_;
 };
 
 }  // namespace tessera::rays

@@ -16,6 +16,7 @@
 #include <random>
 
 #include "render/ray_log.h"
+#include "render/render_scene_internal.h"
 #include "rays/ray_check.h"
 #include "render/tile_renderer.h"
 #include "scene/scene_parser.h"
@@ -60,7 +61,7 @@ class RayTracerTest : public ::testing::Test {
                              (animation.empty() ? "" : ", \"animation\": " + animation) + "}";
     std::ofstream(dir_ / "s.json") << json;
     auto scene = std::make_shared<const Scene>(load_scene((dir_ / "s.json").string()));
-    return RayTracer(scene, std::make_shared<const RenderScene>(*scene, frame));
+    return RayTracer(scene, make_render_scene(*scene, frame));
   }
 
   WorldHit nearest(const RayTracer& t, const Vec3d& o, const Vec3d& d, float tmin = 0.0f,
@@ -414,7 +415,7 @@ TEST_F(RayTracerTest, BatchesAnswerAsSingleRaysOnEverySimdTarget) {
     m.normals.clear();
     for (const Vec3f& p : m.positions) m.normals.push_back(normalize(p + Vec3f(0.1f, 0.2f, 0.3f)));
   }
-  const RayTracer t(scene, std::make_shared<const RenderScene>(*scene, 0));
+  const RayTracer t(scene, make_render_scene(*scene, 0));
 
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> u(-1, 1);
@@ -510,7 +511,7 @@ void expect_camera_rays_agree(const std::string& scene_file, int width, int heig
   scene->image.height = height;
   scene->image.spp = 4;
   scene->image.max_depth = 0;
-  auto rs = std::make_shared<const RenderScene>(*scene, 0);
+  auto rs = make_render_scene(*scene, 0);
   RayLog log;
   thread_ray_log() = &log;
   render_tile(*rs, {0, 0, width, height});

@@ -2,6 +2,7 @@
 // error, its estimate is honest against a high-spp reference, and every pixel is a pure function
 // of (scene, frame, settings).
 #include "render/frame_target.h"
+#include "render/render_scene_internal.h"
 
 #include <gtest/gtest.h>
 

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <numbers>
 
+#include "render/render_scene_internal.h"
 #include "render/tile_renderer.h"
 #include "support/gltf_test_builder.h"
 #include "scene/scene_parser.h"

@@ -3,7 +3,7 @@
 // internal reflection, recursing up to max_depth.
 #pragma once
 
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 #include "render/sampler.h"
 #include "tile/tile_result.h"
 

@@ -7,7 +7,7 @@
 #include <cstdint>
 
 #include "render/pixel_estimate.h"
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 #include "tile/tile_rect.h"
 #include "tile/tile_result.h"
 

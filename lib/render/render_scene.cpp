@@ -3,7 +3,7 @@
 // query; and what the scene tells of a primitive. The batch and packet versions are in
 // render_scene_batch.cpp and render_scene_packet.cpp, shadow rays in
 // render_scene_transmittance.cpp, the build in render_scene_build.cpp.
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 
 #include <algorithm>
 #include <cmath>

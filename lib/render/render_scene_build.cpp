@@ -7,7 +7,7 @@
 #include <map>
 
 #include "math/transform.h"
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 #include "render/shading_normal.h"
 #include "scene/animation.h"
 

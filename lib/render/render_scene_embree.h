@@ -1,5 +1,5 @@
-// The Embree side of a RenderScene (render/render_scene.h names these types; they are defined
-// here so that its includers need no Embree header): the intersect context our callbacks read,
+// The Embree side of a RenderScene (render/render_scene_internal.h names these types; they are
+// defined here so that its includers need no Embree header): the intersect context our callbacks read,
 // the glass crossings a shadow ray collects, and the data each user geometry's callbacks are
 // given. For lib/render's own files, and for the benchmarks that replay the renderer's queries
 // with bare Embree calls.
@@ -8,7 +8,7 @@
 #include <cstdint>
 
 #include "render/embree_device.h"
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 
 namespace tessera {
 

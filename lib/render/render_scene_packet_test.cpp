@@ -11,7 +11,7 @@
 #include <tuple>
 
 #include "render/ray_batch.h"
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 #include "render/sampler.h"
 #include "render/test_hits.h"
 #include "scene/scene_parser.h"

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "render/ray_batch.h"
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 #include "render/sampler.h"
 #include "render/sphere_roots.h"
 #include "render/sphere_scan.h"

@@ -1,4 +1,4 @@
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 
 #include <gtest/gtest.h>
 

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 #include "scene/texture_sample.h"
 
 namespace tessera {

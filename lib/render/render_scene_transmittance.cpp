@@ -9,8 +9,8 @@
 
 #include "render/plane.h"
 #include "render/ray_log.h"
-#include "render/render_scene.h"
 #include "render/render_scene_embree.h"
+#include "render/render_scene_internal.h"
 
 namespace tessera {
 

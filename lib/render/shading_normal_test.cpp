@@ -13,7 +13,7 @@
 #include <random>
 
 #include "render/fresnel.h"
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 #include "render/tile_renderer.h"
 #include "support/gltf_test_builder.h"
 #include "scene/scene_parser.h"

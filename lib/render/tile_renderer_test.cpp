@@ -11,6 +11,7 @@
 
 #include "scene/animation.h"
 #include "scene/scene_parser.h"
+#include "render/render_scene_internal.h"
 #include "render/test_scenes.h"
 
 namespace tessera {

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <limits>
 
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 
 namespace tessera {
 

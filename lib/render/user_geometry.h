@@ -8,7 +8,7 @@
 
 #include "math/vec3.h"
 #include "render/embree_device.h"
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 
 namespace tessera {
 

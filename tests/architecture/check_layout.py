@@ -2,9 +2,9 @@
 """Checks the rules of docs/architecture.md that a reader could break without noticing.
 
 - Rooms: which product folders may include which headers (server/ never reaches lib/render,
-  lib/tile nothing of Embree or gRPC, lib/color no command-line parsing, lib/rays no gRPC), and,
-  when a build folder is given, that
-  the programs' link lines agree (tessera-server links no renderer or Embree; tessera-rays no
+  lib/tile nothing of Embree or gRPC, lib/color no command-line parsing, lib/rays no gRPC, nothing
+  outside lib/render the RenderScene's internals), and, when a build folder is given, that the
+  programs' link lines agree (tessera-server links no renderer or Embree; tessera-rays no
   coordinator or worker library).
 - Programs' includes and links: an include of a program's file resolves as its build finds it
   (beside the file, the program's own folder, lib/, proto/) and must not land in another
@@ -46,6 +46,10 @@ INCLUDE_RULES = [
 ]
 # Only these files of lib/farm may include the renderer: the bundle cache of render scenes.
 FARM_RENDER_FILES = {"lib/farm/bundle_cache.h", "lib/farm/bundle_cache.cpp"}
+# lib/render's own headers: the whole RenderScene (its packet and ISA-cloned internals) and its
+# Embree side. Everyone else sees a RenderScene through render/render_scene.h.
+RENDER_INTERNAL = r'^render/render_scene_(internal|embree)\.h$'
+
 
 # (executable's path in the build folder, forbidden library regex)
 LINK_RULES = [
@@ -282,6 +286,8 @@ def main():
                     breaches.append(f"{rel}:{k}: includes {target}: {why}")
             if rel.startswith("lib/farm/") and rel not in FARM_RENDER_FILES and re.search(r'^render/|^embree3/', target):
                 breaches.append(f"{rel}:{k}: includes {target}: only the bundle cache of lib/farm may use the renderer")
+            if not rel.startswith("lib/render/") and re.search(RENDER_INTERNAL, target):
+                breaches.append(f"{rel}:{k}: includes {target}, lib/render's own: use render/render_scene.h")
         if rel.startswith("server/"):
             chain = reaches(src, rel, "lib/render/")
             if chain:

@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "render/render_scene.h"
+#include "render/render_scene_internal.h"
 #include "render/tile_renderer.h"
 #include "scene/scene.h"
 
