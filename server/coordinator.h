@@ -32,6 +32,7 @@
 
 #include "bundle_store.h"
 #include "coordinator_messages.h"
+#include "farm_control.h"
 #include "frame_passes.h"
 #include "job_store.h"
 #include "ray_servers.h"
@@ -81,17 +82,9 @@ struct Admission {
   std::function<grpc::Status(const Scene&, int first_frame, int last_frame, int tile)> check;
 };
 
-// What the coordinator knows at one instant, for observers that look rather than act (the web
-// monitor, the Prometheus gauges). Taken under the coordinator's mutex, used after it.
-struct FarmSnapshot {
-  std::vector<JobSnapshot> jobs;      // in memory, in submit order
-  std::vector<WorkerStats> workers;
-  size_t tiles_queued = 0;
-  size_t watch_backlog = 0;           // messages queued and unwritten over every watch stream
-  JobStore::Stats store;              // zero without a job store
-};
-
-class Coordinator : private SchedulerListener {
+// What the web monitor and the metrics read of it, and the changes the monitor makes: FarmControl
+// (farm_view.h, farm_control.h).
+class Coordinator : private SchedulerListener, public FarmControl {
  public:
   // `jobs` (may be null: memory only, for tests) is loaded and restored here, before any stream.
   Coordinator(CoordinatorOptions options, BundleStore& store, JobStore* jobs = nullptr);
@@ -109,17 +102,17 @@ class Coordinator : private SchedulerListener {
                       const Admission& admission = {});
   // (owner, job id) of every queued or running job with an owner: the quota after a restart.
   std::vector<std::pair<std::string, std::string>> active_jobs_by_owner();
-  grpc::Status get_job(const std::string& id, tessera::v1::JobStatus* out);
+  grpc::Status get_job(const std::string& id, tessera::v1::JobStatus* out) override;
   // The identity that submitted the job (JobSpec::owner; "" for jobs of older databases), in
   // memory or evicted; nullopt for an unknown job.
-  std::optional<std::string> job_owner(const std::string& id);
+  std::optional<std::string> job_owner(const std::string& id) override;
   void list_jobs(tessera::v1::ListJobsResponse* out);
-  grpc::Status cancel(const std::string& id, tessera::v1::JobStatus* out);
+  grpc::Status cancel(const std::string& id, tessera::v1::JobStatus* out) override;
   grpc::Status ack_frame(const std::string& id, int frame);
   void list_workers(tessera::v1::ListWorkersResponse* out);
   // NOT_FOUND for an unknown job (also one evicted from memory), FAILED_PRECONDITION for an
   // ended one. The new priority is stored with the job.
-  grpc::Status set_priority(const std::string& id, int priority, tessera::v1::JobStatus* out);
+  grpc::Status set_priority(const std::string& id, int priority, tessera::v1::JobStatus* out) override;
   // Queues the job's status and every unacknowledged finished tile into `sink`, then keeps it
   // attached for new tiles until the job ends. NOT_FOUND for an unknown job.
   grpc::Status attach_watcher(const std::string& id, std::shared_ptr<WatchSink> sink);
@@ -140,11 +133,15 @@ class Coordinator : private SchedulerListener {
   // `observer` receives every scheduler event after the coordinator handled it, under the
   // coordinator's mutex: it must be quick and must not call back into the coordinator. Add
   // observers before any stream starts; they must outlive the coordinator's streams.
-  void add_observer(SchedulerListener* observer);
-  FarmSnapshot snapshot();
+  void add_observer(SchedulerListener* observer) override;
+  FarmSnapshot snapshot() override;
   // Every finished tile of the job still in memory (frames not yet acknowledged).
-  std::vector<std::pair<TileKey, TileOutput>> finished_tiles(const std::string& id);
-  void status_of(const JobSnapshot& s, tessera::v1::JobStatus* out) const { job_status_proto(s, out); }
+  std::vector<std::pair<TileKey, TileOutput>> finished_tiles(const std::string& id) override;
+  void status_of(const JobSnapshot& s, tessera::v1::JobStatus* out) const override { job_status_proto(s, out); }
+  void list_ray_servers(tessera::v1::ListRayServersResponse* out) override { ray_servers_.list(out); }
+  size_t live_ray_servers() override { return ray_servers_.live(); }
+  uint64_t bundle_bytes_stored() const override { return store_.bytes_stored(); }
+  uint64_t bundle_bytes_served() const override { return store_.bytes_served(); }
 
   // Stops the expiry thread (before the gRPC server shuts down).
   void stop();

@@ -52,6 +52,7 @@
 
 #include "disk_reserve.h"
 #include "job_store_schema.h"
+#include "job_store_stats.h"
 #include "scheduler.h"
 #include "segment_ledger.h"
 #include "tile_store.h"
@@ -116,10 +117,7 @@ class JobStore {
   // An evicted job, read from SQLite (for status queries). Runs on the caller's thread.
   std::optional<JobSnapshot> read_job(const JobId& id);
 
-  struct Stats {
-    int64_t batches = 0, ops = 0, failures = 0;
-    size_t queued = 0;
-  };
+  using Stats = JobStoreStats;  // job_store_stats.h
   Stats stats() const;
   // Called by the writer thread after each batch it committed: how long the batch took (segment
   // write, fsyncs, SQLite commit) and the tile bytes it wrote. Set before the first write (the

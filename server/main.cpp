@@ -142,7 +142,8 @@ bool open_http_side(const ServerFlags& f, Coordinator& coordinator, JobStore* jo
     std::cerr << "tessera-server: " << e.what() << "\n";
     return false;
   }
-  out->metrics = std::make_unique<FarmMetrics>(coordinator, jobs);
+  out->metrics = std::make_unique<FarmMetrics>(coordinator);
+  if (jobs) jobs->set_batch_observer([m = out->metrics.get()](double s, uint64_t bytes) { m->store_batch(s, bytes); });
   out->feed = std::make_unique<MonitorFeed>(coordinator);
   MonitorRoutes{coordinator, *out->feed, out->metrics.get(), auth, {f.admins.begin(), f.admins.end()}}.install(
       out->http->server());

@@ -36,7 +36,7 @@ prometheus::Histogram::BucketBoundaries powers_of_two(double lo, int n) {
 
 }  // namespace
 
-FarmMetrics::FarmMetrics(Coordinator& coordinator, JobStore* jobs)
+FarmMetrics::FarmMetrics(FarmView& coordinator)
     : coordinator_(coordinator),
       tiles_completed_(counter(registry_, "tessera_tiles_completed_total", "Tiles whose result was accepted")),
       rays_(counter(registry_, "tessera_rays_traced_total",
@@ -79,7 +79,6 @@ FarmMetrics::FarmMetrics(Coordinator& coordinator, JobStore* jobs)
                    "leased: being rendered): each job's tiles times its mean tile time so far, else the mean of "
                    "every tile finished since start, else 1 s a tile")) {
   coordinator.add_observer(this);
-  if (jobs) jobs->set_batch_observer([this](double s, uint64_t bytes) { store_batch(s, bytes); });
   // Every state is exported from the first scrape on, at 0 when empty, so a query for one
   // never finds nothing.
   for (JobState s : {JobState::kQueued, JobState::kRunning, JobState::kDone, JobState::kCancelled, JobState::kFailed}) {
@@ -155,10 +154,10 @@ std::string FarmMetrics::scrape() {
   }
   watch_backlog_.Set(double(f.watch_backlog));
   store_queued_.Set(double(f.store.queued));
-  ray_servers_.Set(double(coordinator_.ray_servers().live()));
+  ray_servers_.Set(double(coordinator_.live_ray_servers()));
   advance(store_failures_, double(f.store.failures));
-  advance(bundle_stored_bytes_, double(coordinator_.bundles().bytes_stored()));
-  advance(bundle_served_bytes_, double(coordinator_.bundles().bytes_served()));
+  advance(bundle_stored_bytes_, double(coordinator_.bundle_bytes_stored()));
+  advance(bundle_served_bytes_, double(coordinator_.bundle_bytes_served()));
   return prometheus::TextSerializer().Serialize(registry_.Collect());
 }
 

@@ -4,10 +4,10 @@
 //
 // Two kinds of sources:
 //   - events (tiles completed, rays, leases expired, speculative copies, faults, store batches):
-//     counted as they happen, as a scheduler observer (Coordinator::add_observer). Each event
+//     counted as they happen, as a scheduler observer (FarmView::add_observer). Each event
 //     costs an atomic add or a histogram bucket, under the coordinator's mutex;
 //   - levels (jobs by state, tiles queued / leased / done, work left, workers, ray servers, watch
-//     backlog): read from a Coordinator::snapshot() when Prometheus scrapes, so they cost nothing
+//     backlog): read from a FarmView::snapshot() when Prometheus scrapes, so they cost nothing
 //     in between.
 //
 // tessera_work_seconds is the level an autoscaler sizes the workers by (docker/k8s/keda): the
@@ -31,18 +31,21 @@
 #include <set>
 #include <string>
 
-#include "coordinator.h"
+#include "farm_view.h"
 
 namespace tessera::server {
 
 class FarmMetrics : public SchedulerListener {
  public:
-  // Registers itself as an observer of `coordinator` and as the batch observer of `jobs` (may be
-  // null). Call before any stream starts.
-  FarmMetrics(Coordinator& coordinator, JobStore* jobs);
+  // Registers itself as an observer of `coordinator`. Call before any stream starts.
+  explicit FarmMetrics(FarmView& coordinator);
 
   // The Prometheus text exposition format (version 0.0.4) of every metric, levels read now.
   std::string scrape();
+
+  // One batch of the job store's writes made durable, in `seconds`, with `bytes` of tiles: the
+  // store's batch observer (JobStore::set_batch_observer), set by whoever holds both.
+  void store_batch(double seconds, uint64_t bytes);
 
   // SchedulerListener (under the coordinator's mutex).
   void tile_leased(const Assignment& a) override;
@@ -51,13 +54,12 @@ class FarmMetrics : public SchedulerListener {
   void worker_faulted(const JobId&, const WorkerStats&, std::string_view, int, bool blocklisted) override;
 
  private:
-  void store_batch(double seconds, uint64_t bytes);
   // Counters that mirror a running total kept elsewhere (bundle bytes, store failures).
   static void advance(prometheus::Counter& c, double total) {
     if (total > c.Value()) c.Increment(total - c.Value());
   }
 
-  Coordinator& coordinator_;
+  FarmView& coordinator_;
   prometheus::Registry registry_;
   // Events.
   prometheus::Counter& tiles_completed_;

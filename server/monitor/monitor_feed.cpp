@@ -33,7 +33,7 @@ double variance_sum(const std::string& bytes, int64_t* pixels) {
 
 double MonitorFeed::now_s() { return double(steady_ns()) * 1e-9; }
 
-MonitorFeed::MonitorFeed(Coordinator& coordinator) : coordinator_(coordinator) { coordinator.add_observer(this); }
+MonitorFeed::MonitorFeed(FarmView& coordinator) : coordinator_(coordinator) { coordinator.add_observer(this); }
 
 void MonitorFeed::tile_finished(const TileKey& key, const TileOutput& out, WorkerId) {
   const int64_t now = steady_ns();
@@ -308,7 +308,7 @@ nlohmann::json MonitorFeed::farm() {
   // Ray servers (tessera-rays) announced to the coordinator: their registry's lock is a leaf.
   json ray_servers = json::array();
   tessera::v1::ListRayServersResponse announced;
-  coordinator_.ray_servers().list(&announced);
+  coordinator_.list_ray_servers(&announced);
   for (const auto& r : announced.servers()) {
     const auto& d = r.server();
     ray_servers.push_back({{"id", d.server_id()},

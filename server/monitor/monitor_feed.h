@@ -28,7 +28,7 @@
 #include <set>
 #include <string>
 
-#include "coordinator.h"
+#include "farm_view.h"
 #include "frame_canvas.h"
 
 namespace tessera::server {
@@ -40,7 +40,7 @@ class MonitorFeed : public SchedulerListener {
   static constexpr size_t kMaxFrames = 2;
   static constexpr size_t kMaxPending = 200000;  // tiles queued for decoding; beyond: dropped
 
-  explicit MonitorFeed(Coordinator& coordinator);  // registers itself as an observer
+  explicit MonitorFeed(FarmView& coordinator);  // registers itself as an observer
 
   // The jobs, workers and ray servers, as the monitor's main page shows them.
   nlohmann::json farm();
@@ -102,7 +102,7 @@ class MonitorFeed : public SchedulerListener {
   std::optional<nlohmann::json> ended_job(const JobId& id);
   static double now_s();
 
-  Coordinator& coordinator_;
+  FarmView& coordinator_;
   std::atomic<int64_t> active_until_{0};  // steady-clock nanoseconds
 
   std::mutex pending_mu_;  // taken under the coordinator's mutex: nothing else is done under it

@@ -7,7 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "coordinator.h"
+#include "farm_control.h"
 #include "job_access.h"
 #include "metrics/farm_metrics.h"
 #include "monitor_feed.h"

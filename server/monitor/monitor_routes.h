@@ -23,12 +23,12 @@ class Server;
 
 namespace tessera::server {
 
-class Coordinator;
+class FarmControl;
 class FarmMetrics;
 class MonitorFeed;
 
 struct MonitorRoutes {
-  Coordinator& coordinator;
+  FarmControl& coordinator;  // farm_control.h: what the pages read, cancelling, priorities
   MonitorFeed& feed;
   FarmMetrics* metrics = nullptr;  // null: no /metrics
   const farm::Authenticator& auth;

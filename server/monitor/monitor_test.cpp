@@ -91,7 +91,7 @@ struct CoordinatorFixture : ::testing::Test {
 using FarmMetricsTest = CoordinatorFixture;
 
 TEST_F(FarmMetricsTest, CountsEventsAndExportsLevelsInTheTextFormat) {
-  FarmMetrics metrics(coordinator, nullptr);
+  FarmMetrics metrics(coordinator);
   const TileOutput out{std::make_shared<const std::string>("x"), 1000, 0.3};
   SchedulerListener& events = metrics;
   events.tile_finished({"j", 0, 0}, out, 1);
@@ -122,7 +122,7 @@ TEST_F(FarmMetricsTest, CountsEventsAndExportsLevelsInTheTextFormat) {
 
 // Ray servers announced to the coordinator: a gauge at each scrape, rows on the farm page.
 TEST_F(FarmMetricsTest, RayServersInTheGaugeAndOnTheFarmPage) {
-  FarmMetrics metrics(coordinator, nullptr);
+  FarmMetrics metrics(coordinator);
   MonitorFeed feed(coordinator);
   EXPECT_NE(metrics.scrape().find("tessera_ray_servers 0\n"), std::string::npos) << metrics.scrape();
   EXPECT_TRUE(feed.farm().at("ray_servers").empty());

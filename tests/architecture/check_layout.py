@@ -33,6 +33,10 @@ PROGRAMS = {"server": "server/tessera-server", "worker": "worker/tessera-worker"
 # program's code are found by where they land, not by name (program_include_breaches).
 INCLUDE_RULES = [
     ("server/", r'^render/|^embree3/|^rays/', "the coordinator must not reach the renderer"),
+    ("server/monitor/", r'^(coordinator|job_store|client_service|worker_service)\.h$',
+     "the monitor reads the farm through farm_view.h (and farm_control.h), not the coordinator itself"),
+    ("server/metrics/", r'^(coordinator|job_store|client_service|worker_service)\.h$',
+     "the metrics read the farm through farm_view.h, not the coordinator itself"),
     ("lib/tile/", r'^(render|farm|scene|color|rays)/|^embree3/|^grpcpp/|^Imf|^OpenEXR/',
      "tiles are plain values: no renderer, no wire, no OpenEXR"),
     ("lib/color/", r'^CLI/', "command-line parsing belongs to the programs"),

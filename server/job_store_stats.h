@@ -1,0 +1,16 @@
+// SPDX-License-Identifier: Apache-2.0
+// The job store's running totals (JobStore::stats()), apart from the store itself, so that those
+// who only read them (the Prometheus metrics, through farm_view.h) need no SQLite.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+namespace tessera::server {
+
+struct JobStoreStats {
+  int64_t batches = 0, ops = 0, failures = 0;
+  size_t queued = 0;
+};
+
+}  // namespace tessera::server
