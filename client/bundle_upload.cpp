@@ -1,6 +1,6 @@
 #include "bundle_upload.h"
 
-#include <stdexcept>
+#include "command_error.h"
 
 namespace tessera::cli {
 
@@ -10,7 +10,7 @@ bool upload_bundle_if_missing(FarmClient& client, const farm::BuiltBundle& b) {
   tessera::v1::HasBundleResponse hresp;
   auto ctx = client.context();
   grpc::Status s = client.stub().HasBundle(ctx.get(), hreq, &hresp);
-  if (!s.ok()) throw std::runtime_error(client.describe(s, "checking for the scene bundle"));
+  if (!s.ok()) throw CommandError{kExitFailure, client.describe(s, "checking for the scene bundle")};
   if (hresp.present()) return false;
   // A minute plus a second per MiB, as `tessera submit` allows.
   auto uctx = FarmClient::context(std::chrono::seconds(60 + int64_t(b.bytes.size() >> 20)));
@@ -25,7 +25,7 @@ bool upload_bundle_if_missing(FarmClient& client, const farm::BuiltBundle& b) {
   }
   writer->WritesDone();
   s = writer->Finish();
-  if (!s.ok()) throw std::runtime_error(client.describe(s, "uploading the scene bundle"));
+  if (!s.ok()) throw CommandError{kExitFailure, client.describe(s, "uploading the scene bundle")};
   return true;
 }
 

@@ -7,8 +7,8 @@
 
 namespace tessera::cli {
 
-// Returns true if it uploaded, false if the coordinator had the bundle. Throws
-// std::runtime_error with FarmClient::describe()'s message on failure.
+// Returns true if it uploaded, false if the coordinator had the bundle. Throws CommandError
+// (exit 1) with FarmClient::describe()'s message on failure.
 bool upload_bundle_if_missing(FarmClient& client, const farm::BuiltBundle& bundle);
 
 }  // namespace tessera::cli

@@ -1,20 +1,19 @@
 #include "farm_command.h"
 
-#include <iostream>
-#include <stdexcept>
+#include "farm/farm_error.h"
 
 namespace tessera::cli {
 
-FarmError job_error(const FarmClient& client, const grpc::Status& s, const std::string& what) {
-  return FarmError{s.error_code() == grpc::StatusCode::NOT_FOUND ? kExitBadInput : kExitFailure,
-                   client.describe(s, what)};
+CommandError job_error(const FarmClient& client, const grpc::Status& s, const std::string& what) {
+  return CommandError{s.error_code() == grpc::StatusCode::NOT_FOUND ? kExitBadInput : kExitFailure,
+                      client.describe(s, what)};
 }
 
 FarmClient connect(const std::string& coordinator, const SecurityFlags& flags) {
   try {
     return FarmClient(resolve_coordinator(coordinator), resolve_security(flags));
-  } catch (const std::runtime_error& e) {
-    throw FarmError{kExitBadInput, e.what()};
+  } catch (const farm::FarmError& e) {  // an unreadable token or certificate file
+    throw CommandError{kExitBadInput, e.what()};
   }
 }
 
@@ -46,17 +45,6 @@ void add_security_flags(CLI::App* cmd, SecurityFlags* security, const std::strin
   cmd->add_option("--tls-cert", security->tls_cert, "PEM client certificate, for a " + peer + " that asks for one")
       ->group("Security");
   cmd->add_option("--tls-key", security->tls_key, "PEM private key of --tls-cert")->group("Security");
-}
-
-void guarded(const char* name, const std::function<int()>& command) {
-  int rc = 0;
-  try {
-    rc = command();
-  } catch (const FarmError& e) {
-    std::cerr << "tessera " << name << ": " << e.message << "\n";
-    rc = e.code;
-  }
-  if (rc != 0) throw CLI::RuntimeError(rc);
 }
 
 }  // namespace tessera::cli

@@ -43,26 +43,23 @@ std::string preview_path(const std::string& frame_path) {
 FrameAssembler::FrameAssembler(const tessera::v1::JobStatus& job)
     : job_(job), grid_(job.width(), job.height(), job.tile_size()), settings_(job_image_settings(job)) {}
 
-bool FrameAssembler::add(const tessera::v1::TileData& tile, std::string* error) {
+std::string FrameAssembler::add(const tessera::v1::TileData& tile) {
   if (tile.frame() < job_.first_frame() || tile.frame() > job_.last_frame() || tile.tile_index() < 0 ||
       tile.tile_index() >= job_.tiles_per_frame()) {
-    *error = "tile " + std::to_string(tile.tile_index()) + " of frame " + std::to_string(tile.frame()) +
-             " is outside the job";
-    return false;
+    return "tile " + std::to_string(tile.tile_index()) + " of frame " + std::to_string(tile.frame()) +
+           " is outside the job";
   }
   // A tile of another job (a coordinator serving a damaged store) would put wrong pixels into
   // this frame: refuse it, by name.
   if (tile.job_id() != job_.job_id()) {
-    *error = "tile " + std::to_string(tile.tile_index()) + " of frame " + std::to_string(tile.frame()) +
-             " belongs to job '" + tile.job_id() + "', not " + job_.job_id();
-    return false;
+    return "tile " + std::to_string(tile.tile_index()) + " of frame " + std::to_string(tile.frame()) +
+           " belongs to job '" + tile.job_id() + "', not " + job_.job_id();
   }
-  if (written_.count(tile.frame())) return false;
+  if (written_.count(tile.frame())) return "";
   Frame& f = frames_[tile.frame()];
-  if (f.pixels.has(tile.tile_index())) return false;  // a second copy: the first one won
+  if (f.pixels.has(tile.tile_index())) return "";  // a second copy: the first one won
   TileResult r;
-  *error = farm::decode_tile_in_image(tile, job_.width(), job_.height(), &r);
-  if (!error->empty()) return false;
+  if (std::string why = farm::decode_tile_in_image(tile, job_.width(), job_.height(), &r); !why.empty()) return why;
   // Tiles of workers that predate per-pixel sample counts: every pixel took the job's spp.
   if (r.spp.empty()) r.spp.assign(r.variance.size(), uint32_t(job_.spp()));
   if (f.pixels.image().width == 0) {
@@ -70,8 +67,7 @@ bool FrameAssembler::add(const tessera::v1::TileData& tile, std::string* error) 
     f.first = now_s();
   }
   if (std::string why = f.pixels.place(tile.tile_index(), r); !why.empty()) {
-    *error = why + " of frame " + std::to_string(tile.frame());
-    return false;
+    return why + " of frame " + std::to_string(tile.frame());
   }
   for (float v : r.variance) variance_sum_ += double(v);
   pixels_ += int64_t(r.variance.size());
@@ -81,7 +77,7 @@ bool FrameAssembler::add(const tessera::v1::TileData& tile, std::string* error) 
   f.workers.insert(tile.worker());
   rays_ += r.rays.total();
   ++tiles_;
-  return true;
+  return "";
 }
 
 bool FrameAssembler::complete(int frame) const {

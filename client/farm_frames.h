@@ -41,8 +41,9 @@ class FrameAssembler {
  public:
   explicit FrameAssembler(const tessera::v1::JobStatus& job);
 
-  // Adds a tile; false if it was already there (a duplicate: ignored) or does not belong.
-  bool add(const tessera::v1::TileData& tile, std::string* error);
+  // Adds a tile: "" when it is placed, or ignored (a second copy, or a tile of a frame already
+  // written); else why it does not belong, and it is not placed.
+  std::string add(const tessera::v1::TileData& tile);
   bool complete(int frame) const;
   // The frame's tiles not received yet, e.g. "tiles 3, 17 missing (58 of 60 received)".
   std::string missing_tiles(int frame) const;

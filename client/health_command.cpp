@@ -8,11 +8,12 @@
 #include <chrono>
 #include <cstdio>
 #include <memory>
-#include <stdexcept>
 #include <string>
 
+#include "command_error.h"
 #include "commands.h"
 #include "farm/channel.h"
+#include "farm/farm_error.h"
 #include "farm_client.h"
 #include "farm_command.h"
 #include "grpc/health/v1/health.grpc.pb.h"
@@ -47,9 +48,8 @@ int run_health(const HealthArgs& a) {
   std::shared_ptr<grpc::Channel> channel;
   try {
     channel = farm::make_coordinator_channel(address, resolve_security(a.security));
-  } catch (const std::runtime_error& e) {
-    std::fprintf(stderr, "tessera health: %s\n", e.what());
-    return 1;
+  } catch (const farm::FarmError& e) {  // an unreadable token or certificate file
+    throw CommandError{kExitFailure, e.what()};
   }
   auto stub = health::Health::NewStub(channel);
   grpc::ClientContext ctx;
@@ -60,16 +60,17 @@ int run_health(const HealthArgs& a) {
   health::HealthCheckResponse resp;
   const grpc::Status s = stub->Check(&ctx, req, &resp);
   const std::string what = a.service.empty() ? "coordinator" : "service '" + a.service + "'";
+  if (s.error_code() == grpc::StatusCode::NOT_FOUND) {
+    throw CommandError{kExitFailure, what + ": unknown to the coordinator at " + address};
+  }
+  if (s.error_code() == grpc::StatusCode::UNIMPLEMENTED) {
+    throw CommandError{kExitFailure, address + " does not serve grpc.health.v1.Health"};
+  }
   if (!s.ok()) {
-    if (s.error_code() == grpc::StatusCode::NOT_FOUND) {
-      std::fprintf(stderr, "tessera health: %s: unknown to the coordinator at %s\n", what.c_str(), address.c_str());
-    } else if (s.error_code() == grpc::StatusCode::UNIMPLEMENTED) {
-      std::fprintf(stderr, "tessera health: %s does not serve grpc.health.v1.Health\n", address.c_str());
-    } else {
-      std::fprintf(stderr, "tessera health: cannot reach the coordinator at %s within %.1f s: %s\n", address.c_str(),
-                   a.timeout_s, s.error_message().c_str());
-    }
-    return 1;
+    char within[32];
+    std::snprintf(within, sizeof within, "%.1f", a.timeout_s);  // as printf's %.1f
+    throw CommandError{kExitFailure, "cannot reach the coordinator at " + address + " within " + within + " s: " +
+                                         s.error_message()};
   }
   const bool serving = resp.status() == health::HealthCheckResponse::SERVING;
   if (!a.quiet || !serving) {
@@ -90,10 +91,7 @@ void register_health_command(CLI::App& app) {
       ->check(CLI::Range(0.1, 3600.0))
       ->capture_default_str();
   cmd->add_flag("-q,--quiet", a->quiet, "Print nothing when serving");
-  cmd->callback([a] {
-    const int rc = run_health(*a);
-    if (rc != 0) throw CLI::RuntimeError(rc);
-  });
+  cmd->callback([a] { guarded("health", [&] { return run_health(*a); }); });
 }
 
 }  // namespace tessera::cli

@@ -71,7 +71,7 @@ std::vector<v1::JobStatus> fetch_jobs(FarmClient& client, const std::string& job
     v1::ListJobsResponse resp;
     auto ctx = client.context();
     grpc::Status s = client.stub().ListJobs(ctx.get(), {}, &resp);
-    if (!s.ok()) throw FarmError{kExitFailure, client.describe(s, "listing jobs")};
+    if (!s.ok()) throw CommandError{kExitFailure, client.describe(s, "listing jobs")};
     jobs.assign(resp.jobs().begin(), resp.jobs().end());
   }
   return jobs;

@@ -40,7 +40,7 @@ int run_listing(const ListingArgs& a, const Listing<Response, Row>& listing) {
   Response resp;
   auto ctx = client.context();
   grpc::Status s = listing.call(client.stub(), ctx.get(), &resp);
-  if (!s.ok()) throw FarmError{kExitFailure, client.describe(s, listing.what)};
+  if (!s.ok()) throw CommandError{kExitFailure, client.describe(s, listing.what)};
   const google::protobuf::RepeatedPtrField<Row>& rows = listing.rows(resp);
   if (a.json) {
     nlohmann::json out = nlohmann::json::array();

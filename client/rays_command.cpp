@@ -51,10 +51,10 @@ RayTable read_rays(const std::string& path) {
   try {
     if (is_npy(path)) return rays::read_rays_npy(path);
     std::ifstream in(path);
-    if (!in) throw std::runtime_error(path + ": cannot open");
+    if (!in) throw CommandError{kExitBadInput, path + ": cannot open"};
     return rays::read_rays_csv(in, path);
-  } catch (const std::runtime_error& e) {
-    throw FarmError{kExitBadInput, e.what()};
+  } catch (const rays::RaysError& e) {
+    throw CommandError{kExitBadInput, e.what()};
   }
 }
 
@@ -64,17 +64,17 @@ void write_hits(const std::string& path, const RayTable& rays, const HitTable& h
     std::ofstream out(path);
     rays::write_hits_csv(out, rays, hits);
     out.close();
-    if (!out) throw std::runtime_error(path + ": cannot write");
-  } catch (const std::runtime_error& e) {
-    throw FarmError{kExitFailure, e.what()};
+    if (!out) throw CommandError{kExitFailure, path + ": cannot write"};
+  } catch (const rays::RaysError& e) {
+    throw CommandError{kExitFailure, e.what()};
   }
 }
 
 // The same checks the service makes, here with the index in the whole file.
 void check_rays(const RayTable& t, const std::string& source) {
   for (size_t i = 0; i < t.rays.size(); ++i) {
-    if (auto p = rays::check_ray(t.rays[i], i)) {
-      throw FarmError{kExitBadInput, source + ": " + p->message + " (rays count from 0 in file order)"};
+    if (const std::string p = rays::check_ray(t.rays[i], i); !p.empty()) {
+      throw CommandError{kExitBadInput, source + ": " + p + " (rays count from 0 in file order)"};
     }
   }
 }
@@ -85,13 +85,13 @@ void check_rays(const RayTable& t, const std::string& source) {
 HitFields fields_of(const RaysArgs& a) {
   if (!a.fields) return HitFields::all();
   if (a.occlusion) {
-    throw FarmError{kExitBadInput, "--fields chooses the columns of nearest hits; --occlusion answers hit alone: "
-                                   "pass one or the other"};
+    throw CommandError{kExitBadInput, "--fields chooses the columns of nearest hits; --occlusion answers hit alone: "
+                                      "pass one or the other"};
   }
   try {
     return rays::parse_hit_fields(*a.fields);
-  } catch (const std::invalid_argument& e) {
-    throw FarmError{kExitBadInput, std::string("--fields: ") + e.what()};
+  } catch (const rays::RaysError& e) {
+    throw CommandError{kExitBadInput, std::string("--fields: ") + e.what()};
   }
 }
 
@@ -100,11 +100,11 @@ HitTable trace_locally(const RaysArgs& a, const RayTable& rays) {
   try {
     scene = std::make_shared<const Scene>(load_scene(a.scene));
   } catch (const SceneError& e) {
-    throw FarmError{kExitBadInput, e.what()};
+    throw CommandError{kExitBadInput, e.what()};
   }
   if (a.frame < 0 || a.frame >= scene->frame_count()) {
-    throw FarmError{kExitBadInput, "--frame " + std::to_string(a.frame) + ": the scene has frames 0-" +
-                                       std::to_string(scene->frame_count() - 1)};
+    throw CommandError{kExitBadInput, "--frame " + std::to_string(a.frame) + ": the scene has frames 0-" +
+                                          std::to_string(scene->frame_count() - 1)};
   }
   const rays::RayTracer tracer(scene, make_render_scene(*scene, a.frame));
   HitTable h;
@@ -132,21 +132,21 @@ std::vector<std::string> listed_ray_servers(FarmClient& coordinator, bool tls) {
   v1::ListRayServersResponse resp;
   auto ctx = coordinator.context();
   const grpc::Status s = coordinator.stub().ListRayServers(ctx.get(), {}, &resp);
-  if (!s.ok()) throw FarmError{kExitFailure, coordinator.describe(s, "listing ray servers")};
+  if (!s.ok()) throw CommandError{kExitFailure, coordinator.describe(s, "listing ray servers")};
   std::vector<v1::RayServerDescription> usable;
   for (const v1::RayServerInfo& r : resp.servers()) {
     if (r.server().tls() == tls) usable.push_back(r.server());
   }
   const std::string& at = coordinator.address();
   if (resp.servers().empty()) {
-    throw FarmError{kExitFailure, "no ray server is announced to the coordinator at " + at +
-                                      "; start tessera-rays --coordinator " + at + ", or pass --server HOST:PORT"};
+    throw CommandError{kExitFailure, "no ray server is announced to the coordinator at " + at +
+                                         "; start tessera-rays --coordinator " + at + ", or pass --server HOST:PORT"};
   }
   if (usable.empty()) {
-    throw FarmError{kExitFailure, std::to_string(resp.servers_size()) + " ray server(s) announced to the coordinator at " +
-                                      at + ", but " +
-                                      (tls ? "none speaks TLS, which this client uses (--tls-ca / $TESSERA_TLS_CA)"
-                                           : "all need TLS: pass --tls-ca CA.pem (or set TESSERA_TLS_CA)")};
+    throw CommandError{kExitFailure, std::to_string(resp.servers_size()) +
+                                         " ray server(s) announced to the coordinator at " + at + ", but " +
+                                         (tls ? "none speaks TLS, which this client uses (--tls-ca / $TESSERA_TLS_CA)"
+                                              : "all need TLS: pass --tls-ca CA.pem (or set TESSERA_TLS_CA)")};
   }
   std::shuffle(usable.begin(), usable.end(), std::mt19937(std::random_device{}()));
   std::stable_sort(usable.begin(), usable.end(), [](const auto& x, const auto& y) {
@@ -191,14 +191,14 @@ std::optional<v1::SceneDescription> describe_on(v1::RayService::Stub& stub, grpc
     return std::nullopt;
   }
   if (s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED) {
-    throw FarmError{kExitFailure, "the ray service at " + address + " did not describe the scene within --timeout"};
+    throw CommandError{kExitFailure, "the ray service at " + address + " did not describe the scene within --timeout"};
   }
-  throw FarmError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
-                  describe_rays_server(s, address)};
+  throw CommandError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
+                     describe_rays_server(s, address)};
 }
 
 // Traces the rays on the server at `used` (which described the scene `ref`), appending the hits
-// to h->hits; throws FarmError if the stream fails or ends early.
+// to h->hits; throws CommandError if the stream fails or ends early.
 void trace_stream(v1::RayService::Stub& stub, const v1::SceneRef& ref, const RaysArgs& a, const RayTable& rays,
                   HitFields fields, std::chrono::system_clock::time_point deadline, const std::string& used,
                   HitTable* h) {
@@ -229,7 +229,7 @@ void trace_stream(v1::RayService::Stub& stub, const v1::SceneRef& ref, const Ray
     try {
       std::vector<rays::WorldHit> hits = rays::decode_hits(resp, count, a.occlusion, fields);
       h->hits.insert(h->hits.end(), hits.begin(), hits.end());
-    } catch (const std::runtime_error& e) {
+    } catch (const rays::RaysError& e) {
       problem = e.what();
       ctx.TryCancel();
       break;
@@ -237,16 +237,16 @@ void trace_stream(v1::RayService::Stub& stub, const v1::SceneRef& ref, const Ray
   }
   writer.join();
   const grpc::Status s = stream->Finish();
-  if (!problem.empty()) throw FarmError{kExitFailure, "the ray service at " + used + " answered badly: " + problem};
+  if (!problem.empty()) throw CommandError{kExitFailure, "the ray service at " + used + " answered badly: " + problem};
   if (s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED) {
-    throw FarmError{kExitFailure, "the ray service at " + used + " did not answer all " + std::to_string(n) +
-                                      " rays within --timeout " + std::to_string(a.timeout) + " s"};
+    throw CommandError{kExitFailure, "the ray service at " + used + " did not answer all " + std::to_string(n) +
+                                         " rays within --timeout " + std::to_string(a.timeout) + " s"};
   }
   if (!s.ok()) {
-    throw FarmError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
-                    describe_rays_server(s, used)};
+    throw CommandError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
+                       describe_rays_server(s, used)};
   }
-  if (h->hits.size() != n) throw FarmError{kExitFailure, "the ray service at " + used + " ended the stream early"};
+  if (h->hits.size() != n) throw CommandError{kExitFailure, "the ray service at " + used + " ended the stream early"};
 }
 
 // Traces on --server, or on the first ray server the coordinator lists that answers; `*used`
@@ -257,7 +257,7 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, HitFields field
   try {
     scene = load_scene(a.scene);
   } catch (const SceneError& e) {
-    throw FarmError{kExitBadInput, e.what()};
+    throw CommandError{kExitBadInput, e.what()};
   }
   farm::ChannelSecurity security;
   farm::BuiltBundle bundle;
@@ -273,7 +273,7 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, HitFields field
                    coordinator.address().c_str());
     }
   } catch (const std::exception& e) {
-    throw FarmError{kExitFailure, e.what()};
+    throw CommandError{kExitFailure, e.what()};
   }
   v1::SceneRef ref;
   ref.set_bundle_sha256(bundle.sha256);
@@ -298,9 +298,9 @@ HitTable trace_remotely(const RaysArgs& a, const RayTable& rays, HitFields field
     unreachable += (unreachable.empty() ? "" : "; ") + address + ": " + why;
   }
   if (!stub) {
-    throw FarmError{kExitFailure, "none of the " + std::to_string(servers.size()) +
-                                      " ray server(s) the coordinator lists answered (" + unreachable +
-                                      "); pass --server HOST:PORT to name one"};
+    throw CommandError{kExitFailure, "none of the " + std::to_string(servers.size()) +
+                                         " ray server(s) the coordinator lists answered (" + unreachable +
+                                         "); pass --server HOST:PORT to name one"};
   }
   trace_stream(*stub, ref, a, rays, fields, deadline, *used, &h);
   return h;

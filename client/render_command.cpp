@@ -10,6 +10,7 @@
 #include <string>
 
 #include "color/output_options.h"
+#include "command_error.h"
 #include "commands.h"
 #include "image_options.h"
 #include "interrupt.h"
@@ -92,14 +93,12 @@ int run_render(const RenderArgs& a) {
   try {
     scene = load_scene_with(a.scene, a.image);
   } catch (const SceneError& e) {
-    std::cerr << "tessera render: " << e.what() << "\n";
-    return 2;
+    throw CommandError{kExitBadInput, e.what()};
   }
   warn_outside_bundle(a.scene, scene);
   if (a.frame < 0 || a.frame >= scene.frame_count()) {
-    std::cerr << "tessera render: --frame: must be in [0, " << scene.frame_count() - 1 << "], got " << a.frame
-              << "\n";
-    return 2;
+    throw CommandError{kExitBadInput, "--frame: must be in [0, " + std::to_string(scene.frame_count() - 1) +
+                                          "], got " + std::to_string(a.frame)};
   }
   const std::string out = frame_output_path(a.output, a.frame);
   const auto parent = std::filesystem::path(out).parent_path();
@@ -123,8 +122,7 @@ int run_render(const RenderArgs& a) {
   const bool float_exr = color::is_float_exr_output(a.color, out);
   std::ostringstream conversion;
   if (a.error_channels && !float_exr) {
-    std::cerr << "tessera render: --error-channels needs a float EXR output (-o ending in .exr, no --format)\n";
-    return 2;
+    throw CommandError{kExitBadInput, "--error-channels needs a float EXR output (-o ending in .exr, no --format)"};
   }
   set_exr_threads(a.threads);  // the EXR's compression runs on as many threads as the render
   try {
@@ -141,8 +139,7 @@ int run_render(const RenderArgs& a) {
       color::write_output(r.image, out, a.color, a.color.report == "json" ? conversion : std::cout);
     }
   } catch (const std::exception& e) {
-    std::cerr << "tessera render: " << e.what() << "\n";
-    return 1;
+    throw CommandError{kExitFailure, e.what()};
   }
   if (r.rays.nonfinite_samples > 0) {
     spdlog::warn("{} samples had non-finite radiance and were replaced by 0", r.rays.nonfinite_samples);
@@ -179,10 +176,7 @@ void register_render_command(CLI::App& app) {
                 "Add per-pixel layers to the EXR: error.Y (estimated RMSE of the pixel) and spp.Y (its samples)");
   // -o with another extension (or --format) writes that format directly: see `tessera convert`.
   add_output_options(*cmd, args->color);
-  cmd->callback([args] {
-    const int rc = run_render(*args);
-    if (rc != 0) throw CLI::RuntimeError(rc);
-  });
+  cmd->callback([args] { guarded("render", [&] { return run_render(*args); }); });
 }
 
 }  // namespace tessera::cli

@@ -50,22 +50,18 @@ FrameRange parse_frames(const std::string& frames, int frame_count) {
       first = std::stoi(frames.substr(0, dash));
       last = dash == std::string::npos ? first : std::stoi(frames.substr(dash + 1));
     } catch (const std::exception&) {
-      throw FarmError{kExitBadInput, "--frames: expected A or A-B, got '" + frames + "'"};
+      throw CommandError{kExitBadInput, "--frames: expected A or A-B, got '" + frames + "'"};
     }
     if (first < 0 || last >= frame_count || first > last) {
-      throw FarmError{kExitBadInput, "--frames " + frames + ": the scene has frames 0-" +
-                                         std::to_string(frame_count - 1)};
+      throw CommandError{kExitBadInput, "--frames " + frames + ": the scene has frames 0-" +
+                                            std::to_string(frame_count - 1)};
     }
   }
   return {first, last};
 }
 
 void upload_if_missing(FarmClient& client, const farm::BuiltBundle& b) {
-  try {
-    if (!upload_bundle_if_missing(client, b)) return;
-  } catch (const std::runtime_error& e) {
-    throw FarmError{kExitFailure, e.what()};
-  }
+  if (!upload_bundle_if_missing(client, b)) return;
   std::printf("uploaded scene bundle %s (%zu files, %zu bytes)\n", b.sha256.substr(0, 12).c_str(), b.files,
               b.bytes.size());
 }
@@ -92,7 +88,7 @@ int run_submit(const SubmitArgs& a) {
   try {
     scene = load_scene_with(a.scene, a.image, &o);
   } catch (const SceneError& e) {
-    throw FarmError{kExitBadInput, e.what()};
+    throw CommandError{kExitBadInput, e.what()};
   }
   const FrameRange frames = parse_frames(a.frames, scene.frame_count());
   if (!a.detach) check_output_writable(a.output, frames.first);
@@ -102,7 +98,7 @@ int run_submit(const SubmitArgs& a) {
   try {
     bundle = farm::make_bundle(a.scene, scene.dependencies);
   } catch (const farm::BundleError& e) {
-    throw FarmError{kExitBadInput, e.what()};
+    throw CommandError{kExitBadInput, e.what()};
   }
   upload_if_missing(client, bundle);
 
@@ -111,8 +107,8 @@ int run_submit(const SubmitArgs& a) {
   auto ctx = client.context();
   grpc::Status s = client.stub().SubmitJob(ctx.get(), req, &st);
   if (!s.ok()) {
-    throw FarmError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
-                    client.describe(s, "submitting the job")};
+    throw CommandError{s.error_code() == grpc::StatusCode::INVALID_ARGUMENT ? kExitBadInput : kExitFailure,
+                       client.describe(s, "submitting the job")};
   }
   std::printf("job %s submitted to %s: frames %d-%d, %dx%d, %s, %lld tiles\n", st.job_id().c_str(),
               client.address().c_str(), st.first_frame(), st.last_frame(), st.width(), st.height(),
@@ -145,7 +141,7 @@ void register_submit_command(CLI::App& app) {
   add_output_options(*cmd, a->color);  // -o frame_####.png etc.: see `tessera convert`
   cmd->callback([a] {
     guarded("submit", [&] {
-      if (a->output.empty() && !a->detach) throw FarmError{kExitBadInput, "-o/--output is required (or --detach)"};
+      if (a->output.empty() && !a->detach) throw CommandError{kExitBadInput, "-o/--output is required (or --detach)"};
       return run_submit(*a);
     });
   });

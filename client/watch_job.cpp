@@ -89,7 +89,7 @@ int JobWatch::run() {
       case StreamEnd::kFinished:
         return finish();
       case StreamEnd::kBadInput:
-        throw FarmError{kExitBadInput, s.error_message()};
+        throw CommandError{kExitBadInput, s.error_message()};
       case StreamEnd::kReattach:
         // Lost the coordinator mid-job: re-attach (finished tiles are kept for us).
         spdlog::warn("lost the watch stream ({}); re-attaching", s.error_message());
@@ -98,7 +98,7 @@ int JobWatch::run() {
         client_.wait_for_coordinator(reattach_.wait());
         break;
       case StreamEnd::kGiveUp:
-        throw FarmError{kExitFailure, client_.describe(s, "watching job " + job_id_)};
+        throw CommandError{kExitFailure, client_.describe(s, "watching job " + job_id_)};
     }
   }
 }
@@ -160,9 +160,7 @@ void JobWatch::print_header(const v1::JobStatus& st) const {
 }
 
 void JobWatch::on_tile(const v1::TileData& tile) {
-  std::string err;
-  frames_->add(tile, &err);
-  if (!err.empty()) spdlog::warn("ignored a tile: {}", err);
+  if (const std::string err = frames_->add(tile); !err.empty()) spdlog::warn("ignored a tile: {}", err);
   if (!o_.quiet) progress_->update(frames_->tiles_received(), frames_->rays_received(), progress_error(*frames_));
   if (o_.preview_every > 0 && !o_.output.empty() && now_s() - last_preview_ >= o_.preview_every) {
     last_preview_ = now_s();
@@ -199,7 +197,7 @@ void JobWatch::write_frame(int f) {
     const OutputWrite whole;
     rep = frames_->write(f, o_.output, o_.scene_name, o_.color, o_.error_channels);
   } catch (const std::exception& e) {
-    throw FarmError{kExitFailure, std::string("cannot write frame ") + std::to_string(f) + ": " + e.what()};
+    throw CommandError{kExitFailure, std::string("cannot write frame ") + std::to_string(f) + ": " + e.what()};
   }
   if (!o_.quiet) progress_->clear_line();
   const double secs = rep.wall_seconds > 0.05 ? rep.wall_seconds : rep.tile_seconds;
@@ -228,7 +226,7 @@ int JobWatch::finish() {
   }
   const double total = now_s() - total_start_;
   if (final_status_.state() == v1::JOB_STATE_FAILED) {
-    throw FarmError{kExitFailure, "job " + job_id_ + " failed: " + final_status_.error()};
+    throw CommandError{kExitFailure, "job " + job_id_ + " failed: " + final_status_.error()};
   }
   if (final_status_.state() == v1::JOB_STATE_CANCELLED) {
     std::printf("job %s was cancelled\n", job_id_.c_str());
@@ -237,8 +235,8 @@ int JobWatch::finish() {
   // "Done" is only success when every frame reached a file (here or through an earlier client).
   if (!o_.output.empty()) {
     if (const std::string lost = frames_->frames_not_written(delivered_before_); !lost.empty()) {
-      throw FarmError{kExitFailure, "job " + job_id_ + " is done on the coordinator, but not every frame arrived "
-                                    "complete, so these were not written: " + lost};
+      throw CommandError{kExitFailure, "job " + job_id_ + " is done on the coordinator, but not every frame arrived "
+                                       "complete, so these were not written: " + lost};
     }
   }
   std::printf("job %s done: %lld tiles in %.2f s (%lld rendered twice), %.1f Mrays total\n", job_id_.c_str(),
@@ -264,11 +262,17 @@ void check_output_writable(const std::string& pattern, int frame) {
   if (dir.empty()) dir = ".";
   std::error_code ec;
   fs::create_directories(dir, ec);
-  if (ec) throw FarmError{kExitFailure, "output '" + pattern + "' is not writable: cannot create " + dir.string() + ": " + ec.message()};
+  if (ec) {
+    throw CommandError{kExitFailure,
+                       "output '" + pattern + "' is not writable: cannot create " + dir.string() + ": " + ec.message()};
+  }
   const fs::path probe = dir / (".tessera-write-test-" + std::to_string(getpid()));
   {
     std::ofstream f(probe);
-    if (!f) throw FarmError{kExitFailure, "output '" + pattern + "' is not writable: cannot create files in " + dir.string()};
+    if (!f) {
+      throw CommandError{kExitFailure,
+                         "output '" + pattern + "' is not writable: cannot create files in " + dir.string()};
+    }
   }
   fs::remove(probe, ec);
 }

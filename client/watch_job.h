@@ -25,11 +25,11 @@ struct WatchOptions {
 // Adds --error-channels and --preview-every, the frame output flags of `submit` and `watch`.
 void add_frame_output_options(CLI::App* cmd, bool* error_channels, double* preview_every);
 
-// Fails early (FarmError), before anything is submitted or watched, if the output cannot be
+// Fails early (CommandError), before anything is submitted or watched, if the output cannot be
 // written: creates the folder of `frame`'s file and a probe file in it.
 void check_output_writable(const std::string& pattern, int frame);
 
-// Watches the job to its end; returns the exit code (0 done, kExitCancelled) or throws FarmError.
+// Watches the job to its end; returns the exit code (0 done, kExitCancelled) or throws CommandError.
 int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions& o);
 
 }  // namespace tessera::cli

@@ -39,10 +39,8 @@ Status RayServiceImpl::answer(const rays::RayTracer& tracer, const v1::TraceRequ
   // The mask is checked on occlusion queries too (which answer `hit` alone): a bad request is
   // refused whatever it asks.
   HitFields fields;
-  if (auto problem = read_fields(req, &fields)) return Status(StatusCode::INVALID_ARGUMENT, *problem);
-  if (auto p = check_rays(req)) {
-    return Status(StatusCode::INVALID_ARGUMENT, p->message + " (field " + p->field + ")");
-  }
+  if (std::string p = read_fields(req, &fields); !p.empty()) return Status(StatusCode::INVALID_ARGUMENT, p);
+  if (std::string p = check_rays(req); !p.empty()) return Status(StatusCode::INVALID_ARGUMENT, p);
   // Chunk by chunk, straight from the request's arrays to the response's: a chunk's rays and
   // hits stay in cache (batch-sized struct arrays, 128 bytes a ray, did not at 65,536 rays).
   // Only the asked fields' arrays are sized and filled; the rest of `resp` is empty (a new

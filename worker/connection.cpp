@@ -333,9 +333,8 @@ void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assig
       // A pass of a frame target: the tile's blocks to the counts the coordinator planned from the
       // frame's last pass (sampling/pass_plan.h); the result carries their statistics.
       SamplePlan plan;
-      if (!decode_plan(a.sample_plan(), &plan)) {
-        throw std::runtime_error("sample plan of " + std::to_string(a.sample_plan().size()) +
-                                 " bytes is not a whole number of 4-byte counts");
+      if (std::string problem = decode_plan(a.sample_plan(), &plan); !problem.empty()) {
+        throw std::runtime_error(problem);
       }
       tile = render_tile_planned(*scene, rect, plan);
     } else {

@@ -3,13 +3,12 @@
 #include <openssl/crypto.h>
 #include <openssl/evp.h>
 
-#include <stdexcept>
-
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
-#include "farm/client_tokens.h"
 #include "farm/channel.h"
+#include "farm/client_tokens.h"
+#include "farm/farm_error.h"
 
 namespace tessera::farm {
 
@@ -19,7 +18,7 @@ std::array<unsigned char, 32> digest(std::string_view s) {
   std::array<unsigned char, 32> d{};
   unsigned int len = 0;
   if (EVP_Digest(s.data(), s.size(), d.data(), &len, EVP_sha256(), nullptr) != 1 || len != d.size()) {
-    throw std::runtime_error("SHA-256 failed (OpenSSL)");
+    throw FarmError("SHA-256 failed (OpenSSL)");
   }
   return d;
 }
@@ -31,11 +30,11 @@ constexpr std::string_view kBearer = "Bearer ";
 Authenticator::Authenticator(const std::string& client_token, const std::string& worker_token,
                              const std::map<std::string, std::string>& named_client_tokens) {
   if (!client_token.empty() && client_token == worker_token) {
-    throw std::invalid_argument("the client and worker tokens must differ (a worker must not be able to submit jobs)");
+    throw FarmError("the client and worker tokens must differ (a worker must not be able to submit jobs)");
   }
   for (const auto& [name, token] : named_client_tokens) {
     if (token == worker_token) {
-      throw std::invalid_argument("the token of client '" + name + "' is the worker token: they must differ");
+      throw FarmError("the token of client '" + name + "' is the worker token: they must differ");
     }
     named_.emplace_back(name, digest(token));
   }
@@ -110,9 +109,9 @@ Authenticator ServerSecurity::authenticator() const {
 }
 
 std::shared_ptr<grpc::ServerCredentials> ServerSecurity::credentials() const {
-  if (tls_cert.empty() != tls_key.empty()) throw std::invalid_argument("--tls-cert and --tls-key go together");
+  if (tls_cert.empty() != tls_key.empty()) throw FarmError("--tls-cert and --tls-key go together");
   if (tls_cert.empty()) {
-    if (!tls_ca.empty()) throw std::invalid_argument("--tls-ca needs --tls-cert and --tls-key (this server's own)");
+    if (!tls_ca.empty()) throw FarmError("--tls-ca needs --tls-cert and --tls-key (this server's own)");
     return grpc::InsecureServerCredentials();
   }
   grpc::SslServerCredentialsOptions ssl(tls_ca.empty() ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE

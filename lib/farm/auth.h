@@ -21,6 +21,8 @@
 #include <utility>
 #include <vector>
 
+#include "farm/farm_error.h"
+
 namespace CLI {
 class App;
 }
@@ -32,7 +34,7 @@ enum class PeerRole { kClient, kWorker };
 class Authenticator {
  public:
   Authenticator() = default;  // open: every call accepted
-  // Empty tokens mean "open" for that role. Throws std::invalid_argument when both are set and
+  // Empty tokens mean "open" for that role. Throws FarmError when both are set and
   // equal (the worker token must not grant client calls, nor the other way round), or when a
   // named client token (client_tokens.h: name -> token) equals the worker token.
   Authenticator(const std::string& client_token, const std::string& worker_token,
@@ -61,7 +63,7 @@ struct ServerSecurity {
   std::string client_tokens;  // --client-tokens: named client tokens (client_tokens.h)
 
   void add_flags(CLI::App& app);
-  // Both throw std::exception with a message naming the file or flag.
+  // Both throw FarmError with a message naming the file or flag.
   Authenticator authenticator() const;
   std::shared_ptr<grpc::ServerCredentials> credentials() const;
   // One line on what is protected, and a warning when a non-loopback address is open.

@@ -4,10 +4,11 @@
 #pragma once
 
 #include <filesystem>
-#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include "farm/farm_error.h"
 
 namespace tessera::v1 {
 class Bundle;
@@ -15,9 +16,9 @@ class Bundle;
 
 namespace tessera::farm {
 
-class BundleError : public std::runtime_error {
+class BundleError : public FarmError {
  public:
-  using std::runtime_error::runtime_error;
+  using FarmError::FarmError;
 };
 
 std::string sha256_hex(std::string_view bytes);

@@ -4,18 +4,18 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include <stdexcept>
 #include <string>
 
+#include "farm/farm_error.h"
 #include "tessera/v1/worker_service.grpc.pb.h"
 
 namespace tessera::farm {
 
 // A failed fetch, keeping the coordinator's status code: NOT_FOUND means the bundle was never
 // uploaded, anything else that the coordinator could not be asked.
-class FetchError : public std::runtime_error {
+class FetchError : public FarmError {
  public:
-  FetchError(grpc::StatusCode code, const std::string& message) : std::runtime_error(message), code_(code) {}
+  FetchError(grpc::StatusCode code, const std::string& message) : FarmError(message), code_(code) {}
   grpc::StatusCode code() const { return code_; }
 
  private:

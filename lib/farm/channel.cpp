@@ -3,8 +3,8 @@
 #include <grpcpp/support/client_interceptor.h>
 
 #include <cstdlib>
-#include <stdexcept>
 
+#include "farm/farm_error.h"
 #include "farm/text_file.h"
 
 namespace tessera::farm {
@@ -44,10 +44,10 @@ std::string read_token(const std::string& file, const char* env) {
     std::string t;
     try {
       t = trim_blanks(read_text_file(file));
-    } catch (const std::exception&) {
-      throw std::runtime_error("cannot read token file " + file);
+    } catch (const FarmError&) {
+      throw FarmError("cannot read token file " + file);
     }
-    if (t.empty()) throw std::runtime_error("token file " + file + " is empty");
+    if (t.empty()) throw FarmError("token file " + file + " is empty");
     return t;
   }
   const char* v = env ? std::getenv(env) : nullptr;
@@ -55,13 +55,16 @@ std::string read_token(const std::string& file, const char* env) {
 }
 
 std::string read_pem(const std::string& file, const std::string& what) {
+  std::string pem;
   try {
-    std::string pem = read_text_file(file);
-    if (pem.find("-----BEGIN") == std::string::npos) throw std::runtime_error("");
-    return pem;
-  } catch (const std::exception&) {
-    throw std::runtime_error("cannot read " + what + " " + file + " (a PEM file)");
+    pem = read_text_file(file);
+  } catch (const FarmError&) {
+    pem.clear();  // unreadable: the same answer as a file that is not PEM
   }
+  if (pem.find("-----BEGIN") == std::string::npos) {
+    throw FarmError("cannot read " + what + " " + file + " (a PEM file)");
+  }
+  return pem;
 }
 
 grpc::ChannelArguments coordinator_channel_args() {
@@ -82,7 +85,7 @@ std::shared_ptr<grpc::Channel> make_coordinator_channel(const std::string& addre
     grpc::SslCredentialsOptions ssl;
     ssl.pem_root_certs = read_pem(security.tls_ca, "CA certificate (--tls-ca)");
     if (security.tls_cert.empty() != security.tls_key.empty()) {
-      throw std::runtime_error("--tls-cert and --tls-key go together");
+      throw FarmError("--tls-cert and --tls-key go together");
     }
     if (!security.tls_cert.empty()) {
       ssl.pem_cert_chain = read_pem(security.tls_cert, "certificate (--tls-cert)");
@@ -91,7 +94,7 @@ std::shared_ptr<grpc::Channel> make_coordinator_channel(const std::string& addre
     creds = grpc::SslCredentials(ssl);
   } else {
     if (!security.tls_cert.empty() || !security.tls_key.empty()) {
-      throw std::runtime_error("--tls-cert/--tls-key need --tls-ca (the CA that signed the coordinator's certificate)");
+      throw FarmError("--tls-cert/--tls-key need --tls-ca (the CA that signed the coordinator's certificate)");
     }
     creds = grpc::InsecureChannelCredentials();
   }

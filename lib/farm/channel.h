@@ -8,6 +8,8 @@
 #include <memory>
 #include <string>
 
+#include "farm/farm_error.h"
+
 namespace tessera::farm {
 
 // The coordinator's address when none is given: where tessera-server listens by default, and
@@ -29,7 +31,7 @@ struct ChannelSecurity {
 // coordinator is found within about a second (callers wait with wait_for_coordinator, not a
 // blind sleep). The token is added by a client interceptor,
 // the one place every call of the channel passes, on plaintext and TLS channels alike (gRPC's
-// call credentials refuse to travel without TLS). Throws std::runtime_error for unreadable
+// call credentials refuse to travel without TLS). Throws FarmError for unreadable
 // certificate files.
 // The channel arguments every connection to a coordinator uses: keepalive (a dead coordinator
 // or NAT drop is noticed in seconds) and the farm's message size limit.
@@ -49,10 +51,10 @@ bool wait_for_coordinator(grpc::Channel& channel, std::chrono::milliseconds up_t
 
 // A token: the contents of `file` if given (surrounding whitespace dropped), else the environment
 // variable `env` (kept out of the command line, so it does not show in `ps`), else empty.
-// Throws std::runtime_error naming an unreadable or empty file.
+// Throws FarmError naming an unreadable or empty file.
 std::string read_token(const std::string& file, const char* env);
 
-// The whole contents of a PEM file; throws std::runtime_error naming `what` and the file.
+// The whole contents of a PEM file; throws FarmError naming `what` and the file.
 std::string read_pem(const std::string& file, const std::string& what);
 
 }  // namespace tessera::farm

@@ -11,9 +11,11 @@
 #include <map>
 #include <string>
 
+#include "farm/farm_error.h"
+
 namespace tessera::farm {
 
-// name -> token. Throws std::runtime_error naming the file (and line) for an unreadable path, a
+// name -> token. Throws FarmError naming the file (and line) for an unreadable path, a
 // line without ':', an empty name or token, a name used twice, or one token given to two names.
 std::map<std::string, std::string> read_client_tokens(const std::string& path);
 

@@ -2,15 +2,15 @@
 
 #include <fstream>
 #include <sstream>
-#include <stdexcept>
+
+#include "farm/farm_error.h"
 
 namespace tessera::farm {
 
 std::string read_text_file(const std::filesystem::path& path, std::string_view what) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
-    throw std::runtime_error("cannot read " + (what.empty() ? std::string() : std::string(what) + " ") +
-                             path.string());
+    throw FarmError("cannot read " + (what.empty() ? std::string() : std::string(what) + " ") + path.string());
   }
   std::ostringstream ss;
   ss << in.rdbuf();

@@ -5,9 +5,11 @@
 #include <string>
 #include <string_view>
 
+#include "farm/farm_error.h"
+
 namespace tessera::farm {
 
-// The file's bytes; throws std::runtime_error "cannot read <what> <path>" ("cannot read <path>"
+// The file's bytes; throws FarmError "cannot read <what> <path>" ("cannot read <path>"
 // when `what` is empty).
 std::string read_text_file(const std::filesystem::path& path, std::string_view what = {});
 

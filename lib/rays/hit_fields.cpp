@@ -1,7 +1,8 @@
 #include "rays/hit_fields.h"
 
 #include <array>
-#include <stdexcept>
+
+#include "rays/rays_error.h"
 
 namespace tessera::rays {
 
@@ -55,8 +56,8 @@ HitFields parse_hit_fields(std::string_view list) {
     size_t k = 0;
     while (k < infos().size() && infos()[k].name != name) ++k;
     if (k == infos().size()) {
-      throw std::invalid_argument((name.empty() ? std::string("an empty name") : "'" + std::string(name) + "'") +
-                                  " is not a hit field (allowed: " + hit_field_names(HitFields::all()) + ")");
+      throw RaysError((name.empty() ? std::string("an empty name") : "'" + std::string(name) + "'") +
+                      " is not a hit field (allowed: " + hit_field_names(HitFields::all()) + ")");
     }
     fields = fields.with(HitField(k));
     if (end == list.size()) return fields;

@@ -10,6 +10,8 @@
 #include <string_view>
 #include <vector>
 
+#include "rays/rays_error.h"
+
 namespace tessera::rays {
 
 // In the order of the answer's columns; the proto's HitField is this + 1 (0 is UNSPECIFIED).
@@ -41,7 +43,7 @@ std::string hit_field_names(HitFields fields);
 // The output columns a field fills, as `tessera rays` names them: point is px,py,pz, and so on.
 const std::vector<std::string_view>& hit_field_columns(HitField f);
 // A comma list of field names ("t,object"; repeats and any order are fine). Throws
-// std::invalid_argument naming the first bad name (or an empty list) and the allowed names.
+// RaysError naming the first bad name (or an empty list) and the allowed names.
 HitFields parse_hit_fields(std::string_view list);
 
 }  // namespace tessera::rays

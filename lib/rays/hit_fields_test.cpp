@@ -3,15 +3,13 @@
 
 #include <gtest/gtest.h>
 
-#include <stdexcept>
-
 namespace tessera::rays {
 namespace {
 
 std::string error_of(std::string_view list) {
   try {
     parse_hit_fields(list);
-  } catch (const std::invalid_argument& e) {
+  } catch (const RaysError& e) {
     return e.what();
   }
   return "no error";

@@ -4,9 +4,10 @@
 
 namespace tessera::rays {
 
-std::optional<RayProblem> check_ray(const WorldRay& r, size_t index) {
-  auto problem = [&](const char* field, const std::string& what) {
-    return RayProblem{index, field, "ray " + std::to_string(index) + ": " + field + " " + what};
+std::string check_ray(const WorldRay& r, size_t index, std::string* field) {
+  auto problem = [&](const char* name, const std::string& what) {
+    if (field) *field = name;
+    return "ray " + std::to_string(index) + ": " + name + " " + what;
   };
   if (!is_finite(r.o)) return problem("origin", "is not finite");
   // The renderer traces in float: beyond this an origin (minus the eye) would round to infinity.
@@ -21,7 +22,7 @@ std::optional<RayProblem> check_ray(const WorldRay& r, size_t index) {
   if (r.tmin > r.tmax) {
     return problem("t_min", "> t_max (" + std::to_string(r.tmin) + " > " + std::to_string(r.tmax) + ")");
   }
-  return std::nullopt;
+  return "";
 }
 
 }  // namespace tessera::rays

@@ -3,24 +3,19 @@
 #pragma once
 
 #include <cstddef>
-#include <optional>
 #include <string>
 
 #include "rays/world_ray.h"
 
 namespace tessera::rays {
 
-struct RayProblem {
-  size_t index = 0;
-  std::string field;    // "origin", "direction", "t_min", "t_max"
-  std::string message;  // e.g. "ray 17: direction is zero-length"
-};
-
 // Largest |coordinate| of an origin: render space is float, and must hold origin minus eye.
 inline constexpr double kMaxOrigin = 1e30;
 
-// The first problem of ray `index`, or nothing: non-finite or out-of-range origin, non-finite or
-// zero-length direction, NaN, infinite or negative t_min, NaN t_max, t_min > t_max.
-std::optional<RayProblem> check_ray(const WorldRay& ray, size_t index);
+// "" for a good ray, else its first problem, naming the ray and the field ("ray 17: direction is
+// zero-length"): non-finite or out-of-range origin, non-finite or zero-length direction, NaN,
+// infinite or negative t_min, NaN t_max, t_min > t_max. `*field`, when given, is set to the
+// field at fault ("origin", "direction", "t_min", "t_max") for a bad ray.
+std::string check_ray(const WorldRay& ray, size_t index, std::string* field = nullptr);
 
 }  // namespace tessera::rays

@@ -3,7 +3,8 @@
 #include <cfloat>
 #include <cmath>
 #include <limits>
-#include <stdexcept>
+
+#include "rays/rays_error.h"
 
 namespace tessera::rays {
 
@@ -24,17 +25,15 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 
 }  // namespace
 
-std::optional<RayProblem> check_rays(const v1::TraceRequest& req) {
+std::string check_rays(const v1::TraceRequest& req) {
   const size_t n = size_t(req.directions_size()) / 3;
   auto length_problem = [&](const char* field, size_t got, size_t per_ray, bool optional) {
-    return RayProblem{n, field,
-                      std::string(field) + " has " + std::to_string(got) + " values; " +
-                          std::to_string(n) + " rays (from directions) need " + std::to_string(n * per_ray) +
-                          (optional ? " or none" : "")};
+    return std::string(field) + " has " + std::to_string(got) + " values; " + std::to_string(n) +
+           " rays (from directions) need " + std::to_string(n * per_ray) + (optional ? " or none" : "") +
+           " (field " + field + ")";
   };
   if (size_t(req.directions_size()) % 3 != 0) {
-    return RayProblem{n, "directions",
-                      "directions has " + std::to_string(req.directions_size()) + " values, not 3 per ray"};
+    return "directions has " + std::to_string(req.directions_size()) + " values, not 3 per ray (field directions)";
   }
   if (size_t(req.origins_size()) != 3 * n) return length_problem("origins", size_t(req.origins_size()), 3, false);
   if (req.t_min_size() != 0 && size_t(req.t_min_size()) != n) return length_problem("t_min", size_t(req.t_min_size()), 1, true);
@@ -59,13 +58,14 @@ std::optional<RayProblem> check_rays(const v1::TraceRequest& req) {
   } else if (tmax) {
     for (size_t i = 0; i < n; ++i) ok &= tmax[i] >= 0.0f;  // t_min 0: not NaN, not below it
   }
-  if (ok) return std::nullopt;
+  if (ok) return "";
   for (size_t i = 0; i < n; ++i) {
     WorldRay r;
     read_rays(req, i, i + 1, &r);
-    if (auto p = check_ray(r, i)) return p;
+    std::string field;
+    if (std::string p = check_ray(r, i, &field); !p.empty()) return p + " (field " + field + ")";
   }
-  return std::nullopt;  // not reached: the screen fails only where check_ray() names a ray
+  return "";  // not reached: the screen fails only where check_ray() names a ray
 }
 
 void read_rays(const v1::TraceRequest& req, size_t begin, size_t end, WorldRay* out) {
@@ -109,10 +109,10 @@ void encode_rays(std::span<const WorldRay> rays, std::span<const uint64_t> ids, 
   req->mutable_ids()->Assign(ids.begin(), ids.end());
 }
 
-std::optional<std::string> read_fields(const v1::TraceRequest& req, HitFields* fields) {
+std::string read_fields(const v1::TraceRequest& req, HitFields* fields) {
   if (req.fields_size() == 0) {
     *fields = HitFields::all();
-    return std::nullopt;
+    return "";
   }
   HitFields asked;
   for (int k = 0; k < req.fields_size(); ++k) {
@@ -131,13 +131,13 @@ std::optional<std::string> read_fields(const v1::TraceRequest& req, HitFields* f
     return "fields[" + std::to_string(k) + "]: " + what + " (allowed: " + allowed + ")";
   }
   *fields = asked;
-  return std::nullopt;
+  return "";
 }
 
 void encode_fields(HitFields fields, v1::TraceRequest* req) {
   req->clear_fields();
   if (fields == HitFields()) {
-    throw std::invalid_argument("a field mask names one field at least (for `hit` alone, ask for occlusion)");
+    throw RaysError("a field mask names one field at least (for `hit` alone, ask for occlusion)");
   }
   if (fields.is_all()) return;
   for (HitField f : fields.list()) req->add_fields(v1::HitField(int(f) + 1));
@@ -168,8 +168,8 @@ void HitArrays::write(size_t begin, std::span<const WorldHit> hits) const {
 std::vector<WorldHit> decode_hits(const v1::TraceResponse& r, size_t n, bool occlusion, HitFields fields) {
   auto need = [&](const char* field, size_t got, size_t per_ray) {
     if (got != per_ray * n) {
-      throw std::runtime_error(std::string("response field ") + field + " has " + std::to_string(got) +
-                               " values for " + std::to_string(n) + " rays");
+      throw RaysError(std::string("response field ") + field + " has " + std::to_string(got) +
+                      " values for " + std::to_string(n) + " rays");
     }
   };
   need("hit", r.hit().size(), 1);

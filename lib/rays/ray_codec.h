@@ -6,34 +6,35 @@
 #pragma once
 
 #include <cstdint>
-#include <optional>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "rays/hit_fields.h"
 #include "rays/ray_check.h"
+#include "rays/rays_error.h"
 #include "rays/world_ray.h"
 #include "tessera/v1/ray_service.pb.h"
 
 namespace tessera::rays {
 
-// The request's first problem, or nothing: array lengths that disagree (field "origins",
-// "t_min", ...; index = the number of rays the directions imply), then check_ray() per ray.
-// Nothing is copied: a good batch costs one read of its arrays.
-std::optional<RayProblem> check_rays(const tessera::v1::TraceRequest& req);
+// "" for a good request, else its first problem, ending with the field at fault: array lengths
+// that disagree ("... (field origins)", "t_min", ...), then check_ray() per ray ("ray 3:
+// direction is not finite (field direction)"). Nothing is copied: a good batch costs one read
+// of its arrays.
+std::string check_rays(const tessera::v1::TraceRequest& req);
 // Rays [begin, end) of a request that check_rays() accepted.
 void read_rays(const tessera::v1::TraceRequest& req, size_t begin, size_t end, WorldRay* out);
 // `ids` empty or one per ray. t_min/t_max are sent only when some ray needs them.
 void encode_rays(std::span<const WorldRay> rays, std::span<const uint64_t> ids, tessera::v1::TraceRequest* req);
 
-// The request's field mask (`fields`; empty: every field) into `*fields`, or the problem with
-// it: "fields[k]: ..." for HIT_FIELD_UNSPECIFIED or a number this server does not know, with
-// the allowed names.
-std::optional<std::string> read_fields(const tessera::v1::TraceRequest& req, HitFields* fields);
+// The request's field mask (`fields`; empty: every field) into `*fields` and "", or the problem
+// with it: "fields[k]: ..." for HIT_FIELD_UNSPECIFIED or a number this server does not know,
+// with the allowed names.
+std::string read_fields(const tessera::v1::TraceRequest& req, HitFields* fields);
 // Sets the request's mask: nothing for every field (today's requests, and fewer bytes). `fields`
 // names one at least (an empty mask means every field; a client that wants only `hit` asks for
-// occlusion): throws std::invalid_argument otherwise.
+// occlusion): throws RaysError otherwise.
 void encode_fields(HitFields fields, tessera::v1::TraceRequest* req);
 
 // Where a response's hits go: its arrays, sized for a batch by the constructor (uninitialized,
@@ -59,7 +60,7 @@ class HitArrays {
 
 // The hits of an answer to a request with the mask `fields`: those fields and `hit` are filled,
 // the others keep WorldHit's defaults (arrays the mask left out are not read, so a server that
-// sends them anyway, one older than the mask, is fine). Throws std::runtime_error when an asked
+// sends them anyway, one older than the mask, is fine). Throws RaysError when an asked
 // array does not hold `n` rays' worth.
 std::vector<WorldHit> decode_hits(const tessera::v1::TraceResponse& resp, size_t n, bool occlusion,
                                   HitFields fields = HitFields::all());

@@ -9,8 +9,9 @@
 #include <map>
 #include <ostream>
 #include <sstream>
-#include <stdexcept>
 #include <vector>
+
+#include "rays/rays_error.h"
 
 namespace tessera::rays {
 
@@ -46,7 +47,7 @@ const char* const kNames[kColumns] = {"ox", "oy", "oz", "dx", "dy", "dz", "tmin"
 
 RayTable read_rays_csv(std::istream& in, const std::string& source) {
   std::string line;
-  if (!std::getline(in, line)) throw std::runtime_error(source + ": empty (expected a header row ox,oy,oz,dx,dy,dz)");
+  if (!std::getline(in, line)) throw RaysError(source + ": empty (expected a header row ox,oy,oz,dx,dy,dz)");
   const std::vector<std::string> header = split_csv_line(line);
   int where[kColumns];
   std::fill(where, where + kColumns, -1);
@@ -54,14 +55,14 @@ RayTable read_rays_csv(std::istream& in, const std::string& source) {
     int c = 0;
     while (c < kColumns && header[i] != kNames[c]) ++c;
     if (c == kColumns) {
-      throw std::runtime_error(source + ": unknown column '" + header[i] +
-                               "' in the header (expected ox,oy,oz,dx,dy,dz and optionally tmin,tmax,id)");
+      throw RaysError(source + ": unknown column '" + header[i] +
+                      "' in the header (expected ox,oy,oz,dx,dy,dz and optionally tmin,tmax,id)");
     }
-    if (where[c] >= 0) throw std::runtime_error(source + ": column '" + header[i] + "' appears twice");
+    if (where[c] >= 0) throw RaysError(source + ": column '" + header[i] + "' appears twice");
     where[c] = int(i);
   }
   for (int c = kOx; c <= kDz; ++c) {
-    if (where[c] < 0) throw std::runtime_error(source + ": the header has no column '" + kNames[c] + "'");
+    if (where[c] < 0) throw RaysError(source + ": the header has no column '" + kNames[c] + "'");
   }
   RayTable t;
   size_t line_no = 1;
@@ -70,8 +71,8 @@ RayTable read_rays_csv(std::istream& in, const std::string& source) {
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;  // blank lines
     const std::vector<std::string> cells = split_csv_line(line);
     if (cells.size() != header.size()) {
-      throw std::runtime_error(source + " line " + std::to_string(line_no) + ": " + std::to_string(cells.size()) +
-                               " columns, the header has " + std::to_string(header.size()));
+      throw RaysError(source + " line " + std::to_string(line_no) + ": " + std::to_string(cells.size()) +
+                      " columns, the header has " + std::to_string(header.size()));
     }
     double v[kColumns] = {0, 0, 0, 0, 0, 0, 0, std::numeric_limits<double>::infinity(), 0};
     uint64_t id = 0;
@@ -83,8 +84,8 @@ RayTable read_rays_csv(std::istream& in, const std::string& source) {
       if (c == kId) id = std::strtoull(s.c_str(), &end, 10);
       else v[c] = std::strtod(s.c_str(), &end);  // accepts inf, nan: check_ray judges values
       if (s.empty() || *end != '\0' || (c == kId && (errno == ERANGE || s[0] == '-'))) {
-        throw std::runtime_error(source + " line " + std::to_string(line_no) + ", column " + kNames[c] + ": '" + s +
-                                 "' is not " + (c == kId ? "an unsigned integer" : "a number"));
+        throw RaysError(source + " line " + std::to_string(line_no) + ", column " + kNames[c] + ": '" + s +
+                        "' is not " + (c == kId ? "an unsigned integer" : "a number"));
       }
     }
     WorldRay r;

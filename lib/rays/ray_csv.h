@@ -10,10 +10,11 @@
 #include <string>
 
 #include "rays/ray_table.h"
+#include "rays/rays_error.h"
 
 namespace tessera::rays {
 
-// Throws std::runtime_error naming `source`, the line and the column of a malformed value.
+// Throws RaysError naming `source`, the line and the column of a malformed value.
 RayTable read_rays_csv(std::istream& in, const std::string& source);
 void write_hits_csv(std::ostream& out, const RayTable& rays, const HitTable& hits);
 

@@ -33,7 +33,7 @@ TEST(RayCsv, RefusesMalformedInputNamingLineAndColumn) {
     std::istringstream in(text);
     try {
       read_rays_csv(in, "r.csv");
-    } catch (const std::runtime_error& e) {
+    } catch (const RaysError& e) {
       return std::string(e.what());
     }
     return std::string("no error");
@@ -162,7 +162,7 @@ TEST_F(RayNpy, RefusesWhatItCannotRead) {
   auto error = [&](const std::string& descr, const std::string& shape, size_t bytes) {
     try {
       read_rays_npy(write_npy(descr, shape, std::string(bytes, '\0')).string());
-    } catch (const std::runtime_error& e) {
+    } catch (const RaysError& e) {
       return std::string(e.what());
     }
     return std::string("no error");

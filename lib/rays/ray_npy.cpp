@@ -5,8 +5,9 @@
 #include <fstream>
 #include <limits>
 #include <regex>
-#include <stdexcept>
 #include <vector>
+
+#include "rays/rays_error.h"
 
 namespace tessera::rays {
 
@@ -15,7 +16,7 @@ namespace {
 constexpr char kMagic[] = "\x93NUMPY";
 
 [[noreturn]] void fail(const std::string& path, const std::string& what) {
-  throw std::runtime_error(path + ": " + what);
+  throw RaysError(path + ": " + what);
 }
 
 // The header dictionary's value for `key` (a quoted string, True/False or a tuple), as text.

@@ -9,10 +9,11 @@
 #include <string>
 
 #include "rays/ray_table.h"
+#include "rays/rays_error.h"
 
 namespace tessera::rays {
 
-// Throw std::runtime_error naming the file and what is wrong with it.
+// Throw RaysError naming the file and what is wrong with it.
 RayTable read_rays_npy(const std::string& path);
 void write_hits_npy(const std::string& path, const RayTable& rays, const HitTable& hits);
 

@@ -137,15 +137,17 @@ std::string encode_plan(const SamplePlan& plan) {
   return out;
 }
 
-bool decode_plan(const std::string& bytes, SamplePlan* plan) {
-  if (bytes.size() % 4 != 0) return false;
+std::string decode_plan(const std::string& bytes, SamplePlan* plan) {
+  if (bytes.size() % 4 != 0) {
+    return "sample plan of " + std::to_string(bytes.size()) + " bytes is not a whole number of 4-byte counts";
+  }
   plan->assign(bytes.size() / 4, 0);
   for (size_t i = 0; i < plan->size(); ++i) {
     uint32_t v = 0;
     for (int k = 0; k < 4; ++k) v |= uint32_t(uint8_t(bytes[4 * i + size_t(k)])) << (8 * k);
     (*plan)[i] = v;
   }
-  return true;
+  return "";
 }
 
 }  // namespace tessera

@@ -70,7 +70,8 @@ SamplePlan tile_plan(const BlockGrid& grid, const TileRect& rect, const std::vec
 
 // Plans on the wire: little-endian uint32 counts.
 std::string encode_plan(const SamplePlan& plan);
-// Empty string: the pilot. Returns false for a byte count that is not a whole number of counts.
-bool decode_plan(const std::string& bytes, SamplePlan* plan);
+// Empty bytes: the pilot. "" when `*plan` is set, else what is wrong ("sample plan of 7 bytes is
+// not a whole number of 4-byte counts").
+std::string decode_plan(const std::string& bytes, SamplePlan* plan);
 
 }  // namespace tessera

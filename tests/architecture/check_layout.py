@@ -3,9 +3,9 @@
 
 - Rooms: which product folders may include which headers (server/ never reaches lib/render,
   lib/tile nothing of Embree or gRPC, lib/color no command-line parsing, lib/rays no gRPC, nothing
-  outside lib/render the RenderScene's internals), and, when a build folder is given, that the
-  programs' link lines agree (tessera-server links no renderer or Embree; tessera-rays no
-  coordinator or worker library).
+  outside lib/render the RenderScene's internals; lib/farm and lib/rays throw their own exception
+  classes), and, when a build folder is given, that the programs' link lines agree
+  (tessera-server links no renderer or Embree; tessera-rays no coordinator or worker library).
 - Programs' includes and links: an include of a program's file resolves as its build finds it
   (beside the file, the program's own folder, lib/, proto/) and must not land in another
   program's folder; no program's executable links a library defined under another program's
@@ -53,6 +53,10 @@ FARM_RENDER_FILES = {"lib/farm/bundle_cache.h", "lib/farm/bundle_cache.cpp"}
 # lib/render's own headers: the whole RenderScene (its packet and ISA-cloned internals) and its
 # Embree side. Everyone else sees a RenderScene through render/render_scene.h.
 RENDER_INTERNAL = r'^render/render_scene_(internal|embree)\.h$'
+# Rooms that throw their own exception class (docs/architecture.md, "Errors"), never a bare
+# standard one: lib/farm's FarmError, lib/rays' RaysError.
+OWN_ERROR_ROOMS = {"lib/farm/": "farm::FarmError", "lib/rays/": "rays::RaysError"}
+BARE_THROW = re.compile(r'\bthrow\s+std::(runtime_error|invalid_argument|logic_error|exception)\b')
 
 
 # (executable's path in the build folder, forbidden library regex)
@@ -292,6 +296,11 @@ def main():
                 breaches.append(f"{rel}:{k}: includes {target}: only the bundle cache of lib/farm may use the renderer")
             if not rel.startswith("lib/render/") and re.search(RENDER_INTERNAL, target):
                 breaches.append(f"{rel}:{k}: includes {target}, lib/render's own: use render/render_scene.h")
+        for room, cls in OWN_ERROR_ROOMS.items():
+            if rel.startswith(room):
+                for k, l in enumerate(strip_code(text).splitlines(), 1):
+                    if BARE_THROW.search(l):
+                        breaches.append(f"{rel}:{k}: throws a bare std:: exception: {room} throws {cls}")
         if rel.startswith("server/"):
             chain = reaches(src, rel, "lib/render/")
             if chain:

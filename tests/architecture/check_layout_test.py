@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """check_layout.py seen to fail: a small tree with one planted breach of each rule it was given
-for programs and for tracker numbers makes it exit 1 naming each, and the same tree without them
-(but with what only looks like a breach) passes.
+for programs, for the rooms' own exceptions and for tracker numbers makes it exit 1 naming each,
+and the same tree without them (but with what only looks like a breach) passes.
 
 Usage: check_layout_test.py (run by ctest -L architecture).
 """
@@ -81,6 +81,12 @@ class CheckLayoutTest(unittest.TestCase):
         code, out = run_checker(self.src, self.build)
         self.assertEqual(code, 1, out)
         self.assertIn("client/tessera links libtessera_ray_server.a, a library of rays/", out)
+
+    def test_a_bare_standard_exception_in_lib_rays_fails(self):
+        write(self.src, "lib/rays/ray_csv.cpp", 'void f() {\n  throw std::runtime_error("bad");\n}\n')
+        code, out = run_checker(self.src, self.build)
+        self.assertEqual(code, 1, out)
+        self.assertIn("lib/rays/ray_csv.cpp:2: throws a bare std:: exception: lib/rays/ throws rays::RaysError", out)
 
     def test_a_tracker_number_fails(self):
         write(self.src, "docs/notes.md", f"# Notes\n\nFixed the leak ({CITATION_WORD}).\n")
