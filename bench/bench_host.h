@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What every benchmark reports about the machine it ran on and measures with: the CPU's model
 // name (printed next to every figure) and the process's CPU time.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Uploading a scene bundle to the coordinator unless it has it already (HasBundle, then
 // UploadBundle in 1 MiB chunks). Used by `tessera submit` and `tessera rays --server`.
 #pragma once

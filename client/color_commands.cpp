@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tessera convert` (HDR frame -> classic formats, with the error report) and
 // `tessera palette-fade` (palette animation on an indexed PNG).
 #include <filesystem>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Each family of `tessera` subcommands registers itself on the CLI11 app.
 #pragma once
 

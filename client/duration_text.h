@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Durations as the client prints them: "M:SS" under an hour, "H:MM:SS" from an hour on.
 #pragma once
 

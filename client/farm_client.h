@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The client's connection to a coordinator: address resolution, channel settings, deadlines,
 // and error messages that say what is wrong and what to do about it.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What every farm subcommand (`tessera submit | watch | status | cancel | priority | workers |
 // rayservers`, and `health` and `rays` for their flags) shares: the coordinator and security
 // flags, the connection they give, and the errors of its calls (command_error.h).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Assembles a job's finished tiles into frames on the client and writes each complete frame as
 // a float OpenEXR, laid out by the same FrameAssembly as `tessera render` uses, so the files are
 // bit-identical to an in-process render.

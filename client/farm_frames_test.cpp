@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What the client decides when tiles of a job arrive: which it takes, when a frame is complete,
 // what it says is missing, and the frame it writes (every pixel where its tile put it).
 #include "farm_frames.h"

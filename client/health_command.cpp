@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tessera health`: asks a coordinator's standard gRPC health service (grpc.health.v1.Health,
 // enabled in tessera-server) whether it is serving. Container health checks and probes run it,
 // so it prints one line and answers with its exit code only: 0 serving, 1 anything else

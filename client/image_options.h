@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The scene overrides shared by `tessera render` and `tessera submit`: one set of flags, one
 // validation, so both commands accept and refuse exactly the same values.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Ctrl-C and SIGTERM in the CLI. A job on the farm belongs to the farm, not to the client that
 // submitted it: interrupting an attached `tessera submit` or `tessera watch` leaves the job
 // rendering (as a client that dies or loses its network does) and says how to come back to it or

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tessera status [JOB]`, `tessera cancel JOB`, `tessera priority JOB N`: one call about a job
 // (or the list of jobs) on the coordinator, and its answer as a table or JSON.
 #include <cstdio>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How the farm commands word a job: its state and how it is sampled.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tessera workers` and `tessera rayservers`: what is connected to the coordinator, as a table or
 // JSON. Both are one List* call printed by run_listing; each says only how its rows look.
 #include <cstdio>

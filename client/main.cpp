@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tessera`: the command-line client. Subcommands live in their own files (commands.h).
 #include <spdlog/spdlog.h>
 

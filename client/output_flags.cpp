@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "output_flags.h"
 
 #include "image/exr_io.h"

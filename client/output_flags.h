@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The flags that fill color::OutputOptions, shared by every command that writes a frame
 // (`tessera convert`, `render`, `submit`, `watch`): one set of names, defaults and range checks.
 // Parsing command lines is the program's business, so these live with the client and not in

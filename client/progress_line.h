@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The progress display of `tessera submit` and `tessera watch`: a bar redrawn in place on a
 // terminal, a plain line every few seconds otherwise (logs, CI).
 #pragma once

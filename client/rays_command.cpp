@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tessera rays SCENE --in rays.csv --out hits.csv`: nearest-hit or occlusion queries for a file
 // of rays, in-process (lib/rays, the renderer's intersection code), or on a tessera-rays service:
 // the one named with --server, or with --coordinator alone one the coordinator lists (the scene

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tessera render SCENE -o OUT.exr`: the in-process renderer, no network. The farm's workers run
 // exactly this code per tile, and this is the baseline the farm is measured against.
 #include <spdlog/spdlog.h>

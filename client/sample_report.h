@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How a frame's error and samples are reported, the same way by `tessera render` and by the farm
 // commands: the summary text, the EXR header attributes, the optional per-pixel channels
 // (error.Y, spp.Y), the JSON report and the warning for a target that was not reached.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tessera submit SCENE -o OUT`: checks the scene here, uploads its bundle unless the coordinator
 // has it, submits the job and (unless --detach) watches it to the end (watch_job.h).
 #include <cstdio>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tessera watch JOB [-o OUT]`: re-attaches to a job submitted earlier (by `submit --detach`, or
 // a client that died): shows its progress and, with -o, writes and acknowledges its frames.
 #include <memory>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Watching a job: receives its tiles over a WatchJob stream, writes each frame when complete,
 // acknowledges it (so the coordinator can release its tiles) and re-attaches after losing the
 // coordinator (watch_reattach.h). `tessera watch` and `tessera submit` without --detach both end

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // When `tessera watch` (and `submit` without --detach) re-attaches to its job after losing the
 // coordinator, and when it gives up. The coordinator keeps a job's finished tiles for its client,
 // so a watch that loses its stream (the coordinator restarted, the network dropped) opens a new

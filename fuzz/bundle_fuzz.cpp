@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Fuzz target: the bundle reader (what the coordinator does with an uploaded bundle, and a worker
 // with a fetched one). Parses, validates, extracts into a scratch directory and checks that
 // nothing was written outside it. The only accepted failure is BundleError.

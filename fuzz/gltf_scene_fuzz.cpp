@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Fuzz target: the glTF scene reader (gltf_scene.cpp + tinygltf + the texture decoders), on a
 // .gltf or .glb file's bytes as a bundle would carry them. The only accepted failure is
 // SceneError; any other exception, crash, leak or undefined behaviour is a bug. External URIs

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Replays files through a fuzz target without libFuzzer: `fuzz_X_replay DIR_OR_FILE...`. Used by
 // CTest in the normal build, so regression inputs run everywhere; a crash fails the test.
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Fuzz target: the scene parser, on scene JSON as a bundle would carry it. The only accepted
 // failure is SceneError (a message for the user); any other exception, crash, leak or undefined
 // behaviour is a bug. Mesh files are confined to a directory that does not exist, so no input

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Fuzz target: the tile decoder, on a serialized tessera.v1.TileData as a client receives it from
 // the coordinator (and the coordinator from a worker). An accepted tile is placed into a 64x48
 // image the way the client does, so ASan catches a rectangle the checks let through wrongly.

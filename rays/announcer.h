@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tessera-rays telling the coordinator where it is (WorkerService.AnnounceRayServer, worker
 // token): at start, then every period, so `tessera rayservers` lists it and `tessera rays
 // --coordinator` (without --server) finds it. The coordinator forgets a server that stays silent

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The address tessera-rays announces: --advertise as given or completed with the bound port, else
 // the --listen host; a wildcard --listen without --advertise is refused, naming the flag.
 #include "announcer.h"

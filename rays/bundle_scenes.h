@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The ray server's scenes: bundles fetched from the coordinator with the worker token and kept
 // on disk, parsed scenes and built frames cached exactly as a worker caches them (it is the
 // worker's BundleCache), so a scene is loaded once however many queries name it.

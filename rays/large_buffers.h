@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Batches of 65,536 rays are multi-MiB messages: glibc serves such allocations with fresh mmap()s
 // and unmaps them on free, so every request paid a page fault per 4 KiB of its buffers
 // (measured in bench/rays: 65,536-ray calls ran at 60 % of the rate of 4,096-ray ones). Keeping

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tessera-rays: the ray service (docs/rays.md). Answers nearest-hit and line-of-sight queries on
 // scene bundles uploaded to the coordinator, which it fetches like a worker does, and announces
 // itself to the coordinator so that clients can find it (announcer.h).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tessera.v1.RayService over a SceneSource: checks the token, the batch size and every ray,
 // then traces with RayTracer (lib/rays), large batches split across a TBB arena. A thin
 // adapter: the tracing itself knows nothing of gRPC.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // RayService over loopback gRPC: answers equal the in-process tracer's bit for bit, streams keep
 // order, ids come back, bad input is INVALID_ARGUMENT naming the ray and field, tokens are
 // checked; BundleScenes maps the coordinator's answers to the statuses clients see.

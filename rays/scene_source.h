@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Where the ray service gets its scenes: a tracer for (bundle hash, frame). The server's is
 // bundle_scenes.h (bundles from the coordinator, cached like a worker's); tests give their own.
 #pragma once

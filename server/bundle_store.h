@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Content-addressed storage of scene bundles under <data-dir>/bundles: <sha256>.bundle holds the
 // bytes as uploaded (what workers fetch), <sha256>/ the extracted files (what the coordinator
 // parses to validate a job). Writes are atomic (temporary file + rename), so a crash never

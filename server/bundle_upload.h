@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // One bundle upload in progress: its bytes go to a temporary file in the bundle store while
 // their SHA-256 is computed, so an upload costs the coordinator one chunk of memory however
 // large the bundle is (they used to be buffered whole: four concurrent 300 MB uploads took it to

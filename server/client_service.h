@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tessera.v1.ClientService on the callback API: thin adapters onto the Coordinator.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The coordinator's lifetime: restoring the job store, the expiry thread that expires leases and
 // evicts ended jobs, and the observers (metrics, web monitor) with their snapshots.
 #include "coordinator.h"

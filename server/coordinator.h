@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The coordinator's shared state: the Scheduler behind one mutex, the bundle store, and the open
 // streams (worker sessions, job watchers). The gRPC services are thin adapters onto this class.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The coordinator's job API: submission (the scene parsed once, with the admission limits), status,
 // cancellation, priority and frame acknowledgement. Jobs evicted from memory answer from the job store.
 #include "coordinator.h"

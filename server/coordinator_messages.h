@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Scheduler values written as protocol messages: what clients read about a job and a worker, and
 // the assignment a worker receives. Plain conversions: no state, no lock.
 #pragma once

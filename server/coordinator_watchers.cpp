@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Watch streams: a client attached to a job gets its status, every finished tile not yet
 // acknowledged, then new tiles and frames as they finish. A stream that falls behind holds its job
 // (no new leases) until it has caught up, which bounds the tiles kept in memory for slow clients.

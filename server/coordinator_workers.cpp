@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Worker sessions: registration, the messages a worker sends (tile requests, results, returned
 // and failed leases), the checks a result must pass before it counts, and dispatch: the leases the
 // scheduler hands out, sent to their workers.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Space held back on the data disk for SQLite (<data-dir>/.reserve, a few hundred KiB). When the
 // disk fills up completely, SQLite can no longer checkpoint its WAL (the database file must grow
 // a little), so the WAL can no longer be cut back, and nothing could ever be written again,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The coordinator's side of frame targets (docs/farm.md, "Frame targets"): when a pass of a
 // frame ends, the statistics its workers reported with each tile are gathered, the next pass is
 // planned with the same pure functions `tessera render` calls (sampling/pass_plan.h), and the

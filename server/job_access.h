@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Who may watch, cancel or acknowledge a job: the identity that submitted it (its owner, stored
 // with the job) or an administrator (`tessera-server --admin IDENTITY`). Anyone may still read
 // a job's status.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Active jobs per client identity, the --max-jobs-per-client limit: the coordinator's own.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A row of the jobs table (job_store_schema.cpp) <-> a JobSnapshot: the columns read, in order,
 // and the values bound to the job store's insert and update statements. Times are stored as
 // Unix seconds; steady-clock time points are converted at the boundary.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The coordinator's durable state: jobs, tile states, acknowledged frames and leases in SQLite
 // (<data-dir>/tessera.db, WAL mode, synchronous=FULL), finished tile pixels in a TileStore
 // (<data-dir>/tiles/<n>.seg, batches appended to one open segment of up to 64 MiB). The database

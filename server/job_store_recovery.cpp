@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reading the store back at start: the lease marks, the resident jobs with their done tiles
 // (each stored record checked), the clean-up of what the last run left behind (rows of unusable
 // tiles, leases in flight, orphan segments), and the refusal to start on a lost database.

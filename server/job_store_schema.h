@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The job store's database: its tables (the on-disk format, together with tile_store.h's
 // segment records), the schema version this release reads, and what is checked and set each
 // time it is opened. A change to the tables needs a new version and a migration from the last.

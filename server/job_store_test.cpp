@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // JobStore: what is written comes back after reopening (the restart path), leases in flight
 // come back as queued tiles, a broken database or an unwritable directory stops the store with
 // a message naming the file.

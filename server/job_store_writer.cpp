@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The group-commit writer: one thread takes everything queued in a commit window as a batch and
 // applies it in three steps (the segment, the rows, the deletions), retrying a failed batch every
 // second; on a full disk it lets through what needs no new segment and makes room (job_store.h).

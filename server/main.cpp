@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tessera-server: the farm's coordinator. Holds jobs and bundles, leases tiles to workers,
 // streams finished tiles to clients.
 #include <grpcpp/ext/proto_server_reflection_plugin.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The tessera-rays servers that announced themselves to this coordinator (docs/rays.md, "Where it
 // is served"): who they are, where clients reach them, when each was last heard from.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The ray server registry with a clock the test moves: listing, expiry after 3 periods of
 // silence (not before), renewal by a later announcement, the period bounds, a restart on the same
 // address, a server leaving, and refused announcements.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The farm's bookkeeping: jobs -> frames -> tiles, the priority queue of tiles waiting for a
 // worker, leases on the tiles being rendered, speculative duplicates, and the finished tiles a
 // client has not yet acknowledged. Plain C++: no gRPC, no Embree, no threads, no I/O. The

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The coordinator as the scheduler's listener. Every event runs under the coordinator's mutex: it
 // first tells the observers (metrics, web monitor), then persists the change in the job store,
 // logs it and queues what the streams must hear (status and tiles to watchers, revocations and

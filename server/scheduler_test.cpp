@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Scheduler unit tests: deterministic time through an injected clock, no network.
 #include "scheduler.h"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Which tile segments are still needed, for the JobStore (its writer thread, and load() before
 // it): the segment holding each stored tile of an unacknowledged frame of a resident job, and
 // how many such tiles each segment holds. A segment whose count drops to zero holds nothing a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Small SQLite helpers shared by the job store's files: columns as strings, text bound by copy,
 // and statements run with their error thrown, naming the database.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The write side of a server-streaming callback RPC: a queue of messages written one at a time,
 // then Finish. gRPC allows one outstanding write per stream, and reactions may run inline on the
 // thread that starts an operation, so StartWrite/Finish are only ever called here, with no lock

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The outbox's batching of shared payloads, driven by a reactor stand-in that records each write
 // and completes it when the test says: runs of payloads queued back to back go into one message
 // within the count and byte bounds, in order, never across another queued message.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The write side of a stream as the coordinator sees it (StreamSink), and the one adapter that puts
 // it over a reactor's Outbox (OutboxSink): the coordinator queues messages without knowing the
 // reactor types; each service's reactor owns an OutboxSink and writes what was queued.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Finished tiles on disk, in segment files: <root>/<n>.seg, holding tiles (the serialized
 // TileData exactly as the coordinator streams it to clients) as records, each with a header
 // (magic, length, XXH3-64 of the bytes; records written before carry a CRC-32 and are still

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tessera.v1.WorkerService on the callback API: one bidirectional session per worker, and bundle
 // fetches.
 #pragma once

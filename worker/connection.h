@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The worker's life: connect to the coordinator, register, pull tiles, render them on the pool,
 // stream results back; on a lost connection, reconnect with exponential backoff (with jitter, so
 // a restarted coordinator is not hit by every worker at the same instant). request_stop()

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How many render threads this process can actually use. std::thread::hardware_concurrency()
 // counts the host's cores, but a worker in a container is usually limited by its CPU affinity
 // (docker --cpuset-cpus) or by a CFS quota (docker --cpus, Kubernetes resources.limits.cpu).

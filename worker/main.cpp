@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tessera-worker: renders tiles for a Tessera coordinator.
 #include <signal.h>
 #include <spdlog/spdlog.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // When and how a worker tries its coordinator again after a session ends. Exponential backoff
 // (doubling from `initial` up to `max`), started over by every session the coordinator accepted,
 // with jitter so that a restarted coordinator is not hit by every worker at the same instant.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A fixed pool of render threads fed from one queue. Tasks carry a key (the lease id) so that
 // unstarted ones can be withdrawn when the coordinator revokes them or the worker shuts down.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Gathers a session's finished tiles into TileResults messages, by the rules of
 // farm/result_batching.h: a batch goes when it is full, when the worker has nothing left to
 // render, or when its oldest result has waited the linger (the batcher's own thread watches

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Measures every output format on rendered frames, and our palette quantizer against
 // pngquant (run as an external program, never linked), printing Markdown tables.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Measures the lossless EXR compressions `--exr-compression` offers on rendered frames: file size,
 // CPU time to write and to read (one thread, the fastest of --repeat runs, so the figures are CPU
 // cost per frame whatever the machine's cores), and that every pixel reads back bit for bit.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Blender's Cycles as a peer on a glTF scene: compares Cycles' render of a .glb
 // (bench/cycles/cycles_render.py, run by bench/run_all.sh: Whitted-like transport, linear EXR)
 // with Tessera's render of the same file at the same size and samples per pixel, in this

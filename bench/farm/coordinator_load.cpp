@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // coordinator_load: the coordinator at scale, simulated. For each worker count N it starts a
 // fresh tessera-server, connects N simulated workers (sim_worker.h: the real worker protocol,
 // a constant tile after a fixed delay), queues one job of M small tiles through the client

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // first_tile_probe: the time from submit to first tile, seen from outside the coordinator.
 // Started before `tessera submit`, it polls ListJobs until a job appears, attaches a WatchJob
 // stream to it and prints, as JSON, the coordinator's submit time of the job and the time the

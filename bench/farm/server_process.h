@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A tessera-server child process for the coordinator benchmark, and what /proc says about it:
 // CPU time (user + system) and memory (VmRSS, VmHWM). The child dies with the benchmark
 // (PR_SET_PDEATHSIG), so an interrupted run leaves no coordinator behind.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A simulated tessera-worker for the coordinator load generator: it speaks worker_service.proto
 // as worker/connection.cpp does (register; pull as many tiles as farm::ResultBatching::depth says
 // for its tile time, then one more per finished tile, asked for with the results; results

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // POV-Ray as a peer (docs/performance.md, "A peer: POV-Ray 3.7"): compares POV-Ray's render of
 // bench/povray/whitted.pov (rendered by bench/run_all.sh, linear EXR) with Tessera's render of
 // scenes/whitted.json at the same size, in this process: RMSE in linear light of each against a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Ray throughput against the ceiling (docs/performance.md, "Ray throughput against the ceiling").
 // Records the exact Embree queries the renderer makes for one frame (render/ray_log.h), replays
 // them with bare Embree calls on the same RTCScene (same geometry, same user-geometry callbacks for

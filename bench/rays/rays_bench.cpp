@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rays as a service, measured (results in docs/rays.md). For the bunny and a large
 // mesh (the armadillo, 346k triangles), coherent (camera grid) and incoherent (random) rays:
 //   bare Embree  rtcIntersect1 on the same RTCScene, same user-geometry callbacks, render-space

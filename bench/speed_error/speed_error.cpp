@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Speed against error: renders a scene at spp = 1, 2, 4, ... for each sampler and measures render
 // time, Mrays/s, RMSE and relMSE against a high-spp reference, next to the RMSE the renderer
 // itself estimates (from each pixel's two independent sample streams). Then renders to a ladder

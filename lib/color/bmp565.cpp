@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "color/bmp565.h"
 
 #include <algorithm>

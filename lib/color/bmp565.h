@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // RGB565: 16 bits per pixel, 5 bits red, 6 green, 5 blue, of sRGB-encoded values, in a BMP
 // with BI_BITFIELDS masks (BITMAPV4HEADER, color space LCS_sRGB), which Windows, browsers,
 // GIMP and OpenImageIO read. Hand-written: Debian has no BMP-writing library worth a

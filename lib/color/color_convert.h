@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The conversion pipeline: one float HDR frame -> one output file in a chosen format, with
 // the report of what the conversion lost.
 //

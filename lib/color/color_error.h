@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The one exception type of the color code: bad options, unreadable or unwritable files.
 #pragma once
 

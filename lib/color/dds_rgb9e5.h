@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // RGB9E5 texels in a DDS file with the DX10 extension header (DXGI_FORMAT_R9G9B9E5_SHAREDEXP
 // = 67), the container DirectX, DirectXTex/texconv, NVIDIA Texture Tools and most engines load.
 // Hand-written because no Debian library writes DDS; the layout is Microsoft's documented

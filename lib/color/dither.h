@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Dithering choices and the ordered-dither threshold maps. Floyd-Steinberg error diffusion
 // needs the palette, so it lives with the palette mapping (palette_quantizer.h).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // exr-half goes through OpenEXR's half (round to nearest even): check the bound the format
 // guarantees in its normal range, on values a render has.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How far an encoded image is from its reference.
 //
 // LDR error: both images are sRGB-encoded values in [0, 1], measured on the 0..255 code-value

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The documented, deterministic handling of values a renderer should never produce but
 // sometimes does (NaN from 0/0, Inf from a division by a zero pdf, negatives from filters with
 // negative lobes). Every encoder goes through these, so no NaN ever reaches an integer format.

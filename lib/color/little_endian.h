@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Little-endian integers in byte buffers, as the BMP and DDS headers write them: one definition
 // for every color file format that reads or writes such headers.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // An independent reader agrees with us: OpenImageIO's oiiotool decodes each file we write,
 // and its pixels match the ones we say we wrote. Skipped (with a message) without oiiotool.
 #include <gtest/gtest.h>

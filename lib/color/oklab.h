@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Oklab (Björn Ottosson, 2020): a perceptual space where Euclidean distance tracks perceived
 // color difference far better than in sRGB, cheap enough (three cube roots) for per-pixel use.
 // The palette quantizer clusters and matches colors here.

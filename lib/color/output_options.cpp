@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include <cctype>
 #include <filesystem>
 #include "color/output_options.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The output options of `tessera convert`, reusable by any command that produces a frame
 // (`tessera render`, `tessera submit`): a plain struct the program fills (the client's
 // command-line flags do, in client/output_flags.h), resolved here against the output path.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Palette animation: a fade to black made by rewriting only the PLTE chunk, the pixels'
 // indices (and so the IDAT data) untouched, as 8-bit-era games and demos did it.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Palette quantization: at most N (2..256) colors for an image, an index per pixel.
 //
 // The palette is seeded by a variance-minimizing median cut in Oklab (each step splits the box

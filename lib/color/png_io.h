@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // PNG files through libpng: 24/32-bit truecolor and indexed (PLTE) images, and a reader that
 // returns what the file stores (indices stay indices) so palette animation can keep them.
 #pragma once

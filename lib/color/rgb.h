@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Small pixel value types shared by the color code.
 #pragma once
 

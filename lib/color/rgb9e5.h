@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // RGB9E5: three 9-bit mantissas sharing one 5-bit exponent in 32 bits, exactly as
 // EXT_texture_shared_exponent specifies it (GL_RGB9_E5, also VK_FORMAT_E5B9G9R9_UFLOAT_PACK32
 // and DXGI_FORMAT_R9G9B9E5_SHAREDEXP: red in bits 0-8, green 9-17, blue 18-26, exponent 27-31).

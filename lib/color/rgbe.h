@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // RGBE: Greg Ward's Radiance pixel, three 8-bit mantissas and a shared exponent byte (biased
 // by 128), and the Radiance .hdr file that stores it. Hand-written: the format is a page of
 // spec, Debian has no small library for it, and OpenImageIO (a heavy dependency) is only

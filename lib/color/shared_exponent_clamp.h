@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The channel clamp both shared-exponent formats (RGBE, RGB9E5) start from.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The sRGB transfer function (IEC 61966-2-1) with its exact constants: the linear segment
 // below 0.0031308 (slope 12.92) and 1.055 * x^(1/2.4) - 0.055 above. Evaluated in double so
 // that 8-bit rounding decisions do not depend on float pow accuracy.

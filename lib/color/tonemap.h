@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tone mapping: scene-referred linear light -> display-referred linear light in [0, 1].
 // Everything here stays linear; the sRGB transfer function (srgb.h) is the last step, applied
 // by the encoders. Exposure is a power-of-two scale applied first.

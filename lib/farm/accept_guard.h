@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Keeps a gRPC server (the coordinator, the ray server) accepting connections when it runs out
 // of descriptors.
 //

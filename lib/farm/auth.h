@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared-secret tokens for the two kinds of peers. Clients and workers send
 // `authorization: Bearer <token>` metadata on every call (farm/channel.h adds it); each
 // ClientService method checks the client token, each WorkerService method the worker token.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Scene bundles: the scene file plus every file it reads, as one tessera.v1.Bundle message,
 // identified by the SHA-256 of its serialized bytes. Shared by the client (builds and uploads),
 // the coordinator (stores, validates) and the worker (fetches, caches).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The worker's cache of scenes: bundles on disk by SHA-256 (fetched once, kept across restarts),
 // the parsed Scene per (bundle, overrides), and the built RenderScene per (bundle, overrides,
 // frame), the expensive part, for the few most recent frames. Thread-safe: render threads that

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Downloading a scene bundle from the coordinator (WorkerService.FetchBundle, worker token):
 // what workers and the ray server (rays/) do before loading a scene they have not seen.
 #pragma once

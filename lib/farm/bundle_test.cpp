@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Bundle validation: what a hostile client could upload is refused before anything is written.
 #include "farm/bundle.h"
 

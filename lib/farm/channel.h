@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The gRPC channel every Tessera peer (client or worker) opens to a coordinator.
 #pragma once
 

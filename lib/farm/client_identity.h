@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Who a client is, for job ownership and quotas.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Named client tokens (`tessera-server --client-tokens PATH`): each client gets its own token,
 // and the name it is filed under becomes the client's identity ("token:NAME"): the owner of the
 // jobs it submits, the key of its job quota. Without TLS client certificates this is how several

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Parsing a farm program's command line (tessera, tessera-server, tessera-worker, tessera-rays).
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A job's image overrides and glTF reading options on the wire (tessera.v1.ImageOverrides): the
 // client sets only what the user overrode; the coordinator and workers read them back, refusing
 // values out of range by the field's name.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Limits on everything a peer can send the coordinator. Each refusal names the limit, its value
 // and the `tessera-server` flag that changes it. Defaults protect a coordinator with a few GiB of
 // memory; raise them for bigger shots.

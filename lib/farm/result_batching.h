@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How a worker gathers finished tiles into messages, and how many tiles it keeps on hand so that
 // gathering never leaves a render thread waiting.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How the farm's programs take SIGINT and SIGTERM: one thread waits for them with sigwait and
 // stops the program cleanly (the coordinator commits what is queued, a worker returns its
 // unstarted tiles); no thread ever takes them by the default action, which would end the process

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Files and folders written beside their final name and renamed into place, so a reader never
 // sees half of one. Their names are made by the C library (mkstemps, mkdtemp), which creates the
 // file or folder atomically under a name no other process or thread holds.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Small text files the farm reads whole: tokens, token lists, PEM certificates and keys.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "farm/tile_codec.h"
 
 #include "tile/bfloat16.h"

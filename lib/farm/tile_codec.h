@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tiles on the wire: conversions between the tile module's values (tile/) and the tessera.v1
 // messages, and the checks a peer runs on a tile it received. Pixels go on the wire as
 // little-endian IEEE-754 float32 (the byte order is fixed by the protocol, not by the host), so a

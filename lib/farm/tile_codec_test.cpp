@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tile decoding as the client does it: a rectangle from the network must fit the image, with no
 // integer overflow in the check.
 #include "farm/overrides_codec.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "image/exr_io.h"
 
 #include <ImfChannelList.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // OpenEXR reading and writing of float RGB images with string/number metadata.
 #pragma once
 

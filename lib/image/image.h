@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A float HDR RGB image in linear light, row-major, top row first: the currency between
 // the renderer, the farm (assembled from tiles) and the color code.
 #pragma once

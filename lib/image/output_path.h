@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Output file naming shared by `tessera render` and the farm client.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The neighbouring floats of v, up and down: std::nextafter(v, +/-inf) for every input, inline.
 // Why not std::nextafter: it is an out-of-line libm call, and ray spawning makes three per
 // secondary and shadow ray (render/ray.h): 2% of a Whitted render's time (measured with perf).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Affine transform of points, vectors and normals, in double precision (world space); and the
 // 4x4 matrices and translation-rotation-scale triples glTF nodes are written in.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Small 3-vector value type, templated so the scene can stay in double (world space)
 // while the renderer works in float (camera-relative space).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Which of a hit's fields a client wants: the response field mask of tessera.v1.TraceRequest
 // (`fields`, docs/rays.md) and `tessera rays --fields`. Many clients need a fraction of the
 // answer (a lidar only t, a visibility test only hit), and over the network every field not

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The field mask's names: what `tessera rays --fields` accepts and how it refuses the rest.
 #include "rays/hit_fields.h"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "rays/parallel_trace.h"
 
 namespace tessera::rays {

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A batch traced on the calling TBB arena's threads, in chunks: the same bits as one serial
 // call (a ray's answer depends on that ray alone, see RayTracer). Shared by the ray server and
 // `tessera rays`.

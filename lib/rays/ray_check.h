@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What makes a ray query meaningless, said per ray and field, so the service can refuse a batch
 // with INVALID_ARGUMENT naming the culprit instead of tracing a NaN into a wrong hit.
 #pragma once

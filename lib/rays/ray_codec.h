@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rays and hits to and from the packed arrays of tessera.v1.TraceRequest / TraceResponse
 // (proto/tessera/v1/ray_service.proto). Shared by the ray server and the `tessera rays` client.
 // The service's cost per ray is mostly copies, so none is made twice: arrays are sized once and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rays in, hits out, as CSV with a header row. Input columns (any order, names as in the
 // header): ox,oy,oz,dx,dy,dz required, tmin,tmax,id optional; other columns are refused, so a
 // typo is not silently ignored. Output: id (if the input had ids),hit,t,px,py,pz,nx,ny,nz,

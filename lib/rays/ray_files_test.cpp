@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // CSV and .npy reading and writing of rays and hits.
 #include <gtest/gtest.h>
 #include <unistd.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rays in, hits out, as NumPy .npy files (format version 1.0/2.0, little-endian, C order).
 // Input: a 2-D float64 or float32 array of shape (n, 6), (n, 8) or (n, 9): columns
 // ox,oy,oz,dx,dy,dz[,tmin,tmax[,id]]. Output: a 1-D structured array with the CSV's fields

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "rays/ray_table.h"
 
 namespace tessera::rays {

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rays and their answers as the `tessera rays` command reads and writes them (CSV, .npy): the
 // rays, the optional client ids, and the names hits refer to.
 #pragma once

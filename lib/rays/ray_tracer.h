@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Nearest-hit and occlusion queries for world-space rays on one frame of a scene, answered by
 // the RenderScene's intersect() (render/render_scene.h): the renderer's own code (watertight
 // triangles, double-precision spheres and planes, the renderer's tie-breaking), so a query's

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // RayTracer against analytic answers: spheres, planes, a closed mesh (rays through its shared
 // edges and vertices), grazing and parallel rays, t_min/t_max, far origins; and against the
 // renderer itself: the camera rays of showcase frames hit bit for bit what the renderer's

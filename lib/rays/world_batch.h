@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // World-space rays into a RayBatch and the batch's hits back into world space, a vector of rays
 // at a time (Google Highway, picked at run time: world_batch_simd.cpp): lane for lane the
 // scalar steps of RayTracer::query() and RayTracer::to_world() (ray_tracer.cpp), in the same

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // world_batch.h's functions for each SIMD target, compiled by Google Highway and picked at run
 // time (as render/triangle_cluster_simd.cpp). Each expression repeats the scalar code it names,
 // operation for operation: the answers are bit for bit the scalar ones (ray_tracer_test.cpp

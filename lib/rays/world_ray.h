@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A ray query and its answer in world space, as the ray service's clients see them (the
 // renderer works in camera-relative float space; RayTracer converts).
 #pragma once

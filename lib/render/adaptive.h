@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rendering to a target error: the block rule that decides when pixels have enough samples, and
 // the summary of how a frame's samples were spent.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The watertight test's triangle clusters (render/triangle_cluster.h) as Embree user geometry:
 // one user primitive per cluster of up to 8 triangles, whose callbacks test all of them at once.
 #include <cstdint>

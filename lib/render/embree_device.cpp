@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "render/embree_device.h"
 
 #include <spdlog/spdlog.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The process's one Embree device (Embree tutorials: one device per process, the error
 // callback installed before anything else can fail), with RAII handles for scenes/geometries.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rendering a frame to a target error (ImageSettings::target_rmse, the frame's RMSE): passes over
 // blocks of kAllocationBlock^2 pixels, each pass taking the samples the allocation of the
 // previous pass's statistics asks for (sampling/sample_allocation.h).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rendering to a frame's target error: the frame meets the target without paying for far less
 // error, its estimate is honest against a high-spp reference, and every pixel is a pure function
 // of (scene, frame, settings).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reflection, refraction and the exact unpolarized Fresnel reflectance of a dielectric.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // glTF scenes rendered, against analytic values and against the same scene written in JSON:
 // lights (point = JSON point, spot cone edges), the camera's yfov/aspect (a sphere's silhouette),
 // texels at the pixels they should cover, and an animation frame against a keyed JSON scene.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What a ray meets: the primitive (PrimRef) and the surface point there (Hit), in render space.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Whitted integrator: direct lighting with hard shadows from point and directional lights
 // (and one sample per area light), perfect mirrors, and dielectrics with exact Fresnel and total
 // internal reflection, recursing up to max_depth.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The integrator's packets against their lanes traced alone: a pixel's samples traced together
 // (trace_radiance_packet: Embree packets for camera, shadow, reflection and refraction rays, the
 // work around them in SIMD across lanes) must give each sample the radiance it gets traced as a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // TESSERA_ISA_CLONES: compile a function twice, for AVX2 and for the x86-64 baseline the project
 // builds for, and pick the version once at load time by what the CPU has (GCC's function
 // multiversioning: the target_clones attribute and an ifunc resolver).

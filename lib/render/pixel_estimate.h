@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A pixel's running estimate: the sums of its two independent sample streams (sampler.h), from
 // which come its value and an honest estimate of that value's variance.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A pixel's samples, rendered and stored: the one place where camera samples become radiance in
 // a pixel's running estimate, shared by every way of choosing how many samples a pixel takes
 // (uniform spp, the block bound, the frame target).

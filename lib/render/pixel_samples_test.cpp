@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Packets fill across pixels (pixel_samples.h): which samples share a packet must change no bit.
 #include "render/pixel_samples.h"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Ray-plane intersection. Planes are infinite, so they live beside Embree (which needs
 // bounded geometry), intersected analytically for every ray.
 #pragma once

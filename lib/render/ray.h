@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rays in render space (camera-relative, float), and spawning secondary rays without
 // self-intersection at any scale.
 #pragma once

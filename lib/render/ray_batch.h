@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rays and their nearest hits a batch at a time, as arrays of components (structure of arrays):
 // the form SIMD code reads and writes whole vectors of, several rays per instruction. The ray
 // service traces its queries this way (RenderScene::intersect_batch); a ray's answer is still

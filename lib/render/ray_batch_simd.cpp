@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // ray_batch_simd.h's functions for each SIMD target (SSE4, AVX2, AVX-512), compiled by Google
 // Highway and picked at run time, as render/triangle_cluster_simd.cpp is. Every expression below
 // repeats the scalar code it names operation for operation: IEEE arithmetic rounds each operation

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The arithmetic of RenderScene::intersect_batch (render_scene_batch.cpp) on whole vectors of
 // rays: each function is, lane for lane, the scalar code it names, in the same operations and
 // the same order (the build contracts nothing into FMAs), so every answer is bit for bit the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A packet's rays as arrays of components (structure of arrays), the form they travel in from
 // the camera through the integrator to Embree's packet queries: the SIMD stages read and write
 // whole vectors of them, and no stage copies rays between a struct per ray and arrays

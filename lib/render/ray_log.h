@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // An optional per-thread log of the exact Embree queries the renderer makes (origin, direction,
 // tnear/tfar, mask, the primitive the ray leaves). bench/ray_ceiling replays them with bare
 // Embree calls to measure how close the renderer gets to the traversal ceiling. Off (a null

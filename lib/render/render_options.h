@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How a RenderScene is built: which ray-triangle test it traces with, and how it finds spheres.
 #pragma once
 

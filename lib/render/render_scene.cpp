@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A RenderScene's single-ray queries: the nearest hit (intersect(), its hit finished in
 // finish_hit()) and any hit (any_hit()), the infinite planes met in double beside the Embree
 // query; and what the scene tells of a primitive. The batch and packet versions are in

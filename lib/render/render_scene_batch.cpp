@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // RenderScene::intersect_batch and any_hit_batch: intersect() and any_hit() for a batch of rays
 // from no surface, with the arithmetic around the Embree queries done across rays in SIMD
 // (render/ray_batch_simd.h).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Building a RenderScene's data from a Scene at one frame: render space (the eye at the origin),
 // the lights, the spheres, planes and triangle buckets, the tables the SIMD batch reads and the
 // radii the Embree boxes and far rays depend on. The Embree scene over that data is built last

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Embree scene of a RenderScene, built over its buckets: the watertight test's clusters and
 // the spheres as user geometry (cluster_geometry.cpp, sphere_geometry.cpp), or, with the
 // embree-robust and embree-fast tests, Embree's own triangles on the buckets' vertices.

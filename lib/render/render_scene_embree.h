@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Embree side of a RenderScene (render/render_scene_internal.h names these types; they are
 // defined here so that its includers need no Embree header): the intersect context our callbacks read,
 // the glass crossings a shadow ray collects, and the data each user geometry's callbacks are

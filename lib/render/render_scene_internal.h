@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // One frame of a Scene, ready to trace: camera-relative float geometry in an Embree scene
 // (triangles + analytic spheres as user geometry), infinite planes beside it, lights and
 // materials. Immutable after construction, so any number of threads may trace it at once.

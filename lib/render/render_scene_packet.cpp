@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Packet versions of RenderScene::intersect and ::transmittance: up to 8 rays in one Embree
 // rtcIntersect8/rtcOccluded8 call (8 lanes = AVX2's width; Embree splits them for narrower
 // ISAs). The camera rays of one pixel's consecutive samples, and the shadow rays from their hit

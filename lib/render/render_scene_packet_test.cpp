@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The packet queries against the single-ray ones (an independent code path inside Embree), and
 // a lane's result against the packet it is in: it must not depend on its lane or companions.
 #include <gtest/gtest.h>

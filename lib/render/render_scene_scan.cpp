@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Small analytic scenes (at most kScanSpheres spheres, no triangles): a whole packet's rays tested
 // against every sphere in turn, directly, instead of through Embree's BVH and its callbacks.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The sphere scan (render_scene_scan.cpp, render/sphere_scan.h) against Embree's BVH: its float
 // pre-test must never drop a lane the exact test would hit, on any SIMD target, and a scanned
 // scene must answer every packet query bit for bit as the same scene traversed by Embree.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "render/render_scene_internal.h"
 
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The textures of diffuse materials at a hit: an image texture's albedo (by the hit's uv) and
 // the checker pattern's parity.
 #include <bit>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shadow rays: the fraction of light a ray lets through (RenderScene::transmittance), opaque
 // surfaces blocking it and glass surfaces, crossed unrefracted, multiplying in their
 // transmittance in order along the ray. The crossings are collected during the one occlusion

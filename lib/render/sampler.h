@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Counter-based sample generation: every number is a pure function of
 // (seed, frame, pixel, sample index, dimension), so a pixel's value does not depend on tile
 // size, tile order, thread count or how many times a tile is rendered.

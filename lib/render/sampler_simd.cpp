@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // render/sampler.h's owen_sobol_2d_lanes for each SIMD target (SSSE3, SSE4, AVX2, AVX-512, and
 // Highway's one-lane fallback), compiled by Google Highway and picked at run time, as
 // render/sphere_roots_simd.cpp is. It is

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The reflection and refraction rays of a packet's flat mirror and glass hits, set up for all
 // lanes at once (structure of arrays, Google Highway at the machine's width, picked at run time):
 // per lane the mirror direction about the facing normal, for glass the exact Fresnel reflectance

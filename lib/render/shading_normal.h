@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Interpolated shading normals for meshes that carry vertex normals (glTF NORMAL), and the rules
 // that keep them from breaking light transport. The geometric normal still decides everything
 // about *where* a ray is: which side a hit is seen from, where secondary and shadow rays start

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Interpolated shading normals against analytic values. A sphere mesh whose vertex normals are
 // the sphere's radial normals interpolates to the true sphere normal at every hit point
 // (sum b_i (v_i - c) / r = (p - c) / r, since p = sum b_i v_i), while its facets are off by up

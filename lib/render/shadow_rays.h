@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The shadow rays of a packet's diffuse hits toward one point, spot or directional light, set up
 // for all lanes at once (structure of arrays, Google Highway at the machine's width, picked at
 // run time): per lane, the direction and distance to the light, the cosine weight (flat, or the

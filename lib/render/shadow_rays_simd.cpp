@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // render/shadow_rays.h's set-up for each SIMD target (SSE4, AVX2, AVX-512), compiled by Google
 // Highway and picked at run time, as render/triangle_cluster_simd.cpp is. Each expression
 // repeats the scalar code it names (integrator.cpp; ray.h's offset_ray_origin; next_float.h;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Vectors of 3D points and directions, one lane per ray, and the robust spawn of render/ray.h's
 // offset_ray_origin, for the per-target code of the *_simd.cpp files (Google Highway's "-inl.h"
 // convention: included after <hwy/foreach_target.h> and <hwy/highway.h>, once per target, hence

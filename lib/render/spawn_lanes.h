@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A packet's surface points that rays leave from, as arrays of components (one lane per ray of
 // RenderScene::kPacket): the hit point, its rounding-error bound and the geometric normal facing
 // the arriving ray, what render/ray.h's offset_ray_origin needs to spawn a ray robustly. Shared by

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Ray-sphere intersection that stays accurate for tiny, huge, far and near spheres.
 #pragma once
 

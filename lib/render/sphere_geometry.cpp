@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Analytic spheres as Embree user geometry: the roots found in double (render/sphere.h), the
 // sphere a ray leaves excluded exactly.
 #include <cmath>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The sphere test of a packet's lanes at once (structure of arrays, Google Highway at the
 // machine's width, picked at run time): for each active lane, the nearest root of
 // intersect_sphere() (render/sphere.h) in (tnear, tfar), the sphere geometry's callbacks' rule

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Which of a packet's rays pass near enough to each sphere of a small scene to meet it: the
 // float test that lets RenderScene scan a few spheres directly instead of traversing a BVH
 // (render_scene_scan.cpp). Google Highway at the machine's width, picked at run time.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // render/sphere_scan.h for each SIMD target (SSE4, AVX2, AVX-512), compiled by Google Highway and
 // picked at run time, as render/sphere_roots_simd.cpp is.
 #undef HWY_TARGET_INCLUDE

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The tile API the worker calls, and the in-process frame render built on it.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // End-to-end renderer checks against analytic answers and invariants (not against itself).
 #include "render/tile_renderer.h"
 

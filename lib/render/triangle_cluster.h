@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Triangles in clusters of up to 8, each cluster one Embree user primitive whose callback runs the
 // watertight test (render/watertight_triangle.h) on all its triangles at once, in SIMD.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // intersect_cluster (render/triangle_cluster.h): the watertight test on a cluster's triangles,
 // as many at once as the CPU's double-precision vectors hold (2 with SSE4, 4 with AVX2, 8 with
 // AVX-512), compiled for each of those targets by Google Highway and picked at run time, so one

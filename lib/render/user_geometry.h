@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Embree user geometry: primitives whose callbacks run our own tests. The watertight test's
 // triangle clusters (cluster_geometry.cpp) and the spheres (sphere_geometry.cpp) are attached to
 // the Embree scene here, and share padded bounding boxes and the hit record a callback writes.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Watertight ray/triangle intersection (Woop, Benthin, Wald, "Watertight Ray/Triangle
 // Intersection", JCGT 2(1), 2013), with the edge functions evaluated in double.
 //

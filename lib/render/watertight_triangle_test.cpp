@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "render/watertight_triangle.h"
 
 #include <gtest/gtest.h>

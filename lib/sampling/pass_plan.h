@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A frame target's passes (ImageSettings::target_rmse, docs/renderer.md): the grid of
 // allocation blocks, each block's record across passes, the decision between passes and each
 // tile's share of it. Pure functions of the blocks' statistics, evaluated in block order: the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The pieces of a frame target's passes that a farm's coordinator and workers must agree on.
 #include "sampling/pass_plan.h"
 

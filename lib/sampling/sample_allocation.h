@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Where a frame's samples go when the frame has a target error: the allocation that minimises the
 // frame's cost for its predicted error, from per-block statistics of the samples taken so far.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The allocation against its closed form: with every block at the same rate a and no bound
 // reached, block b's count is proportional to (m_b n_b^a / c_b)^(1 / (a + 1)).
 #include "sampling/sample_allocation.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Frame F of a scene: the camera and the object transforms at F, by linear interpolation of
 // keyframes (held constant before the first and after the last). Pure function of (scene, F).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // glTF node animations on one timeline: every channel of every animation, frame F at time
 // F / fps, sampled as the glTF spec says (LINEAR, with spherical interpolation for rotations;
 // STEP; CUBICSPLINE), and the world transforms of node instances at any time.

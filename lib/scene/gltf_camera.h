@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The glTF camera a scene is seen through: the first camera node met in the walk, or the one
 // named (its camera's name or its node's name); perspective only. glTF cameras look down their
 // local -Z with +Y up.

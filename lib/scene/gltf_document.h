@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A glTF file's document as tinygltf reads it (.gltf with its buffers and images, or .glb), under
 // the rules for files from untrusted peers: every file it reads lies inside the bundle and under
 // the size limit, and is recorded (a bundle carries the buffers and images of a .gltf).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "scene/gltf_lights.h"
 
 #include <spdlog/spdlog.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // glTF punctual lights (KHR_lights_punctual) in radiometric units (docs/scene-format.md): point,
 // spot and directional, placed by their nodes' world transforms at frame 0.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // glTF materials on the Whitted model (docs/scene-format.md, "From Blender and other tools"):
 // metallic-roughness materials become diffuse, mirror or glass by the nearest rule, with their
 // base color textures decoded once each; what does not map is dropped with one warning per

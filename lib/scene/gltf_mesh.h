@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // glTF meshes as Scene meshes: one per glTF mesh (all its triangle primitives), shared by every
 // node that uses it, so an instanced mesh is loaded once. Positions, the texture coordinates a
 // material reads, vertex normals and indices are read through checked accessors.

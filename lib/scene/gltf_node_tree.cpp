@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "scene/gltf_node_tree.h"
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The glTF scene to show as node instances: every path from one of its root nodes to a node is
 // one instance (a node reached along two paths is drawn twice, sharing its mesh), each node with
 // its local transform at rest.

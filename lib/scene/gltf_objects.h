@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // glTF mesh instances as scene objects: one per node instance with a mesh that has triangles,
 // all instances of a mesh sharing it, each placed by its node's world transform at frame 0.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Safe reads from a glTF document as tinygltf hands it over: tinygltf keeps indices and byte
 // ranges as written, so every accessor is checked against its bufferView and buffer here before
 // a byte is read, and every fault is one SceneError naming the file and its glTF path.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // glTF 2.0 scenes through tinygltf (Debian's libtinygltf-dev 2.7), not assimp: assimp 5.2.5,
 // which still loads meshes (mesh_loader.cpp), imports glTF cameras wrongly (its horizontal field
 // of view is yfov x aspect, and the node's position is applied twice, once more as mPosition)

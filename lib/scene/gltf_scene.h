@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A glTF 2.0 file (.gltf + buffers, or .glb) as a whole scene: camera, KHR_lights_punctual
 // lights, materials mapped to the Whitted model, the node hierarchy (instances share one mesh)
 // and node animations sampled into frames. The mapping is in docs/scene-format.md, "From

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // glTF scenes at the Scene level: what the Blender export becomes, instancing, camera choice,
 // animation frames, and one clear error (file + glTF path) for each kind of bad file.
 #include "scene/gltf_scene.h"

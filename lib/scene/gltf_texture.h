@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // glTF textures: images decoded with libpng and libjpeg (the reference decoders every distro
 // keeps patched, not tinygltf's bundled stb_image), sRGB-decoded to linear light, with the
 // sampler's filter and wrap modes; and KHR_texture_transform.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A cursor over a JSON value that knows its path in the document, so every complaint names
 // the file and field precisely ("objects[3].radius: must be > 0, got -1"), and that rejects
 // fields it was never asked about (typos must not be silently ignored).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Loads triangle meshes with assimp (OBJ+MTL, PLY ascii/binary, glTF 2.0, ...).
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The scene description: what a scene file says, in world space and double precision.
 // A Scene is plain data (no Embree, no gRPC); frame F of it is fully defined by the file and F
 // (see animation.h). The renderer converts one frame to camera-relative float geometry.

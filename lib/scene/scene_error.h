@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The one error type for bad scene input: its message names the file, the JSON path (or line)
 // and what is allowed, e.g. "scenes/a.json: objects[3].radius: must be > 0, got -1".
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Allowed ranges of a scene's settings, shared by the parser, the glTF reader, the CLI and the
 // coordinator's limits.
 #pragma once

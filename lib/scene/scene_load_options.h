@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How a scene file is loaded: limits for scenes from untrusted peers, and the choices a glTF
 // scene leaves open (camera, scene, frame rate). Shared by the scene file parser and the glTF
 // reader, which load_scene picks between by the file's name.

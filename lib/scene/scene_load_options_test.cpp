@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // SceneLoadOptions: what the coordinator applies to scenes from bundles.
 #include <gtest/gtest.h>
 

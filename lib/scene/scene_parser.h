@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reads a scene file (JSON, see docs/scene-format.md) into a Scene, loading its meshes.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Texture lookup: bilinear (or nearest) filtering with glTF's wrap modes, on linear texels.
 #pragma once
 

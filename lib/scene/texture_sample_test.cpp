@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Texture lookup against hand-computed values: texel centers, bilinear blends, wrap modes.
 #include "scene/texture_sample.h"
 

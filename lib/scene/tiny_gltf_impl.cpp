@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tinygltf's implementation, compiled here with our own definitions (README.Debian's second
 // route) rather than linked from Debian's libtinygltf.so: that library's Model layout did not
 // match the header as our compiler flags saw it (heap corruption on the first load), and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // bfloat16: the top 16 bits of an IEEE-754 float32 (sign, 8-bit exponent, 7 stored mantissa
 // bits), float32's range at 8 significant bits. The precision a tile's per-pixel variance is
 // kept at: the renderer rounds it here (so an in-process render and a farm render report the

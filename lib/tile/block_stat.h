@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A block's statistics after its samples so far: what a frame-target render (render/
 // frame_target.h) allocates the next pass's samples from. A value type of the tile module
 // because tiles carry them: a worker reports the statistics of the blocks it rendered, and the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A frame put together from its tiles: the colour, and optionally the per-pixel variance and
 // sample counts, with which of the grid's tiles are in. The one place tile pixels are copied into a
 // frame: the in-process render, the client writing farm frames and the coordinator's monitor all

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How a frame is cut into tiles: squares of `size` pixels in row-major order from the top-left,
 // the last column and row cut short where the frame's size is not a multiple of `size`. Tile
 // indices on the wire, in the database and in the monitor all count in this order, so it is

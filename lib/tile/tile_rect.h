@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A rectangle of one frame: the unit of work of the farm. A plain value, shared by the scheduler
 // (which hands tiles out), the renderer (which fills them), the wire codec and the assemblers.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A finished tile: a rectangle of one frame rendered to float HDR RGB with the per-pixel
 // estimated variance, the samples each pixel took, and the counts of rays traced. What a worker
 // sends, the coordinator stores and forwards, and a client (or an in-process render) assembles.

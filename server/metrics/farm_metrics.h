@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The coordinator's Prometheus metrics, served as text by GET /metrics on the HTTP
 // listener (server/monitor/http_listener.h). Names follow Prometheus conventions: `tessera_`
 // prefix, base units (seconds, bytes), `_total` on counters.

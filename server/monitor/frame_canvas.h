@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // One frame of a job as the monitor sees it converge: the pixels of the tiles finished so far
 // (missing tiles black), which worker rendered each tile, and the frame's render statistics.
 // The preview PNG is tone-mapped here, in the coordinator, the same way `tessera convert` makes

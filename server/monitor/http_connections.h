@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The HTTP side's connections (cpp-httplib serves each on a thread of a pool) with deadlines per
 // request, not per byte, so that slow or many clients cannot starve the others.
 //

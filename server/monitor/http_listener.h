@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The coordinator's HTTP side (`tessera-server --http-listen HOST:PORT`): the web monitor, its
 // JSON API and /metrics. cpp-httplib (Debian's libcpp-httplib, built with OpenSSL) serves it:
 // plain HTTP, or HTTPS with the certificate and key the gRPC side uses when TLS is configured.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What the web monitor shows beyond the coordinator's snapshot: per-frame times and estimated
 // errors, the preview of frames as they converge, which worker rendered which tile, and the
 // faults counted against each worker.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The routes of the coordinator's HTTP listener:
 //   GET  /, /static/NAME          the monitor page and its modules (no farm data: always served)
 //   GET  /api/whoami              who the token makes the caller, and whether one is needed

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Unit tests of the coordinator's HTTP side without processes: the preview canvas, the
 // Prometheus text, and the monitor feed's cost model (nothing kept while no page is open).
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The monitor's page, styles and JavaScript modules (server/monitor/web/), compiled into the
 // server by embed_web.cmake: the coordinator serves them without files beside it and without a
 // Node build step (plain ES modules, no npm packages).

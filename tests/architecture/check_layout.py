@@ -50,6 +50,8 @@ INCLUDE_RULES = [
 ]
 # Only these files of lib/farm may include the renderer: the bundle cache of render scenes.
 FARM_RENDER_FILES = {"lib/farm/bundle_cache.h", "lib/farm/bundle_cache.cpp"}
+# Every product C++ file says its license on its first line (LICENSE; CONTRIBUTING.md).
+SPDX_LINE = "// SPDX-License-Identifier: Apache-2.0\n"
 # lib/render's own headers: the whole RenderScene (its packet and ISA-cloned internals) and its
 # Embree side. Everyone else sees a RenderScene through render/render_scene.h.
 RENDER_INTERNAL = r'^render/render_scene_(internal|embree)\.h$'
@@ -279,6 +281,8 @@ def main():
     for rel, path in product_files(src):
         with open(path, encoding="utf-8", errors="replace") as f:
             text = f.read()
+        if not text.startswith(SPDX_LINE):
+            breaches.append(f"{rel}:1: does not start with '{SPDX_LINE.strip()}' (the project is Apache-2.0)")
         lines = text.count("\n")
         if lines > MAX_FILE_LINES:
             breaches.append(f"{rel}: {lines} lines, over {MAX_FILE_LINES}: split it by concept")

@@ -19,6 +19,9 @@ CITATION_HASH = "see " + "#" + "42"
 PROGRAM_EXECUTABLES = ["server/tessera-server", "worker/tessera-worker", "client/tessera", "rays/tessera-rays"]
 
 
+SPDX = "// SPDX-License-Identifier: Apache-2.0\n"
+
+
 def write(root, rel, text):
     path = os.path.join(root, rel)
     os.makedirs(os.path.dirname(path), exist_ok=True)
@@ -26,21 +29,27 @@ def write(root, rel, text):
         f.write(text)
 
 
+def write_clean(root, rel, text):
+    """As write(), the SPDX line first in a C++ file: what a file that keeps every rule has."""
+    write(root, rel, SPDX + text if rel.endswith((".h", ".cpp")) else text)
+
+
 def clean_tree(src, build):
     """A tree that keeps every rule, with things that only look like breaches."""
-    write(src, "lib/farm/channel.h", "#pragma once\n")
-    write(src, "lib/rays/ray_check.h", "#pragma once\n")
-    write(src, "lib/rays/ray_codec.h", '#pragma once\n#include "rays/ray_check.h"\n')
-    write(src, "lib/rays/CMakeLists.txt", "add_library(tessera_ray_codec STATIC ray_codec.cpp)\n")
-    write(src, "rays/ray_service.h", '#pragma once\n#include "farm/channel.h"\n')
+
+    write_clean(src, "lib/farm/channel.h", "#pragma once\n")
+    write_clean(src, "lib/rays/ray_check.h", "#pragma once\n")
+    write_clean(src, "lib/rays/ray_codec.h", '#pragma once\n#include "rays/ray_check.h"\n')
+    write_clean(src, "lib/rays/CMakeLists.txt", "add_library(tessera_ray_codec STATIC ray_codec.cpp)\n")
+    write_clean(src, "rays/ray_service.h", '#pragma once\n#include "farm/channel.h"\n')
     # The ray server's own header bare, lib/rays' by its room.
-    write(src, "rays/ray_service.cpp", '#include "ray_service.h"\n#include "rays/ray_codec.h"\n')
-    write(src, "rays/CMakeLists.txt", "add_library(tessera_ray_server STATIC ray_service.cpp)\n")
-    write(src, "client/rays_command.cpp",
+    write_clean(src, "rays/ray_service.cpp", '#include "ray_service.h"\n#include "rays/ray_codec.h"\n')
+    write_clean(src, "rays/CMakeLists.txt", "add_library(tessera_ray_server STATIC ray_service.cpp)\n")
+    write_clean(src, "client/rays_command.cpp",
           '#include <string>\n#include "farm/channel.h"\n#include "rays/ray_codec.h"\n'
           '#include "tessera/v1/ray_service.pb.h"\n// frame #3 of the job, colour #000\n')
-    write(src, "server/monitor/web/monitor.css", "#identity { color: #667; background: #000; }\n")
-    write(src, "docs/notes.md", "# Notes\n\nSee [part 3](#3-a-title); the 2nd run, step 4.\n")
+    write_clean(src, "server/monitor/web/monitor.css", "#identity { color: #667; background: #000; }\n")
+    write_clean(src, "docs/notes.md", "# Notes\n\nSee [part 3](#3-a-title); the 2nd run, step 4.\n")
     for exe in PROGRAM_EXECUTABLES:
         write(build, os.path.join(os.path.dirname(exe), "CMakeFiles", os.path.basename(exe) + ".dir", "link.txt"),
               "c++ main.o -o " + exe + " lib/farm/libtessera_farm.a lib/rays/libtessera_ray_codec.a\n")
@@ -87,6 +96,12 @@ class CheckLayoutTest(unittest.TestCase):
         code, out = run_checker(self.src, self.build)
         self.assertEqual(code, 1, out)
         self.assertIn("lib/rays/ray_csv.cpp:2: throws a bare std:: exception: lib/rays/ throws rays::RaysError", out)
+
+    def test_a_product_file_without_the_spdx_line_fails(self):
+        write(self.src, "lib/farm/channel.h", "#pragma once\n")
+        code, out = run_checker(self.src, self.build)
+        self.assertEqual(code, 1, out)
+        self.assertIn("lib/farm/channel.h:1: does not start with '// SPDX-License-Identifier: Apache-2.0'", out)
 
     def test_a_tracker_number_fails(self):
         write(self.src, "docs/notes.md", f"# Notes\n\nFixed the leak ({CITATION_WORD}).\n")

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Block-bound jobs on the farm (--block-rmse, the farm's adaptive mode): the frames are
 // bit-identical to `tessera render` with the same settings, whatever the tile size, the number of
 // workers and the tiles rendered again after a worker died; the client previews frames as they

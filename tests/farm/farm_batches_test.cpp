@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Results and assignments in batches (farm/result_batching.h): a worker gathers the results that
 // finish close together into one message, and the coordinator sends each worker the leases of
 // one dispatch in one message. Fewer messages; the frames must not notice.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Chaos: a 10-frame job while workers are killed (SIGKILL) and restarted every couple of seconds
 // and the coordinator is killed (kill -9) and restarted twice. Every frame must come out
 // bit-identical to an in-process render, and the number of tiles rendered more than once is

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Damaged storage with real processes: the coordinator is stopped, its
 // files under --data-dir are damaged the way a disk, an operator or a bad restore would, and it
 // is started again. It must never report success over a wrong or missing frame: a damaged or

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // End-to-end farm tests: a real coordinator, real workers and the real CLI on 127.0.0.1.
 // Images are small (96x64, 4 spp, 16 px tiles: 24 tiles a frame) so the suite stays fast on two
 // cores; workers that must be killed mid-job are slowed with --test-delay-ms.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Exhaustion with real processes: a data directory on a tiny file system that fills
 // up. The coordinator must keep its promises when it cannot write: acknowledgements and
 // deletions go through (so space comes back while it runs), it starts on a full disk, and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Bad workers (tessera-worker --test-fault, testing only): every wrong result is refused with
 // its precise reason in the coordinator's log, the worker is blocklisted for the job after
 // --max-faults of them, the good worker finishes the job bit-identical; and a job that every

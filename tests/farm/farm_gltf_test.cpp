@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // glTF scenes on the farm: the Blender export (.glb, buffers and texture inside) and a
 // separate-files .gltf (its .bin must travel in the bundle) render bit-identical to `tessera render`.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Real processes on loopback for the farm tests: a coordinator on an ephemeral port, workers,
 // and the CLI, all in a temporary directory. Every child gets PR_SET_PDEATHSIG, so a test that
 // crashes or is killed by CTest's timeout takes its processes with it; destructors SIGKILL

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // tessera-worker --exit-when-idle: a worker that leaves by itself once the farm has nothing for it
 // (a Slurm allocation or a Kubernetes Job then ends with the queue), and never while it has work.
 #include <gtest/gtest.h>

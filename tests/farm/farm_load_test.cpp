@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Load: 50 clients submit and watch tiny jobs at once on 20 workers. Every job finishes with its
 // frame bit-identical to `tessera render`, every finished job leaves the coordinator's memory
 // (the mechanism that bounds it), and the coordinator's RSS before and after is printed together

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The coordinator's HTTP side, end to end: a real coordinator with --http-listen,
 // real workers and the real CLI on 127.0.0.1; the monitor's API under tokens, owners and TLS;
 // a real Prometheus server scraping /metrics; and the monitor in headless Chromium (jobs, workers,

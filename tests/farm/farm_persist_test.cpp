@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Persistence with real processes: finished tiles survive kill -9 of the coordinator and come
 // back bit-identical from disk; a corrupt database, an unwritable data directory and a full disk
 // give clear errors instead of silent data loss.

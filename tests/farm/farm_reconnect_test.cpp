@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reconnecting after a coordinator restart: a worker whose own backoff has
 // grown to several seconds must still be back within about a second of the coordinator
 // listening again, because it waits for the channel to connect rather than sleeping its backoff;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Stop signals with real processes: SIGINT and SIGTERM are taken by the one thread that waits for
 // them (farm/stop_signals.h), so a stop is always the clean one. A thread that does not block them
 // (gRPC starts its executor and timer threads as soon as credentials are made) lets the kernel

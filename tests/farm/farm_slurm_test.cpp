@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Workers placed by Slurm (docker/slurm/tessera-workers.sbatch) on a real single-node Slurm on
 // localhost: the batch script as users submit it, a 2-task array, each task one tessera-worker
 // with the task's CPU and the worker token from a file, leaving with --exit-when-idle once the

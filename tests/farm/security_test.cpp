@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Security of the farm through the real processes: tokens (per role), TLS (right CA, plaintext,
 // wrong CA, client certificates) and the coordinator's limits, each refused with the right code
 // and a message naming the limit. The PKI is made per test run with openssl in a temp directory.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A single-node Slurm on localhost for the tests: munged with its own key and socket, slurmctld
 // and slurmd in the foreground with a configuration in a temporary folder, on free ports, as root
 // (slurmd starts jobs as their users). Everything dies with the test (the harness's Process).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A throwaway PKI for the TLS tests (farm security, the ray service): made per test run with
 // openssl in a temporary directory.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Ray servers found through the coordinator (docs/rays.md "Where it is served"), with
 // real processes: tessera-rays announces itself, `tessera rayservers` lists it, `tessera rays
 // --coordinator` without --server uses it (answers byte-identical to the in-process run), a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tessera rays` and tessera-rays as processes: in-process and service answers identical byte for
 // byte (CSV and .npy, several batches), analytic values in the CSV, bad input exits 2 naming the
 // ray, tokens on both hops, the Python example client built from ray_service.proto alone, and a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The ray service's end-to-end tests' helpers: tessera-rays as a process beside a test Farm
 // (tests/farm/farm_harness.h), a file of rays at the bunny, polling.
 #pragma once

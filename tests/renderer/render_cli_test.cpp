@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `tessera render` as a user runs it: the real binary, real files, an independent EXR reader.
 #include <gtest/gtest.h>
 

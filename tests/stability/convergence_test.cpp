@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Case 10: convergence. RMSE against a high-spp reference must fall with spp at the rate the
 // sampler promises, fitted as the slope of log RMSE over log spp:
 //  - independent uniform samples: spp^-0.5 (Monte Carlo), on any scene;

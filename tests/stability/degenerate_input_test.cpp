@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Case 9: degenerate input. Zero-area triangles, duplicate vertices, NaN vertices and coincident
 // faces (z-fighting) are dropped or resolved deterministically, never crash, and never change
 // what the valid geometry looks like. (lib/scene/mesh_loader_test.cpp covers the loader alone on

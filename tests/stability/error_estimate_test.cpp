@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Case 11: the error estimate is honest. The estimated RMSE the renderer reports (from each
 // pixel's two independent sample streams for stratified samplers, from the sample variance for
 // independent ones; docs/renderer.md) must be within 0.8-1.25x the RMSE measured against a

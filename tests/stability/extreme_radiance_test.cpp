@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Case 8: extreme radiance. Point lights of 1e-6, 160 (the showcase's bright light) and 1e6, and
 // the format's largest 1e20, stay exact in float against the analytic rho/pi I cos/r^2; emitters
 // of 1e-6 and 1e6 are seen exactly; an irradiance that overflows float never reaches a pixel as

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Case 7: two mirrors facing each other. Recursion stops at max_depth exactly (counted in
 // secondary rays), and what comes back after k bounces is reflectance^k times what the last
 // ray sees, per channel.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Case 6: glass against closed forms. A slab at normal incidence transmits (1-R)/(1+R) with all
 // internal bounces and exactly the partial sum at each max_depth; a camera under water sees
 // Snell's window at asin(1/n), with the exact Fresnel reflectance inside it and lossless total

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Case 5: grazing and parallel rays on planes and triangles. Never a NaN, never a hit behind
 // the origin: t >= 0, and the returned point lies ahead along the ray (within its error box).
 // (lib/render/plane_test.cpp checks intersect_plane's parallel case on its own;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Case 1: scale invariance. The Whitted showcase translated by 10^k (k = 0..6) and scaled by
 // 10^k (k = -3..4), camera and lights moved with it, renders the same image; and an analytic
 // scene (a sphere over a plane under a directional light) shows no shadow acne or speckles at

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Case 2: self-intersection. A light quad 0.01 below a ceiling (as in the Cornell box), a sphere
 // of radius 1e6 used as a ground next to a true plane, and curved glass at grazing angles: no
 // spurious self-shadowing, checked against closed forms.

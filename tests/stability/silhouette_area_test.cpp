@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Case 3: small far spheres and huge near ones. The visible silhouette, summed as pixel coverage,
 // matches the analytic area within 0.5%:
 //  - radius 1e-3 at distance 1e4, head on: a disc of radius rho = f r / sqrt(d^2 - r^2) pixels

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "stability_util.h"
 
 #include <unistd.h>

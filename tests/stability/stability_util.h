@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared helpers of the stability suite (docs/accuracy.md): every case reports what it measured
 // next to its bound, and those rows become the table in docs/accuracy.md.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Case 4: watertightness. Rays aimed exactly at shared edges and vertices of closed meshes (a
 // cube, an icosphere, the Stanford bunny's manifold part), from directions that meet every
 // adjacent face from its front, must hit at or before the aimed point. A miss, or a first hit

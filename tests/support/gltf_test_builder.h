@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Test helper: writes small glTF 2.0 files (one embedded base64 buffer) from arrays, so tests
 // state their geometry, lights and camera in a few lines and compare against analytic values.
 #pragma once

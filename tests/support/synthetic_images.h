@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Deterministic synthetic HDR frames for tests and benchmarks when no rendered frame is at
 // hand: they have what a render has that stresses a color pipeline (smooth gradients, very
 // bright highlights at 160.0, near-black shadows, a little Monte Carlo-like noise).
