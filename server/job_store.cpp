@@ -229,7 +229,7 @@ JobStore::Stats JobStore::stats() const {
 }
 
 void JobStore::set_batch_observer(BatchObserver observer) {
-  std::lock_guard lock(mu_);
+  std::lock_guard lock(observer_mu_);
   batch_observer_ = std::move(observer);
 }
 

@@ -121,8 +121,10 @@ class JobStore {
   using Stats = JobStoreStats;  // job_store_stats.h
   Stats stats() const;
   // Called by the writer thread after each batch it committed: how long the batch took (segment
-  // write, fsyncs, SQLite commit) and the tile bytes it wrote. Set before the first write (the
-  // metrics' store latency and bytes, server/metrics).
+  // write, fsyncs, SQLite commit) and the tile bytes it wrote (the metrics' store latency and
+  // bytes, server/metrics). Its owner clears it (an empty observer) before it is destroyed: once
+  // set_batch_observer returns, the observer it replaced is not running and is never called
+  // again, so the store may write its last batches after the observer is gone.
   using BatchObserver = std::function<void(double seconds, uint64_t tile_bytes)>;
   void set_batch_observer(BatchObserver observer);
 
@@ -167,7 +169,8 @@ class JobStore {
   void writer_loop();
   // Applies `pending`, and on failure what of it needs no new segment (see apply()); returns
   // the error ("" once everything is committed) and leaves in `deferred` the tiles still to write.
-  std::string apply_pending(std::vector<Op>& pending, const BatchObserver& observer, std::vector<Op>& deferred);
+  std::string apply_pending(std::vector<Op>& pending, std::vector<Op>& deferred);
+  void report_batch(double seconds, const std::vector<Op>& batch);  // to the batch observer, if any
   // Applies the batch; throws on failure (the transaction is rolled back). With `new_segment`
   // false, tiles that would need one (tiles of frames not acknowledged in this batch) are left
   // out and returned, to be retried: the rest (acknowledgements, whose commit frees segments,
@@ -205,7 +208,8 @@ class JobStore {
   bool healthy_ = true;
   std::string last_error_;
   Stats stats_;
-  BatchObserver batch_observer_;  // under mu_ (the writer copies it with each batch)
+  std::mutex observer_mu_;  // held while the observer runs: clearing it waits for that call
+  BatchObserver batch_observer_;  // under observer_mu_
   LeaseId lease_hwm_ = 0;  // writer thread only
   std::thread writer_;
 };

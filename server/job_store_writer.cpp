@@ -16,7 +16,6 @@ namespace tessera::server {
 
 void JobStore::writer_loop() {
   std::vector<Op> pending;
-  BatchObserver observer;
   while (true) {
     {
       std::unique_lock lock(mu_);
@@ -31,10 +30,9 @@ void JobStore::writer_loop() {
       // Everything queued so far is one batch: under load batches grow and commits stay few.
       for (auto& op : queue_) pending.push_back(std::move(op));
       queue_.clear();
-      if (!observer) observer = batch_observer_;
     }
     std::vector<Op> deferred;
-    const std::string error = apply_pending(pending, observer, deferred);
+    const std::string error = apply_pending(pending, deferred);
     std::vector<std::shared_ptr<std::promise<std::string>>> barriers;
     for (auto it = pending.begin(); it != pending.end();) {
       if (auto* b = std::get_if<Barrier>(&*it)) {
@@ -91,19 +89,12 @@ void JobStore::writer_loop() {
   }
 }
 
-std::string JobStore::apply_pending(std::vector<Op>& pending, const BatchObserver& observer,
-                                    std::vector<Op>& deferred) {
+std::string JobStore::apply_pending(std::vector<Op>& pending, std::vector<Op>& deferred) {
   std::string error;
   try {
     const auto start = std::chrono::steady_clock::now();
     apply(pending);
-    if (observer) {
-      uint64_t bytes = 0;
-      for (const Op& op : pending) {
-        if (const auto* t = std::get_if<TileDone>(&op); t && t->payload) bytes += t->payload->size();
-      }
-      observer(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), bytes);
-    }
+    report_batch(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), pending);
   } catch (const std::exception& e) {
     error = e.what();
     // A full disk: whatever needs no new segment goes through now, above all the
@@ -127,6 +118,16 @@ std::string JobStore::apply_pending(std::vector<Op>& pending, const BatchObserve
     }
   }
   return error;
+}
+
+void JobStore::report_batch(double seconds, const std::vector<Op>& batch) {
+  std::lock_guard lock(observer_mu_);
+  if (!batch_observer_) return;
+  uint64_t bytes = 0;
+  for (const Op& op : batch) {
+    if (const auto* t = std::get_if<TileDone>(&op); t && t->payload) bytes += t->payload->size();
+  }
+  batch_observer_(seconds, bytes);
 }
 
 // What apply() works out about a batch before it writes anything.
