@@ -170,7 +170,7 @@ bool open_http_side(const ServerFlags& f, Coordinator& coordinator, JobStore* jo
   }
   out->feed = std::make_unique<MonitorFeed>(coordinator);
   MonitorRoutes{coordinator, *out->feed, out->metrics.get(), auth, {f.admins.begin(), f.admins.end()}}.install(
-      out->http->server());
+      *out->http);
   return true;
 }
 

@@ -150,29 +150,6 @@ TEST(FarmSecurity, MutualTlsRequiresAClientCertificate) {
   expect_renders(farm, good);
 }
 
-// Peak resident memory of a process, in MiB (VmHWM).
-double peak_rss_mib(int pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
-  std::string key;
-  double kib = -1;
-  while (in >> key) {
-    if (key == "VmHWM:") {
-      in >> kib;
-      break;
-    }
-  }
-  return kib / 1024.0;
-}
-
-// ASan keeps freed memory in quarantine (256 MiB by default) and adds shadow memory, so a peak
-// RSS says nothing about the coordinator's own use there: the bounds are checked in the plain
-// build only (the sanitizer build still runs the probes and their refusals).
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kRssMeaningful = false;
-#else
-constexpr bool kRssMeaningful = true;
-#endif
-
 // Runs one security_probe.py check against the farm (it must pass), then returns the
 // coordinator's peak resident memory in MiB.
 double probe_peak_rss(Farm& farm, const std::string& check) {
