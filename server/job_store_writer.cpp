@@ -19,8 +19,14 @@ void JobStore::writer_loop() {
   while (true) {
     {
       std::unique_lock lock(mu_);
-      cv_.wait(lock, [&] { return stopping_ || !queue_.empty() || !pending.empty(); });
-      if (pending.empty() && queue_.empty() && stopping_) break;
+      const auto shed_waiting = [&] { return !to_shed_.empty() && !shed_failing_; };
+      cv_.wait(lock, [&] { return stopping_ || !queue_.empty() || !pending.empty() || shed_waiting(); });
+      if (pending.empty() && queue_.empty()) {
+        if (stopping_) break;  // rows not yet shed are shed after the next start
+        lock.unlock();
+        shed_chunk();  // nothing to write: shed the rows of evicted jobs meanwhile
+        continue;
+      }
       // The commit window (job_store.h): let the tiles finishing meanwhile join this batch.
       if (pending.empty() && commit_window_.count() > 0) {
         cv_.wait_for(lock, commit_window_,
@@ -55,11 +61,13 @@ void JobStore::writer_loop() {
           reserve_.want();
         }
         healthy_ = true;
+        shed_failing_ = false;
         ++stats_.batches;
         stats_.ops += int64_t(pending.size());
       }
       pending.clear();
       answer_barriers();
+      shed_chunk();  // one chunk after each batch: the rows go under load too, a little at a time
       continue;
     }
     answer_barriers();
@@ -287,6 +295,7 @@ std::vector<JobStore::Op> JobStore::release_delivered(const std::vector<Op>& bat
       segments_.release_frame({a->job, a->frame}, emptied);
     } else if (const auto* v = std::get_if<Evicted>(&op)) {
       segments_.release_job(v->job, emptied);
+      queue_shedding(v->job);  // its rows are shed now that its eviction is committed
     }
   }
   // A segment can empty and then gain a later tile of the same batch: checked at the end.
