@@ -114,15 +114,15 @@ TEST(FarmSignals, SigtermStopsABusyCoordinatorWithEveryOptionOnCleanlyEveryTime)
     }
     ASSERT_GE(done, before + 12) << "the workers rendered nothing\n" << farm.server_logs();
     ASSERT_LT(done, 288) << "the job ended before stop " << stop << ": make its tiles slower";
-    // The monitor has a reader, so its feed is active too.
-    const std::smatch port = [&] {
-      std::smatch m;
+    // The monitor has a reader, so its feed is active too. (The port is taken as a number: a
+    // match's sub-matches point into the string searched, which must outlive them.)
+    const int port = [&] {
       const std::string log = farm.server().log();
-      std::regex_search(log, m, std::regex("monitor on https://127\\.0\\.0\\.1:([0-9]+)/"));
-      return m;
+      std::smatch m;
+      return std::regex_search(log, m, std::regex("monitor on https://127\\.0\\.0\\.1:([0-9]+)/")) ? std::stoi(m[1]) : 0;
     }();
-    ASSERT_FALSE(port.empty()) << farm.server().log();
-    httplib::SSLClient https("127.0.0.1", std::stoi(port[1]));
+    ASSERT_NE(port, 0) << farm.server().log();
+    httplib::SSLClient https("127.0.0.1", port);
     https.enable_server_certificate_verification(false);
     auto page = https.Get("/api/farm", {{"Authorization", "Bearer client-secret-sigterm"}});
     ASSERT_TRUE(page) << httplib::to_string(page.error());
