@@ -5,8 +5,10 @@
 #include <stdlib.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <sstream>
 #include <stdexcept>
 
 #include "farm/request_limits.h"
@@ -60,12 +62,78 @@ std::string BundleUpload::finish() {
   return out;
 }
 
+namespace {
+
+std::string seconds_text(std::chrono::milliseconds t) {
+  std::ostringstream s;
+  s << double(t.count()) / 1000.0 << " s";
+  return s.str();
+}
+
+}  // namespace
+
+UploadSlots::UploadSlots(int max, std::chrono::milliseconds idle_timeout)
+    : max_(max), idle_timeout_(idle_timeout), watchdog_([this] { watch(); }) {}
+
+UploadSlots::~UploadSlots() {
+  {
+    std::lock_guard lock(mu_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  watchdog_.join();
+}
+
 grpc::Status UploadSlots::acquire() {
   const int n = ++active_;
   if (n <= max_) return grpc::Status::OK;
   --active_;
-  return farm::over_limit(grpc::StatusCode::RESOURCE_EXHAUSTED, "the number of bundle uploads in progress", n,
-                    "--max-concurrent-uploads", max_);
+  const grpc::Status over = farm::over_limit(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                                             "the number of bundle uploads in progress", n, "--max-concurrent-uploads",
+                                             max_);
+  return grpc::Status(over.error_code(), over.error_message() + "; an upload that sends nothing for " +
+                                             seconds_text(idle_timeout_) + " is ended (--upload-idle-seconds)");
+}
+
+void UploadSlots::waiting(Waiter* upload, bool waiting) {
+  std::lock_guard lock(mu_);
+  if (waiting) {
+    waiting_[upload] = std::chrono::steady_clock::now();
+  } else {
+    waiting_.erase(upload);
+  }
+}
+
+void UploadSlots::release(Waiter* upload) {
+  {
+    std::lock_guard lock(mu_);  // the watchdog tells under it: not telling `upload` once we hold it
+    waiting_.erase(upload);
+  }
+  --active_;
+}
+
+grpc::Status UploadSlots::idle_status() const {
+  return grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED,
+                      "the bundle upload sent no chunk for " + seconds_text(idle_timeout_) +
+                          ", this coordinator's limit (tessera-server --upload-idle-seconds): nothing of it was "
+                          "kept; upload it again");
+}
+
+void UploadSlots::watch() {
+  const auto tick = std::clamp(idle_timeout_ / 4, std::chrono::milliseconds(10), std::chrono::milliseconds(1000));
+  std::unique_lock lock(mu_);
+  while (!cv_.wait_for(lock, tick, [this] { return stop_; })) {
+    const auto now = std::chrono::steady_clock::now();
+    for (auto it = waiting_.begin(); it != waiting_.end();) {
+      if (now - it->second < idle_timeout_) {
+        ++it;
+        continue;
+      }
+      Waiter* upload = it->first;
+      it = waiting_.erase(it);  // told once
+      upload->idle_too_long();
+    }
+  }
 }
 
 }  // namespace tessera::server

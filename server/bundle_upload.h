@@ -4,16 +4,21 @@
 // large the bundle is (they used to be buffered whole: four concurrent 300 MB uploads took it to
 // 1.7 GB before each was refused for a wrong hash). Only a bundle whose bytes
 // hash to what was announced is read back, validated and stored (BundleStore::put_file, one at
-// a time). UploadSlots bounds how many uploads run at once.
+// a time). UploadSlots bounds how many uploads run at once, and how long one may stall.
 #pragma once
 
 #include <grpcpp/grpcpp.h>
 #include <openssl/evp.h>
 
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <filesystem>
+#include <map>
+#include <mutex>
 #include <string>
+#include <thread>
 
 namespace tessera::server {
 
@@ -39,17 +44,48 @@ class BundleUpload {
   bool taken_ = false;
 };
 
-// How many uploads may run at once (--max-concurrent-uploads).
+// The uploads in progress: how many may run at once (--max-concurrent-uploads), and how long one
+// may wait for its next chunk (--upload-idle-seconds). A watchdog thread ends an upload that
+// waited longer, so that a client that stalls gives its slot back (four streams that sent 1 MiB
+// and stopped used to hold every slot for good, and every new scene was refused).
 class UploadSlots {
  public:
-  explicit UploadSlots(int max) : max_(max) {}
+  // An upload holding a slot, told once when it has waited too long for a chunk (on the
+  // watchdog thread, under the slots' lock: it must only end its call, never call back here).
+  class Waiter {
+   public:
+    virtual void idle_too_long() = 0;
+
+   protected:
+    ~Waiter() = default;
+  };
+
+  UploadSlots(int max, std::chrono::milliseconds idle_timeout);
+  ~UploadSlots();  // stops the watchdog
+  UploadSlots(const UploadSlots&) = delete;
+  UploadSlots& operator=(const UploadSlots&) = delete;
+
   // OK and a slot taken, or RESOURCE_EXHAUSTED naming the limit.
   grpc::Status acquire();
-  void release() { --active_; }
+  // The upload holding a slot waits for a chunk from now on (true), or has one (false: the
+  // clock stops while it writes the chunk, or stores the bundle at the end).
+  void waiting(Waiter* upload, bool waiting);
+  // Gives the slot back; `upload` is not being told and is never told anything once this returns.
+  void release(Waiter* upload);
+  // DEADLINE_EXCEEDED naming the timeout and its flag: how an upload that stalled ends.
+  grpc::Status idle_status() const;
 
  private:
-  int max_;
+  void watch();
+
+  const int max_;
+  const std::chrono::milliseconds idle_timeout_;
   std::atomic<int> active_{0};
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::map<Waiter*, std::chrono::steady_clock::time_point> waiting_;  // since when, under mu_
+  bool stop_ = false;
+  std::thread watchdog_;
 };
 
 }  // namespace tessera::server

@@ -27,66 +27,87 @@ grpc::ServerUnaryReactor* reply(grpc::CallbackServerContext* ctx, Status s) {
   return r;
 }
 
-class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk> {
+// One upload, holding one of the slots (bundle_upload.h): each chunk to disk as it comes; ended by
+// the slots' watchdog when it waits too long for the next one.
+class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk>, private UploadSlots::Waiter {
  public:
   UploadReactor(BundleStore& store, v1::UploadBundleResponse* resp, int64_t max_bytes, UploadSlots& slots)
       : store_(store), resp_(resp), max_bytes_(max_bytes), slots_(slots) {
     try {
       upload_ = std::make_unique<BundleUpload>(store_.dir());
     } catch (const std::exception& e) {
-      Finish(Status(StatusCode::RESOURCE_EXHAUSTED, std::string("cannot take the upload: ") + e.what()));
+      finish(Status(StatusCode::RESOURCE_EXHAUSTED, std::string("cannot take the upload: ") + e.what()));
       return;
     }
-    StartRead(&chunk_);
+    read_next();
   }
   void OnReadDone(bool ok) override {
-    if (ok) {
-      if (sha_.empty()) sha_ = chunk_.sha256();
-      // Checked per chunk: the upload is refused as soon as it is over the limit.
-      if (upload_->size() + int64_t(chunk_.data().size()) > max_bytes_) {
-        Finish(farm::over_limit(StatusCode::RESOURCE_EXHAUSTED, "the scene bundle's size in bytes (so far)",
-                          upload_->size() + int64_t(chunk_.data().size()), "--max-bundle-bytes", max_bytes_));
-        return;
-      }
-      try {
-        upload_->append(chunk_.data());  // to disk, hashed on the way: one chunk in memory
-      } catch (const std::exception& e) {
-        Finish(Status(StatusCode::RESOURCE_EXHAUSTED, std::string("cannot store the bundle: ") + e.what()));
-        return;
-      }
-      StartRead(&chunk_);
-      return;
+    slots_.waiting(this, false);
+    {
+      std::lock_guard lock(mu_);
+      if (finished_) return;  // ended while it waited (idle_too_long): nothing more to do
     }
-    // End of the client's stream (or a broken one: then Finish is harmless).
+    if (!ok) return stored();  // the end of the client's stream (or a broken one: then Finish is harmless)
+    if (sha_.empty()) sha_ = chunk_.sha256();
+    // Checked per chunk: the upload is refused as soon as it is over the limit.
+    if (upload_->size() + int64_t(chunk_.data().size()) > max_bytes_) {
+      return finish(farm::over_limit(StatusCode::RESOURCE_EXHAUSTED, "the scene bundle's size in bytes (so far)",
+                                     upload_->size() + int64_t(chunk_.data().size()), "--max-bundle-bytes",
+                                     max_bytes_));
+    }
+    try {
+      upload_->append(chunk_.data());  // to disk, hashed on the way: one chunk in memory
+    } catch (const std::exception& e) {
+      return finish(Status(StatusCode::RESOURCE_EXHAUSTED, std::string("cannot store the bundle: ") + e.what()));
+    }
+    read_next();
+  }
+  void OnDone() override {
+    slots_.release(this);
+    delete this;  // the temporary file goes with upload_, unless the store took it
+  }
+
+ private:
+  // The watchdog, under the slots' lock (so OnDone's release waits for this call).
+  void idle_too_long() override {
+    spdlog::warn("upload of bundle {} ended: {}", sha_, slots_.idle_status().error_message());
+    finish(slots_.idle_status());
+  }
+  void read_next() {
+    slots_.waiting(this, true);  // not under mu_: the watchdog takes the slots' lock, then mu_
+    std::lock_guard lock(mu_);
+    if (!finished_) StartRead(&chunk_);
+  }
+  // Finish, once, from whichever thread ends the call first (a read, or the watchdog).
+  void finish(Status s) {
+    std::lock_guard lock(mu_);
+    if (finished_) return;
+    finished_ = true;
+    Finish(std::move(s));
+  }
+  void stored() {
     if (sha_.empty()) {
-      Finish(Status(StatusCode::INVALID_ARGUMENT, "the first chunk must carry the bundle's sha256"));
-      return;
+      return finish(Status(StatusCode::INVALID_ARGUMENT, "the first chunk must carry the bundle's sha256"));
     }
     try {
       const std::string actual = upload_->finish();
       if (actual != sha_) {
-        Finish(Status(StatusCode::INVALID_ARGUMENT, "bundle refused: bundle bytes hash to " + actual +
-                                                        ", not to the announced " + sha_));
-        return;
+        return finish(Status(StatusCode::INVALID_ARGUMENT, "bundle refused: bundle bytes hash to " + actual +
+                                                               ", not to the announced " + sha_));
       }
       store_.put_file(sha_, upload_->path());
       upload_->taken();
       resp_->set_sha256(sha_);
       resp_->set_size(uint64_t(upload_->size()));
       spdlog::info("bundle {} stored ({} bytes)", sha_, upload_->size());
-      Finish(Status::OK);
+      finish(Status::OK);
     } catch (const farm::BundleError& e) {
-      Finish(Status(StatusCode::INVALID_ARGUMENT, std::string("bundle refused: ") + e.what()));
+      finish(Status(StatusCode::INVALID_ARGUMENT, std::string("bundle refused: ") + e.what()));
     } catch (const std::exception& e) {
-      Finish(Status(StatusCode::INTERNAL, std::string("cannot store the bundle: ") + e.what()));
+      finish(Status(StatusCode::INTERNAL, std::string("cannot store the bundle: ") + e.what()));
     }
   }
-  void OnDone() override {
-    slots_.release();
-    delete this;
-  }
 
- private:
   BundleStore& store_;
   v1::UploadBundleResponse* resp_;
   int64_t max_bytes_;
@@ -94,6 +115,8 @@ class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk> {
   v1::BundleChunk chunk_;
   std::string sha_;
   std::unique_ptr<BundleUpload> upload_;
+  std::mutex mu_;  // finished_, and StartRead against Finish
+  bool finished_ = false;
 };
 
 // The watch stream: the coordinator pushes events into the outbox; this reactor writes them.

@@ -24,7 +24,9 @@ class ClientServiceImpl final : public tessera::v1::ClientService::CallbackServi
   explicit ClientServiceImpl(Coordinator& c, farm::Authenticator auth = {}, farm::Limits limits = {},
                              std::set<std::string> admins = {})
       : coord_(c), auth_(std::move(auth)), limits_(limits), quota_(limits.max_jobs_per_client),
-        admins_(std::move(admins)), uploads_(limits.max_concurrent_uploads) {
+        admins_(std::move(admins)),
+        uploads_(limits.max_concurrent_uploads,
+                 std::chrono::milliseconds(int64_t(limits.upload_idle_seconds * 1000.0))) {
     for (const auto& [owner, job] : coord_.active_jobs_by_owner()) quota_.restore(owner, job);
   }
 

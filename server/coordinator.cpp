@@ -132,6 +132,11 @@ void Coordinator::add_observer(SchedulerListener* observer) {
   observers_.push_back(observer);
 }
 
+void Coordinator::remove_observer(SchedulerListener* observer) {
+  std::lock_guard lock(mu_);  // events are delivered under it: none is in progress once we hold it
+  std::erase(observers_, observer);
+}
+
 FarmSnapshot Coordinator::snapshot() {
   FarmSnapshot f = locked([&] {
     FarmSnapshot f;

@@ -134,8 +134,11 @@ class Coordinator : private SchedulerListener, public FarmControl {
   // --- observers (the Prometheus metrics, the web monitor) ---------------------------------
   // `observer` receives every scheduler event after the coordinator handled it, under the
   // coordinator's mutex: it must be quick and must not call back into the coordinator. Add
-  // observers before any stream starts; they must outlive the coordinator's streams.
+  // observers before any stream starts. An observer removes itself before it is destroyed
+  // (remove_observer: no event reaches it once that returns), so it may go before or after the
+  // coordinator's streams.
   void add_observer(SchedulerListener* observer) override;
+  void remove_observer(SchedulerListener* observer) override;
   FarmSnapshot snapshot() override;
   // Every finished tile of the job still in memory (frames not yet acknowledged).
   std::vector<std::pair<TileKey, TileOutput>> finished_tiles(const std::string& id) override;

@@ -37,8 +37,10 @@ class FarmView {
 
   // `observer` receives every scheduler event after the coordinator handled it, under the
   // coordinator's mutex: it must be quick and must not call back into the coordinator. Add
-  // observers before any stream starts; they must outlive the coordinator's streams.
+  // observers before any stream starts. An observer removes itself before it is destroyed
+  // (remove_observer: no event reaches it once that returns).
   virtual void add_observer(SchedulerListener* observer) = 0;
+  virtual void remove_observer(SchedulerListener* observer) = 0;
   virtual FarmSnapshot snapshot() = 0;
   // Every finished tile of the job still in memory (frames not yet acknowledged).
   virtual std::vector<std::pair<TileKey, TileOutput>> finished_tiles(const std::string& id) = 0;

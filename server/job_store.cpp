@@ -10,6 +10,7 @@
 #include <cstring>
 
 #include "job_row.h"
+#include "job_summary.h"
 #include "sqlite_util.h"
 
 namespace tessera::server {
@@ -34,10 +35,8 @@ JobStore::JobStore(const fs::path& data_dir, std::chrono::milliseconds commit_wi
     open_database();
     try {
       tiles_ = std::make_unique<TileStore>(dir_ / "tiles");
-      // A segment number a row ever held is never used again, even if its file is gone.
-      sqlite3_stmt* st = prepare("SELECT coalesce(max(segment), 0) FROM tiles");
-      if (sqlite3_step(st) == SQLITE_ROW) tiles_->reserve_above(sqlite3_column_int64(st, 0));
-      sqlite3_reset(st);
+      // A segment number a row ever held is never used again, even if its file (or its row) is gone.
+      tiles_->reserve_above(segment_high_water());
     } catch (const StoreError&) {
       throw;
     } catch (const std::exception& e) {
@@ -149,6 +148,21 @@ void JobStore::prepare_statements() {
 
 std::optional<JobSnapshot> JobStore::read_job(const JobId& id) {
   std::lock_guard lock(read_mu_);
+  // One read transaction: the rows and the summary as one commit left them (the writer may be
+  // shedding this job's rows meanwhile).
+  if (sqlite3_exec(read_db_, "BEGIN", nullptr, nullptr, nullptr) != SQLITE_OK) return std::nullopt;
+  std::optional<JobSnapshot> s;
+  try {
+    s = read_job_in_transaction(id);
+  } catch (const std::exception& e) {
+    spdlog::warn("cannot read job {} from {}: {}", id, db_path_.string(), e.what());
+    s.reset();
+  }
+  sqlite3_exec(read_db_, "COMMIT", nullptr, nullptr, nullptr);
+  return s;
+}
+
+std::optional<JobSnapshot> JobStore::read_job_in_transaction(const JobId& id) {
   sqlite3_stmt* st = nullptr;
   const std::string sql = std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id=?1";
   if (sqlite3_prepare_v2(read_db_, sql.c_str(), -1, &st, nullptr) != SQLITE_OK) return std::nullopt;
@@ -157,22 +171,18 @@ std::optional<JobSnapshot> JobStore::read_job(const JobId& id) {
   if (sqlite3_step(st) == SQLITE_ROW) s = read_job_row(st);
   sqlite3_finalize(st);
   if (!s) return s;
-  // Runs `sql` (one parameter: the job id), calling `row` for each row; nothing when it fails.
-  auto each_row = [&](const char* sql, auto&& row) {
-    if (sqlite3_prepare_v2(read_db_, sql, -1, &st, nullptr) != SQLITE_OK) return;
+  const std::string name = db_path_.string();
+  std::optional<JobSummary> done = read_job_summary(read_db_, name, id);
+  if (!done) done = count_job_summary(read_db_, name, id, s->tiles_per_frame);
+  s->tiles_done = done->tiles_done;
+  s->frames_done = std::move(done->frames_done);
+  s->frames_acknowledged = std::move(done->frames_acknowledged);
+  if (sqlite3_prepare_v2(read_db_, "SELECT worker FROM blocklist WHERE job=?1 ORDER BY worker", -1, &st, nullptr) ==
+      SQLITE_OK) {
     bind_text(st, 1, id);
-    while (sqlite3_step(st) == SQLITE_ROW) row();
+    while (sqlite3_step(st) == SQLITE_ROW) s->blocklisted.push_back(column_text(st, 0));
     sqlite3_finalize(st);
-  };
-  each_row("SELECT frame, count(*) FROM tiles WHERE job=?1 GROUP BY frame ORDER BY frame", [&] {
-    const int n = sqlite3_column_int(st, 1);
-    s->tiles_done += n;
-    if (n == s->tiles_per_frame) s->frames_done.push_back(sqlite3_column_int(st, 0));
-  });
-  each_row("SELECT frame FROM acked_frames WHERE job=?1 ORDER BY frame",
-           [&] { s->frames_acknowledged.push_back(sqlite3_column_int(st, 0)); });
-  each_row("SELECT worker FROM blocklist WHERE job=?1 ORDER BY worker",
-           [&] { s->blocklisted.push_back(column_text(st, 0)); });
+  }
   return s;
 }
 
@@ -225,11 +235,12 @@ JobStore::Stats JobStore::stats() const {
   std::lock_guard lock(mu_);
   Stats s = stats_;
   s.queued = queue_.size();
+  s.jobs_to_shed = to_shed_.size();
   return s;
 }
 
 void JobStore::set_batch_observer(BatchObserver observer) {
-  std::lock_guard lock(mu_);
+  std::lock_guard lock(observer_mu_);
   batch_observer_ = std::move(observer);
 }
 

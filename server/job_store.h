@@ -18,6 +18,12 @@
 // marks the store unhealthy (submit answers RESOURCE_EXHAUSTED) and is retried every second, in
 // order, until it succeeds. barrier() tells a caller when everything queued before it is durable.
 //
+// After each batch, and whenever nothing is queued, the writer sheds the rows of evicted jobs
+// (their tile, acknowledged-frame and lease rows; the job's own row stays, with a summary of what
+// it did, job_summary.h), whole frames of about kShedChunkRows tile rows a transaction, the
+// summary in the first: the database grows with the jobs in memory, not with every tile ever
+// rendered, and a crash between two chunks leaves a job that answers from its summary.
+//
 // The writer waits a commit window (default 1 s) after the first write of a batch before it
 // applies it, so that one fdatasync and one commit serve every tile finished meanwhile rather
 // than each tile paying for its own (with one worker a tile took two syncs, a SQLite commit and a
@@ -28,9 +34,11 @@
 // was promised: the tile is rendered again.
 //
 // The class in files: job_store.cpp (opening the store, the queue's front), job_store_recovery.cpp
-// (reading the state back at start), job_store_writer.cpp (the group-commit writer). Its parts:
-// job_store_schema.h (the tables and versions), job_row.h (a jobs row), tile_store.h (segment
-// files), segment_ledger.h (which segments are still needed), disk_reserve.h (space for SQLite).
+// (reading the state back at start), job_store_writer.cpp (the group-commit writer),
+// job_store_shedding.cpp (the rows of evicted jobs shed). Its parts: job_store_schema.h (the
+// tables and versions), job_row.h (a jobs row), job_summary.h (an evicted job's summary),
+// tile_store.h (segment files), segment_ledger.h (which segments are still needed),
+// disk_reserve.h (space for SQLite).
 #pragma once
 
 #include <sqlite3.h>
@@ -73,6 +81,7 @@ class JobStore {
   // (PRAGMA quick_check) and its schema version. Throws StoreError.
   static constexpr std::chrono::milliseconds kDefaultCommitWindow{1000};
   static constexpr size_t kMaxBatchOps = 4096;  // a batch this full is applied without waiting out its window
+  static constexpr int kShedChunkRows = 8192;    // tile rows of evicted jobs shed a transaction (whole frames)
   explicit JobStore(const std::filesystem::path& data_dir,
                     std::chrono::milliseconds commit_window = kDefaultCommitWindow);
   ~JobStore();  // writes everything still queued, then stops the writer
@@ -95,7 +104,7 @@ class JobStore {
   // Reads the state back (call once, before any write). Leases in flight at the last stop come
   // back as queued tiles; a done row whose record is unreadable, damaged or another tile's is
   // dropped (the tile is rendered again); orphan segments (and any other file in tiles/) are
-  // removed.
+  // removed. Evicted jobs whose rows are not all shed yet (a stop came first) are shed again.
   Loaded load(const TileCheck& check = {});
 
   // --- writes (queued; applied in order by the writer thread) ---------------------------------
@@ -115,14 +124,17 @@ class JobStore {
   std::string last_error() const;
   const std::filesystem::path& db_path() const { return db_path_; }
 
-  // An evicted job, read from SQLite (for status queries). Runs on the caller's thread.
+  // An evicted job, read from SQLite (for status queries): from its rows, or from its summary
+  // once they are shed (the same answer). Runs on the caller's thread.
   std::optional<JobSnapshot> read_job(const JobId& id);
 
   using Stats = JobStoreStats;  // job_store_stats.h
   Stats stats() const;
   // Called by the writer thread after each batch it committed: how long the batch took (segment
-  // write, fsyncs, SQLite commit) and the tile bytes it wrote. Set before the first write (the
-  // metrics' store latency and bytes, server/metrics).
+  // write, fsyncs, SQLite commit) and the tile bytes it wrote (the metrics' store latency and
+  // bytes, server/metrics). Its owner clears it (an empty observer) before it is destroyed: once
+  // set_batch_observer returns, the observer it replaced is not running and is never called
+  // again, so the store may write its last batches after the observer is gone.
   using BatchObserver = std::function<void(double seconds, uint64_t tile_bytes)>;
   void set_batch_observer(BatchObserver observer);
 
@@ -146,6 +158,7 @@ class JobStore {
   void exec(const char* sql);
   sqlite3_stmt* prepare(const char* sql);
   void close_handles();  // finalizes statements and closes both connections (idempotent)
+  std::optional<JobSnapshot> read_job_in_transaction(const JobId& id);  // read_job's, under read_mu_
 
   // --- reading back at start (job_store_recovery.cpp) -------------------------------------------
   // Throws when the database is missing or empty but the directory holds tiles it described.
@@ -167,7 +180,8 @@ class JobStore {
   void writer_loop();
   // Applies `pending`, and on failure what of it needs no new segment (see apply()); returns
   // the error ("" once everything is committed) and leaves in `deferred` the tiles still to write.
-  std::string apply_pending(std::vector<Op>& pending, const BatchObserver& observer, std::vector<Op>& deferred);
+  std::string apply_pending(std::vector<Op>& pending, std::vector<Op>& deferred);
+  void report_batch(double seconds, const std::vector<Op>& batch);  // to the batch observer, if any
   // Applies the batch; throws on failure (the transaction is rolled back). With `new_segment`
   // false, tiles that would need one (tiles of frames not acknowledged in this batch) are left
   // out and returned, to be retried: the rest (acknowledgements, whose commit frees segments,
@@ -184,6 +198,18 @@ class JobStore {
   void reclaim_delivered(const std::vector<Op>& pending);
   void release_reserve();  // and checkpoint the WAL (TRUNCATE)
 
+  // --- shedding the rows of evicted jobs (job_store_shedding.cpp) -------------------------------
+  // The writer sheds the job's rows next (it may start at once: the caller uses the writer's
+  // connection no more).
+  void queue_shedding(const JobId& job);
+  // Evicted jobs that still have rows (at start: the rows a stop or a version 3 database left).
+  std::vector<JobId> unshed_jobs();
+  // One transaction: the next chunk of the first job's rows (see the header). Writer thread.
+  void shed_chunk();
+  // Deletes up to kShedChunkRows tile rows of `job` (its summary first, the first time); true
+  // when none is left, and then its other rows are gone too. In the caller's transaction.
+  bool shed_rows_of(const JobId& job);
+  int64_t segment_high_water();  // the highest segment number a row ever held
   std::filesystem::path dir_, db_path_;
   DiskReserve reserve_;       // writer thread only (and the constructor)
   SegmentLedger segments_;    // writer thread only (and load(), before it runs)
@@ -205,7 +231,10 @@ class JobStore {
   bool healthy_ = true;
   std::string last_error_;
   Stats stats_;
-  BatchObserver batch_observer_;  // under mu_ (the writer copies it with each batch)
+  std::mutex observer_mu_;  // held while the observer runs: clearing it waits for that call
+  BatchObserver batch_observer_;  // under observer_mu_
+  std::deque<JobId> to_shed_;  // under mu_: evicted jobs whose rows are shed next, in order
+  bool shed_failing_ = false;  // writer thread only: shedding waits for the next batch that commits
   LeaseId lease_hwm_ = 0;  // writer thread only
   std::thread writer_;
 };

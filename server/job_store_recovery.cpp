@@ -72,6 +72,8 @@ JobStore::Loaded JobStore::load(const TileCheck& check) {
   }
   drop_stale_rows(missing);
   out.orphans_removed = remove_orphans();
+  // Last: once one is queued, the writer works on the connection this function used.
+  for (const JobId& job : unshed_jobs()) queue_shedding(job);
   return out;
 }
 

@@ -35,6 +35,12 @@ CREATE TABLE leases(id INTEGER PRIMARY KEY, worker TEXT NOT NULL, job TEXT NOT N
 CREATE TABLE blocklist(job TEXT NOT NULL, worker TEXT NOT NULL, PRIMARY KEY(job, worker)) WITHOUT ROWID;
 )sql";
 
+// Version 4: what an evicted job did, once its tile and acknowledged-frame rows are shed
+// (job_summary.h); frames as ranges, "0-9,12". A job without a row here still has its rows.
+const char* kSummariesTable =
+    "CREATE TABLE job_summaries(job TEXT PRIMARY KEY, tiles_done INTEGER NOT NULL, frames_done TEXT NOT NULL, "
+    "frames_acknowledged TEXT NOT NULL) WITHOUT ROWID";
+
 // The single integer the query answers, or `otherwise` when it answers no row.
 int query_int(sqlite3* db, const char* sql, int otherwise) {
   sqlite3_stmt* st = nullptr;
@@ -48,6 +54,7 @@ int query_int(sqlite3* db, const char* sql, int otherwise) {
 void create_schema(sqlite3* db, const std::string& name) {
   exec_sql(db, name, "BEGIN");
   exec_sql(db, name, kSchema);
+  exec_sql(db, name, kSummariesTable);
   exec_sql(db, name, ("INSERT INTO schema_version VALUES (" + std::to_string(kStoreSchemaVersion) + ")").c_str());
   exec_sql(db, name, "COMMIT");
 }
@@ -60,9 +67,19 @@ void migrate_from_version_2(sqlite3* db, const std::string& name) {
   exec_sql(db, name, "ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT ''");
   exec_sql(db, name,
            "CREATE TABLE blocklist(job TEXT NOT NULL, worker TEXT NOT NULL, PRIMARY KEY(job, worker)) WITHOUT ROWID");
-  exec_sql(db, name, ("UPDATE schema_version SET version=" + std::to_string(kStoreSchemaVersion)).c_str());
+  exec_sql(db, name, "UPDATE schema_version SET version=3");
   exec_sql(db, name, "COMMIT");
-  spdlog::info("database {}: migrated schema version 2 to {}", name, kStoreSchemaVersion);
+  spdlog::info("database {}: migrated schema version 2 to 3", name);
+}
+
+void migrate_from_version_3(sqlite3* db, const std::string& name) {
+  // Version 4 added job_summaries. The evicted jobs of version 3 keep every row: the job store
+  // sheds them after it starts (JobStore::load), as it does a job evicted now.
+  exec_sql(db, name, "BEGIN");
+  exec_sql(db, name, kSummariesTable);
+  exec_sql(db, name, "UPDATE schema_version SET version=4");
+  exec_sql(db, name, "COMMIT");
+  spdlog::info("database {}: migrated schema version 3 to 4", name);
 }
 
 }  // namespace
@@ -128,7 +145,11 @@ void create_or_migrate_schema(sqlite3* db, const std::string& name) {
   }
   if (version == 2) {
     migrate_from_version_2(db, name);
-    version = kStoreSchemaVersion;
+    version = 3;
+  }
+  if (version == 3) {
+    migrate_from_version_3(db, name);
+    version = 4;
   }
   if (version != kStoreSchemaVersion) {
     throw std::runtime_error("the database " + name + " has schema version " + std::to_string(version) +

@@ -11,6 +11,7 @@ namespace tessera::server {
 struct JobStoreStats {
   int64_t batches = 0, ops = 0, failures = 0;
   size_t queued = 0;
+  size_t jobs_to_shed = 0;  // evicted jobs whose rows are not all shed yet
 };
 
 }  // namespace tessera::server

@@ -16,12 +16,17 @@ namespace tessera::server {
 
 void JobStore::writer_loop() {
   std::vector<Op> pending;
-  BatchObserver observer;
   while (true) {
     {
       std::unique_lock lock(mu_);
-      cv_.wait(lock, [&] { return stopping_ || !queue_.empty() || !pending.empty(); });
-      if (pending.empty() && queue_.empty() && stopping_) break;
+      const auto shed_waiting = [&] { return !to_shed_.empty() && !shed_failing_; };
+      cv_.wait(lock, [&] { return stopping_ || !queue_.empty() || !pending.empty() || shed_waiting(); });
+      if (pending.empty() && queue_.empty()) {
+        if (stopping_) break;  // rows not yet shed are shed after the next start
+        lock.unlock();
+        shed_chunk();  // nothing to write: shed the rows of evicted jobs meanwhile
+        continue;
+      }
       // The commit window (job_store.h): let the tiles finishing meanwhile join this batch.
       if (pending.empty() && commit_window_.count() > 0) {
         cv_.wait_for(lock, commit_window_,
@@ -31,10 +36,9 @@ void JobStore::writer_loop() {
       // Everything queued so far is one batch: under load batches grow and commits stay few.
       for (auto& op : queue_) pending.push_back(std::move(op));
       queue_.clear();
-      if (!observer) observer = batch_observer_;
     }
     std::vector<Op> deferred;
-    const std::string error = apply_pending(pending, observer, deferred);
+    const std::string error = apply_pending(pending, deferred);
     std::vector<std::shared_ptr<std::promise<std::string>>> barriers;
     for (auto it = pending.begin(); it != pending.end();) {
       if (auto* b = std::get_if<Barrier>(&*it)) {
@@ -57,11 +61,13 @@ void JobStore::writer_loop() {
           reserve_.want();
         }
         healthy_ = true;
+        shed_failing_ = false;
         ++stats_.batches;
         stats_.ops += int64_t(pending.size());
       }
       pending.clear();
       answer_barriers();
+      shed_chunk();  // one chunk after each batch: the rows go under load too, a little at a time
       continue;
     }
     answer_barriers();
@@ -91,19 +97,12 @@ void JobStore::writer_loop() {
   }
 }
 
-std::string JobStore::apply_pending(std::vector<Op>& pending, const BatchObserver& observer,
-                                    std::vector<Op>& deferred) {
+std::string JobStore::apply_pending(std::vector<Op>& pending, std::vector<Op>& deferred) {
   std::string error;
   try {
     const auto start = std::chrono::steady_clock::now();
     apply(pending);
-    if (observer) {
-      uint64_t bytes = 0;
-      for (const Op& op : pending) {
-        if (const auto* t = std::get_if<TileDone>(&op); t && t->payload) bytes += t->payload->size();
-      }
-      observer(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), bytes);
-    }
+    report_batch(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), pending);
   } catch (const std::exception& e) {
     error = e.what();
     // A full disk: whatever needs no new segment goes through now, above all the
@@ -127,6 +126,16 @@ std::string JobStore::apply_pending(std::vector<Op>& pending, const BatchObserve
     }
   }
   return error;
+}
+
+void JobStore::report_batch(double seconds, const std::vector<Op>& batch) {
+  std::lock_guard lock(observer_mu_);
+  if (!batch_observer_) return;
+  uint64_t bytes = 0;
+  for (const Op& op : batch) {
+    if (const auto* t = std::get_if<TileDone>(&op); t && t->payload) bytes += t->payload->size();
+  }
+  batch_observer_(seconds, bytes);
 }
 
 // What apply() works out about a batch before it writes anything.
@@ -286,6 +295,7 @@ std::vector<JobStore::Op> JobStore::release_delivered(const std::vector<Op>& bat
       segments_.release_frame({a->job, a->frame}, emptied);
     } else if (const auto* v = std::get_if<Evicted>(&op)) {
       segments_.release_job(v->job, emptied);
+      queue_shedding(v->job);  // its rows are shed now that its eviction is committed
     }
   }
   // A segment can empty and then gain a later tile of the same batch: checked at the end.

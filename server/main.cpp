@@ -132,10 +132,24 @@ CoordinatorOptions coordinator_options(const ServerFlags& f) {
 
 // The HTTP side: the web monitor, its JSON API and the Prometheus metrics. Nothing of it exists,
 // and nothing observes the farm, unless --http-listen asks for it.
+//
+// Lifetimes: every part stops before what it uses. The listener's handlers use the feed and the
+// metrics, so it stops first, whatever the order of the members. The feed and the metrics
+// observe the coordinator (they leave it when destroyed) and the metrics the job store's batches
+// (cleared here before the metrics go); both outlive this side (made before it in serve()). The
+// job store writes its last batch after the metrics are gone and reports it to no one.
 struct HttpSide {
+  JobStore* jobs = nullptr;  // whose batch observer is the metrics
   std::unique_ptr<FarmMetrics> metrics;
   std::unique_ptr<MonitorFeed> feed;
   std::unique_ptr<HttpListener> http;
+  HttpSide() = default;
+  HttpSide(const HttpSide&) = delete;
+  HttpSide& operator=(const HttpSide&) = delete;
+  ~HttpSide() {
+    if (http) http->stop();
+    if (jobs) jobs->set_batch_observer({});  // returns once no call to the metrics is in progress
+  }
 };
 
 // False (said on stderr) when the listener cannot be made: a malformed address, unreadable TLS files.
@@ -150,10 +164,13 @@ bool open_http_side(const ServerFlags& f, Coordinator& coordinator, JobStore* jo
     return false;
   }
   out->metrics = std::make_unique<FarmMetrics>(coordinator);
-  if (jobs) jobs->set_batch_observer([m = out->metrics.get()](double s, uint64_t bytes) { m->store_batch(s, bytes); });
+  if (jobs) {
+    out->jobs = jobs;
+    jobs->set_batch_observer([m = out->metrics.get()](double s, uint64_t bytes) { m->store_batch(s, bytes); });
+  }
   out->feed = std::make_unique<MonitorFeed>(coordinator);
   MonitorRoutes{coordinator, *out->feed, out->metrics.get(), auth, {f.admins.begin(), f.admins.end()}}.install(
-      out->http->server());
+      *out->http);
   return true;
 }
 
@@ -213,27 +230,11 @@ void serve_until_signal(sigset_t sigs, HttpListener* http, Coordinator& coordina
   server.Wait();
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  const sigset_t sigs = farm::block_stop_signals();  // first: gRPC's threads start with the credentials
-  ServerFlags flags;
-  if (std::optional<int> exit_code = parse_flags(argc, argv, flags)) return *exit_code;
-  farm::Authenticator auth;
-  std::shared_ptr<grpc::ServerCredentials> credentials;
-  try {
-    auth = flags.security.authenticator();
-    credentials = flags.security.credentials();
-  } catch (const std::exception& e) {
-    std::cerr << "tessera-server: " << e.what() << "\n";
-    return 2;
-  }
-
-  spdlog::set_level(spdlog::level::from_str(flags.log_level));
-  spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
-  raise_descriptor_limit();
-  farm::install_accept_guard();
-
+// Runs the coordinator until SIGINT or SIGTERM; returns the exit code. Every component lives in
+// this scope and is made after what it uses, so it is destroyed before them: the gRPC server
+// first, the job store (which writes everything still queued) and the bundle store last.
+int serve(const ServerFlags& flags, const farm::Authenticator& auth,
+          const std::shared_ptr<grpc::ServerCredentials>& credentials, const sigset_t& sigs) {
   std::unique_ptr<BundleStore> store;
   std::unique_ptr<JobStore> jobs;
   try {
@@ -273,6 +274,31 @@ int main(int argc, char** argv) {
   print_listening(flags, port, web.http.get(), http_port, auth);
 
   serve_until_signal(sigs, web.http.get(), coordinator, *server);
-  spdlog::info("stopped");
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const sigset_t sigs = farm::block_stop_signals();  // first: gRPC's threads start with the credentials
+  ServerFlags flags;
+  if (std::optional<int> exit_code = parse_flags(argc, argv, flags)) return *exit_code;
+  farm::Authenticator auth;
+  std::shared_ptr<grpc::ServerCredentials> credentials;
+  try {
+    auth = flags.security.authenticator();
+    credentials = flags.security.credentials();
+  } catch (const std::exception& e) {
+    std::cerr << "tessera-server: " << e.what() << "\n";
+    return 2;
+  }
+
+  spdlog::set_level(spdlog::level::from_str(flags.log_level));
+  spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
+  raise_descriptor_limit();
+  farm::install_accept_guard();
+
+  const int code = serve(flags, auth, credentials, sigs);
+  if (code == 0) spdlog::info("stopped");  // everything is destroyed, the job store's last batch written
+  return code;
 }

@@ -36,6 +36,12 @@ void Limits::add_flags(CLI::App& app) {
       ->check(CLI::Range(1, 10000))
       ->group("Limits")
       ->capture_default_str();
+  app.add_option("--upload-idle-seconds", upload_idle_seconds,
+                 "An upload that sends no chunk (1 MiB) for this long is ended and its slot freed (links slower "
+                 "than 1 MiB in this time need more)")
+      ->check(CLI::Range(0.1, 86400.0))
+      ->group("Limits")
+      ->capture_default_str();
 }
 
 grpc::Status over_limit(grpc::StatusCode code, const std::string& what, int64_t value, const char* flag,

@@ -37,6 +37,9 @@ struct Limits {
   uint64_t max_texture_pixels = SceneLoadOptions{}.max_texture_pixels;
   int max_jobs_per_client = 100;              // queued or running jobs of one client identity
   int max_concurrent_uploads = 4;             // bundle uploads in progress at once (bundle_upload.h)
+  // How long an upload in progress may wait for its next chunk (a 1 MiB message) before it is
+  // ended and its slot given back: a stalled client must not hold a slot for good.
+  double upload_idle_seconds = 30;
 
   // Adds --max-message-bytes, --max-bundle-bytes, ... to the server's command line.
   void add_flags(CLI::App& app);

@@ -89,6 +89,10 @@ FarmMetrics::FarmMetrics(FarmView& coordinator)
   for (const char* s : {"queued", "leased"}) work_.Add({{"state", s}});
 }
 
+FarmMetrics::~FarmMetrics() {
+  coordinator_.remove_observer(this);
+}
+
 void FarmMetrics::tile_leased(const Assignment& a) {
   if (a.lease.speculative) speculative_copies_.Increment();
 }

@@ -38,8 +38,12 @@ namespace tessera::server {
 
 class FarmMetrics : public SchedulerListener {
  public:
-  // Registers itself as an observer of `coordinator`. Call before any stream starts.
+  // Registers itself as an observer of `coordinator`, which must outlive it. Call before any
+  // stream starts. It unregisters when destroyed, so no event reaches it afterwards.
   explicit FarmMetrics(FarmView& coordinator);
+  ~FarmMetrics() override;
+  FarmMetrics(const FarmMetrics&) = delete;
+  FarmMetrics& operator=(const FarmMetrics&) = delete;
 
   // The Prometheus text exposition format (version 0.0.4) of every metric, levels read now.
   std::string scrape();

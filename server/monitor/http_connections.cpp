@@ -3,12 +3,15 @@
 
 #include <arpa/inet.h>
 #include <fcntl.h>
+#include <poll.h>
 #include <spdlog/spdlog.h>
 #include <sys/socket.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
 #include <atomic>
+
+#include "tcp_bytes_received.h"
 
 namespace tessera::server {
 
@@ -45,7 +48,10 @@ struct HttpConnections::Connection {
   std::string peer;
   std::atomic<bool> handling{false};  // request head read, response not yet written
   std::atomic<int64_t> since{0};      // when the current phase began (steady ns)
+  std::atomic<uint64_t> request_from{0};  // bytes received when the current request began
   bool cut = false;                   // guarded by mu_
+  std::atomic<bool> close_after{false};  // end it once the answer is written (its thread sets it)
+  const HttpConnections* queue = nullptr;
 };
 
 namespace {
@@ -63,6 +69,7 @@ void HttpConnections::enqueue(std::function<void()> fn) {
   const int fd = std::exchange(t_last_accepted, -1);
   auto c = std::make_shared<Connection>();
   c->since = now_ns();
+  c->queue = this;
   if (fd >= 0) {
     c->dup = ::fcntl(fd, F_DUPFD_CLOEXEC, 0);
     c->peer = peer_address(fd);
@@ -116,7 +123,26 @@ void HttpConnections::request_read() {
 void HttpConnections::response_written() {
   if (!t_current) return;
   t_current->since = now_ns();
+  t_current->request_from = tcp_bytes_received(t_current->dup);
   t_current->handling = false;
+  if (t_current->close_after) t_current->queue->linger_close(*t_current);
+}
+
+void HttpConnections::close_after_response() {
+  if (t_current) t_current->close_after = true;
+}
+
+void HttpConnections::linger_close(Connection& c) const {
+  if (c.dup < 0) return;
+  ::shutdown(c.dup, SHUT_WR);  // the answer, then the end of the stream
+  const int64_t end = now_ns() + std::chrono::duration_cast<std::chrono::nanoseconds>(options_.linger).count();
+  char drop[16384];
+  for (int64_t left; (left = end - now_ns()) > 0;) {
+    pollfd p{c.dup, POLLIN, 0};
+    if (::poll(&p, 1, int(left / 1000000) + 1) <= 0) break;
+    if (::recv(c.dup, drop, sizeof drop, MSG_DONTWAIT) <= 0) break;  // the client closed (or reset)
+  }
+  ::shutdown(c.dup, SHUT_RDWR);  // cpp-httplib's next read ends the connection
 }
 
 void HttpConnections::run() {
@@ -147,13 +173,14 @@ void HttpConnections::end(const std::shared_ptr<Connection>& c) {
 void HttpConnections::watch() {
   std::unique_lock lock(mu_);
   while (!stop_) {
-    watch_cv_.wait_for(lock, std::chrono::milliseconds(200));
+    watch_cv_.wait_for(lock, options_.tick);
     const int64_t now = now_ns();
     uint64_t cut = 0;
     for (auto& [p, c] : live_) {
-      if (c->cut || c->dup < 0) continue;
+      if (c->cut || c->dup < 0 || c->close_after) continue;  // one being closed lingers for a bounded time
       const auto limit = c->handling ? options_.response_deadline : options_.header_deadline;
-      if (now - c->since.load() <= std::chrono::duration_cast<std::chrono::nanoseconds>(limit).count()) continue;
+      const bool late = now - c->since.load() > std::chrono::duration_cast<std::chrono::nanoseconds>(limit).count();
+      if (!late && tcp_bytes_received(c->dup) - c->request_from.load() <= options_.max_request_bytes) continue;
       // Under mu_, the duplicate is open: it names this socket and no other.
       ::shutdown(c->dup, SHUT_RDWR);
       c->cut = true;
@@ -161,10 +188,10 @@ void HttpConnections::watch() {
     }
     if (cut > 0) {
       g_cut += cut;
-      spdlog::warn("HTTP: closed {} connection(s) that did not complete a request within {} s or answer within {} s "
-                   "({} since start)",
-                   cut, options_.header_deadline.count() / 1000.0, options_.response_deadline.count() / 1000.0,
-                   g_cut.load());
+      spdlog::warn("HTTP: closed {} connection(s) that did not complete a request within {} s or {} KiB, or answer "
+                   "within {} s ({} since start)",
+                   cut, options_.header_deadline.count() / 1000.0, options_.max_request_bytes >> 10,
+                   options_.response_deadline.count() / 1000.0, g_cut.load());
     }
   }
 }

@@ -10,10 +10,21 @@
 //     of the previous response (request_read() marks it, from a pre-routing handler);
 //   - a request must be answered, body read and response written, within `response_deadline`
 //     (response_written() marks it, from the logger);
-//   - past either, the connection is shut down (the socket, through a duplicate of the
+//   - a request (its head, and its body, which http_listener.h bounds before it is read) may
+//     bring at most `max_request_bytes` from the previous response (or the accept) on: cpp-httplib
+//     reads a request line or a header line until its newline however long it is, and any number
+//     of header lines, so an endless head from an unauthenticated client used to grow the
+//     coordinator by hundreds of MiB within the head's deadline. The kernel's count of the bytes
+//     the connection received (TCP_INFO) is compared every `tick`;
+//   - past any of these, the connection is shut down (the socket, through a duplicate of the
 //     descriptor, so a number reused by then is never touched) and its thread is free;
 //   - at most `max_connections` at once and `max_per_peer` from one address; beyond, a new
-//     connection is closed at once.
+//     connection is closed at once;
+//   - a request refused before its body was read (http_listener.h) ends its connection once the
+//     answer is written (close_after_response()): the connection is shut down for writing, what
+//     the client still sends is read and dropped for at most `linger` (time for it to read the
+//     answer: closing on unread bytes resets the connection, which can erase the answer at the
+//     client), then shut down whole.
 // The pool has many threads (a waiting thread costs only its stack): a slow client holds one for
 // at most a deadline, and needs a connection, counted, to do it.
 //
@@ -44,6 +55,9 @@ class HttpConnections : public httplib::TaskQueue {
     size_t max_per_peer = 64;
     std::chrono::milliseconds header_deadline{10000};
     std::chrono::milliseconds response_deadline{30000};
+    std::chrono::milliseconds linger{1000};
+    uint64_t max_request_bytes = 64 << 10;
+    std::chrono::milliseconds tick{100};
   };
 
   struct Connection;  // one accepted connection (http_connections.cpp)
@@ -58,10 +72,14 @@ class HttpConnections : public httplib::TaskQueue {
   // and it waits for the next request (logger).
   static void request_read();
   static void response_written();
+  // On a connection's thread, before its answer is written: end the connection after it.
+  static void close_after_response();
 
  private:
   void run();
   void watch();
+  // Shuts the connection down after its answer: see close_after_response().
+  void linger_close(Connection& c) const;
   void end(const std::shared_ptr<Connection>& c);
 
   const Options options_;

@@ -3,6 +3,8 @@
 
 #include <httplib.h>
 
+#include <nlohmann/json.hpp>
+
 #include "http_connections.h"
 
 #include <fstream>
@@ -14,6 +16,46 @@ namespace {
 
 void require_readable(const std::string& path, const char* what) {
   if (!std::ifstream(path)) throw std::runtime_error(std::string("--http-listen: cannot read the TLS ") + what + " " + path);
+}
+
+bool refuse(httplib::Response& res, int status, const std::string& why) {
+  res.status = status;
+  res.set_header("Cache-Control", "no-store");
+  res.set_content(nlohmann::json{{"error", why}}.dump(), "application/json");
+  return true;
+}
+
+// Methods whose body cpp-httplib reads (until the connection closes when no length is declared).
+bool reads_body(const httplib::Request& req) {
+  return req.method == "POST" || req.method == "PUT" || req.method == "PATCH" || req.method == "DELETE" ||
+         req.method == "PRI";
+}
+
+// Whether bytes of a body may follow the head: a refusal then closes the connection.
+bool body_may_follow(const httplib::Request& req) {
+  return reads_body(req) || req.has_header("Transfer-Encoding") ||
+         (req.has_header("Content-Length") && req.get_header_value("Content-Length") != "0");
+}
+
+// Refuses (true) a body whose length is not declared once, or is over the limit, from the head.
+bool refuse_body(const httplib::Request& req, httplib::Response& res) {
+  const std::string limit = std::to_string(HttpListener::kMaxBodyBytes) + " bytes";
+  if (req.has_header("Transfer-Encoding")) {
+    return refuse(res, 411, "request bodies must declare their Content-Length (at most " + limit + "); chunked "
+                            "bodies are not taken");
+  }
+  if (!req.has_header("Content-Length")) {
+    return reads_body(req) && refuse(res, 411, "a " + req.method + " must declare its body's Content-Length (0 for "
+                                               "none, at most " + limit + ")");
+  }
+  const std::string declared = req.get_header_value("Content-Length");
+  if (req.get_header_value_count("Content-Length") != 1 || declared.empty() || declared.size() > 19 ||
+      declared.find_first_not_of("0123456789") != std::string::npos) {
+    return refuse(res, 400, "Content-Length must be one decimal number");
+  }
+  const uint64_t length = std::stoull(declared);
+  if (length <= HttpListener::kMaxBodyBytes) return false;
+  return refuse(res, 413, "the request body is " + declared + " bytes, over this monitor's limit " + limit);
 }
 
 }  // namespace
@@ -56,9 +98,14 @@ HttpListener::HttpListener(const std::string& address, const HttpTls& tls) {
   // Deadlines per request, caps on connections (http_connections.h): a slow or silent client
   // holds a thread for seconds, not for as long as it likes.
   server_->new_task_queue = [] { return new HttpConnections(HttpConnections::Options{}); };
-  server_->set_pre_routing_handler([](const httplib::Request&, httplib::Response&) {
+  // Bodies (the header): the head is checked before any byte of the body is read; a body that
+  // slips past (none should) is still bounded by cpp-httplib's own limit.
+  server_->set_payload_max_length(kMaxBodyBytes);
+  server_->set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
     HttpConnections::request_read();
-    return httplib::Server::HandlerResponse::Unhandled;
+    if (!(gate_ && gate_(req, res)) && !refuse_body(req, res)) return httplib::Server::HandlerResponse::Unhandled;
+    if (body_may_follow(req)) HttpConnections::close_after_response();
+    return httplib::Server::HandlerResponse::Handled;
   });
   server_->set_logger([](const httplib::Request&, const httplib::Response&) { HttpConnections::response_written(); });
 }

@@ -36,6 +36,8 @@ double MonitorFeed::now_s() { return double(steady_ns()) * 1e-9; }
 
 MonitorFeed::MonitorFeed(FarmView& coordinator) : coordinator_(coordinator) { coordinator.add_observer(this); }
 
+MonitorFeed::~MonitorFeed() { coordinator_.remove_observer(this); }
+
 void MonitorFeed::tile_finished(const TileKey& key, const TileOutput& out, WorkerId) {
   const int64_t now = steady_ns();
   if (now > active_until_.load(std::memory_order_relaxed)) return;  // no browser open: no cost

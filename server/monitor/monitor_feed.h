@@ -41,7 +41,12 @@ class MonitorFeed : public SchedulerListener {
   static constexpr size_t kMaxFrames = 2;
   static constexpr size_t kMaxPending = 200000;  // tiles queued for decoding; beyond: dropped
 
-  explicit MonitorFeed(FarmView& coordinator);  // registers itself as an observer
+  // Registers itself as an observer of `coordinator`, which must outlive it; unregisters when
+  // destroyed.
+  explicit MonitorFeed(FarmView& coordinator);
+  ~MonitorFeed() override;
+  MonitorFeed(const MonitorFeed&) = delete;
+  MonitorFeed& operator=(const MonitorFeed&) = delete;
 
   // The jobs, workers and ray servers, as the monitor's main page shows them.
   nlohmann::json farm();

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "farm_control.h"
+#include "http_listener.h"
 #include "job_access.h"
 #include "metrics/farm_metrics.h"
 #include "monitor_feed.h"
@@ -182,6 +183,18 @@ class Handlers {
     send_json(res, 200, {{"id", *id}, {"priority", status.priority()}});
   }
 
+  // The listener's gate: every request but one for the page's own files shows a valid token in
+  // its head, or is answered 401 before its body is read.
+  bool refuse_unauthenticated(const httplib::Request& req, httplib::Response& res) const {
+    const bool page_file = req.path == "/" || req.path.rfind("/static/", 0) == 0;
+    if ((req.method == "GET" || req.method == "HEAD") && page_file) return false;
+    Caller caller;
+    const Status s = authenticate(req, &caller);
+    if (s.ok()) return false;
+    send_error(res, s);
+    return true;
+  }
+
   void metrics(const httplib::Request& req, httplib::Response& res) const {
     Caller caller;
     if (Status s = authenticate(req, &caller); !s.ok()) return send_error(res, s);
@@ -232,8 +245,11 @@ class Handlers {
 
 }  // namespace
 
-void MonitorRoutes::install(httplib::Server& server) const {
+void MonitorRoutes::install(HttpListener& listener) const {
   const auto h = std::make_shared<const Handlers>(*this);
+  listener.set_gate(
+      [h](const httplib::Request& req, httplib::Response& res) { return h->refuse_unauthenticated(req, res); });
+  httplib::Server& server = listener.server();
   using Handler = void (Handlers::*)(const httplib::Request&, httplib::Response&) const;
   const auto bind = [h](Handler f) {
     return [h, f](const httplib::Request& req, httplib::Response& res) { ((*h).*f)(req, res); };

@@ -9,8 +9,9 @@
 //   POST /api/jobs/ID/priority    {"priority": N}, as SetJobPriority
 //   GET  /metrics                 Prometheus text format (when metrics are given)
 // Every route but the page itself checks the client token as the gRPC API does
-// (`Authorization: Bearer TOKEN`); watching (the preview, the job page), cancelling and
-// changing the priority need the permissions of job_access.h.
+// (`Authorization: Bearer TOKEN`), first from the request's head, before any body is read (the
+// listener's gate, http_listener.h): an unknown route too. Watching (the preview, the job page),
+// cancelling and changing the priority need the permissions of job_access.h.
 #pragma once
 
 #include <set>
@@ -18,14 +19,11 @@
 
 #include "farm/auth.h"
 
-namespace httplib {
-class Server;
-}
-
 namespace tessera::server {
 
 class FarmControl;
 class FarmMetrics;
+class HttpListener;
 class MonitorFeed;
 
 struct MonitorRoutes {
@@ -35,7 +33,8 @@ struct MonitorRoutes {
   const farm::Authenticator& auth;
   std::set<std::string> admins;
 
-  void install(httplib::Server& server) const;
+  // The routes, and the gate that checks the token before a request's body is read.
+  void install(HttpListener& listener) const;
 };
 
 }  // namespace tessera::server

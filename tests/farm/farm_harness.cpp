@@ -287,6 +287,19 @@ std::string wait_job_id(const Process& client) {
   return job;
 }
 
+double peak_rss_mib(int pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string key;
+  double kib = -1;
+  while (in >> key) {
+    if (key == "VmHWM:") {
+      in >> kib;
+      break;
+    }
+  }
+  return kib / 1024.0;
+}
+
 bool own_descriptors(rlim_t need, rlim_t* hard) {
   rlimit own{};
   getrlimit(RLIMIT_NOFILE, &own);

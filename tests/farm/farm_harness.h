@@ -91,6 +91,17 @@ class Farm {
   int cli_runs_ = 0;
 };
 
+// Peak resident memory of a process, in MiB (VmHWM); negative when it cannot be read.
+double peak_rss_mib(int pid);
+// ASan keeps freed memory in quarantine (256 MiB by default) and adds shadow memory, so a peak
+// RSS says nothing about the coordinator's own use there: bounds on it are checked in the plain
+// build only (the sanitizer build still runs the requests and checks their answers).
+#if defined(__SANITIZE_ADDRESS__)
+inline constexpr bool kRssMeaningful = false;
+#else
+inline constexpr bool kRssMeaningful = true;
+#endif
+
 // Raises this process's soft descriptor limit to its hard one; false (the test skips) when that
 // is under `need`.
 bool own_descriptors(rlim_t need, rlim_t* hard);

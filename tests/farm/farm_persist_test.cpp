@@ -4,6 +4,7 @@
 // give clear errors instead of silent data loss.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sqlite3.h>
 #include <sys/mount.h>
 #include <unistd.h>
 
@@ -175,6 +176,97 @@ TEST(FarmPersistence, FullDiskRefusesNewJobsAndRecovers) {
   farm.workers().clear();
   CliResult w = farm.cli({"watch", job, "--coordinator", farm.address(), "-o", (out / "frame_####.exr").string()});
   ASSERT_EQ(w.code, 0) << w.output << farm.server_logs();
+  expect_frames_identical(out);
+}
+
+// The rows the coordinator's database holds of a job, read with SQLite beside the running
+// coordinator (WAL: a reader never blocks its writer); -1 each when the file cannot be read.
+struct JobRows {
+  int64_t jobs = -1, tiles = -1, acked_frames = -1, leases = -1;
+  bool operator==(const JobRows&) const = default;
+};
+
+JobRows rows_of(const fs::path& db_path, const std::string& job) {
+  JobRows rows;
+  sqlite3* db = nullptr;
+  if (sqlite3_open_v2(db_path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
+    const auto count = [&](const char* sql) -> int64_t {
+      sqlite3_stmt* st = nullptr;
+      int64_t n = -1;
+      if (sqlite3_prepare_v2(db, sql, -1, &st, nullptr) == SQLITE_OK) {
+        sqlite3_bind_text(st, 1, job.c_str(), -1, SQLITE_TRANSIENT);
+        if (sqlite3_step(st) == SQLITE_ROW) n = sqlite3_column_int64(st, 0);
+      }
+      sqlite3_finalize(st);
+      return n;
+    };
+    rows = {count("SELECT count(*) FROM jobs WHERE id=?1"), count("SELECT count(*) FROM tiles WHERE job=?1"),
+            count("SELECT count(*) FROM acked_frames WHERE job=?1"), count("SELECT count(*) FROM leases WHERE job=?1")};
+  }
+  sqlite3_close(db);
+  return rows;
+}
+
+// What `tessera status JOB --json` says of a job: the fields an evicted job answers from the
+// database.
+nlohmann::json status_of(Farm& farm, const std::string& job) {
+  const CliResult r = farm.cli({"status", job, "--json", "--coordinator", farm.address()});
+  EXPECT_EQ(r.code, 0) << r.output;
+  if (r.code != 0) return {};
+  const nlohmann::json j = nlohmann::json::parse(r.output);
+  return {{"state", j.at("state")}, {"tiles_done", j.at("tiles_done")}, {"tiles_total", j.at("tiles_total")},
+          {"frames_done", j.at("frames_done")}, {"frames_acknowledged", j.at("frames_acknowledged")}};
+}
+
+// Jobs delivered to their client leave memory, and now the database sheds their rows too: a tile
+// row per finished tile and a row per acknowledged frame used to stay forever (28,800 tile rows
+// after three small jobs), the database only grew. What is left of a job is its own row (and a
+// summary of what it did), so `tessera status JOB` answers as before, across a restart too.
+TEST(FarmPersistence, DeliveredJobsShedTheirTileRowsAndStillAnswerTheirStatus) {
+  Farm farm;
+  farm.start_server();
+  farm.start_worker("w1");
+  std::vector<std::string> jobs;
+  for (int i = 0; i < 3; ++i) {
+    const fs::path out = farm.dir() / ("out" + std::to_string(i));
+    const CliResult r = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--tile", "16", "-o",
+                                  (out / "frame_####.exr").string()});
+    ASSERT_EQ(r.code, 0) << r.output;
+    jobs.push_back(job_id_from(r.output));
+    expect_frames_identical(out);
+  }
+  const nlohmann::json delivered = {{"state", "done"},
+                                    {"tiles_done", 72},
+                                    {"tiles_total", 72},
+                                    {"frames_done", {0, 1, 2}},
+                                    {"frames_acknowledged", {0, 1, 2}}};
+  const fs::path db = farm.data_dir() / "tessera.db";
+  const JobRows summary_only{1, 0, 0, 0};
+  for (const std::string& job : jobs) {
+    SCOPED_TRACE("job " + job);
+    EXPECT_NE(farm.server().log().find("job " + job + " left memory"), std::string::npos) << farm.server().log();
+    // Shed by the store's writer after the eviction is committed: within a moment, not at once.
+    JobRows rows = rows_of(db, job);
+    for (int i = 0; i < 400 && !(rows == summary_only); ++i) {
+      std::this_thread::sleep_for(50ms);
+      rows = rows_of(db, job);
+    }
+    EXPECT_EQ(rows.jobs, 1);
+    EXPECT_EQ(rows.tiles, 0);
+    EXPECT_EQ(rows.acked_frames, 0);
+    EXPECT_EQ(rows.leases, 0);
+    EXPECT_EQ(status_of(farm, job), delivered);
+  }
+  // A restart reads the shed database: the jobs still answer, none is loaded, and a new job runs.
+  farm.restart_server();
+  for (const std::string& job : jobs) EXPECT_EQ(status_of(farm, job), delivered) << job;
+  const CliResult list = farm.cli({"status", "--json", "--coordinator", farm.address()});
+  ASSERT_EQ(list.code, 0) << list.output;
+  EXPECT_TRUE(nlohmann::json::parse(list.output).empty()) << list.output;
+  const fs::path out = farm.dir() / "after";
+  const CliResult r = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--tile", "16", "-o",
+                                (out / "frame_####.exr").string()});
+  ASSERT_EQ(r.code, 0) << r.output << farm.server_logs();
   expect_frames_identical(out);
 }
 

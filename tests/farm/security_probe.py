@@ -13,6 +13,11 @@ Checks (each prints "ok CHECK" or raises):
                   naming the field and its bound, the id not echoed
   stray-results   a worker session that sends one TileResults of 5,000 results for leases never
                   issued, of a job that does not exist (4 KiB job ids), then leaves
+  upload-stall    four uploads send 1 MiB and stall (server: --max-concurrent-uploads 4 and a short
+                  --upload-idle-seconds): each ends DEADLINE_EXCEEDED naming the flag. Prints
+                  "stalled uploads ended" (or "stalled uploads still open") and keeps any stream
+                  still open until TMP_DIR/upload-stall.done exists, so that the test can try an
+                  upload of its own meanwhile
 """
 import hashlib
 import os
@@ -182,6 +187,36 @@ def main():
                     pass
             except grpc.RpcError as e:
                 print(f"  session ended: {e.code().name}: {e.details()[:200]}")
+        elif check == "upload-stall":
+            import threading
+            release = threading.Event()
+            results = {}
+
+            def stall(i):
+                def chunks():
+                    yield common.BundleChunk(sha256="0" * 64, data=b"\x5a" * (1 << 20))
+                    release.wait(300)  # sends nothing more: the server must end it
+                try:
+                    stub.UploadBundle(chunks(), timeout=300)
+                    results[i] = "accepted"
+                except grpc.RpcError as e:
+                    results[i] = f"{e.code().name}: {e.details()}"
+
+            threads = [threading.Thread(target=stall, args=(i,), daemon=True) for i in range(4)]
+            for t in threads: t.start()
+            deadline = time.time() + 30  # the server's idle timeout ends them long before this
+            for t in threads: t.join(max(0.0, deadline - time.time()))
+            ended = all(i in results for i in range(4))
+            print("  results:", results)
+            print("stalled uploads ended" if ended else "stalled uploads still open", flush=True)
+            done = os.path.join(tmp, "upload-stall.done")
+            for _ in range(3000):
+                if os.path.exists(done): break
+                time.sleep(0.1)
+            release.set()
+            assert ended, results
+            for i in range(4):
+                assert results[i].startswith("DEADLINE_EXCEEDED") and "--upload-idle-seconds" in results[i], results[i]
         elif check == "token-roles":
             md = [("authorization", "Bearer " + os.environ["PROBE_WORKER_TOKEN"])]
             expect(grpc.StatusCode.UNAUTHENTICATED,

@@ -150,29 +150,6 @@ TEST(FarmSecurity, MutualTlsRequiresAClientCertificate) {
   expect_renders(farm, good);
 }
 
-// Peak resident memory of a process, in MiB (VmHWM).
-double peak_rss_mib(int pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
-  std::string key;
-  double kib = -1;
-  while (in >> key) {
-    if (key == "VmHWM:") {
-      in >> kib;
-      break;
-    }
-  }
-  return kib / 1024.0;
-}
-
-// ASan keeps freed memory in quarantine (256 MiB by default) and adds shadow memory, so a peak
-// RSS says nothing about the coordinator's own use there: the bounds are checked in the plain
-// build only (the sanitizer build still runs the probes and their refusals).
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kRssMeaningful = false;
-#else
-constexpr bool kRssMeaningful = true;
-#endif
-
 // Runs one security_probe.py check against the farm (it must pass), then returns the
 // coordinator's peak resident memory in MiB.
 double probe_peak_rss(Farm& farm, const std::string& check) {
@@ -210,6 +187,35 @@ TEST(FarmSecurity, ConcurrentUploadsStreamToDiskAndAreBounded) {
     EXPECT_LT(peak, 200.0);
   }
   // Nothing of them is left on disk.
+  for (const auto& e : fs::directory_iterator(farm.data_dir() / "bundles")) {
+    EXPECT_EQ(e.path().filename().string().rfind(".upload-", 0), std::string::npos) << e.path();
+  }
+}
+
+// Uploads that stall end, and give their slot back: four streams that sent 1 MiB and then
+// nothing held every slot for good (no timeout in 100 s), and every new scene was refused with
+// "the number of bundle uploads in progress is 5, over this coordinator's limit 4". Now each is
+// ended after --upload-idle-seconds without a chunk, its temporary file removed, and a normal
+// submit of a new scene goes through while their clients still hold the streams open.
+TEST(FarmSecurity, StalledUploadsTimeOutAndGiveTheirSlotsBack) {
+  Farm farm;
+  farm.start_server({"--max-concurrent-uploads", "4", "--upload-idle-seconds", "1"});
+  farm.start_worker("w1");
+  Process py({"/usr/bin/python3", source("tests/farm/security_probe.py").string(), farm.address(),
+              source("proto").string(), farm.dir().string(), "upload-stall"},
+             farm.dir() / "probe-upload-stall.log");
+  for (int i = 0; i < 1200 && py.running() && !has(py.log(), "stalled uploads "); ++i) {
+    std::this_thread::sleep_for(50ms);
+  }
+  ASSERT_TRUE(has(py.log(), "stalled uploads ")) << py.log();
+  // Whatever the stalled streams' fate, their clients hold them open while this submit runs.
+  const CliResult r = farm.cli({"submit", source("tests/farm/chaos_orbit.json").string(), "--coordinator",
+                                farm.address(), "--frames", "0", "-o", (farm.dir() / "out" / "f_####.exr").string()},
+                               60s);
+  std::ofstream(farm.dir() / "upload-stall.done") << "go\n";
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(py.wait(60s), 0) << py.log();
+  EXPECT_TRUE(has(farm.server().log(), "--upload-idle-seconds")) << farm.server().log();
   for (const auto& e : fs::directory_iterator(farm.data_dir() / "bundles")) {
     EXPECT_EQ(e.path().filename().string().rfind(".upload-", 0), std::string::npos) << e.path();
   }
