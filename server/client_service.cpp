@@ -12,6 +12,7 @@
 #include "farm/peer_text.h"
 #include "scene/scene_parser.h"
 #include "stream_sink.h"
+#include "watch_wire.h"
 
 namespace tessera::server {
 
@@ -119,17 +120,19 @@ class UploadReactor : public grpc::ServerReadReactor<v1::BundleChunk>, private U
   bool finished_ = false;
 };
 
-// The watch stream: the coordinator pushes events into the outbox; this reactor writes them.
-class WatchReactor : public grpc::ServerWriteReactor<v1::WatchJobEvent> {
+// The watch stream: the coordinator pushes events into the outbox; this reactor writes them, as
+// bytes (watch_wire.h): events it is given as messages are serialized when their turn comes,
+// stored tiles are framed around the stored bytes.
+class WatchReactor : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
  public:
   static constexpr size_t kMaxTilesPerMessage = 64;
   static constexpr size_t kMaxBatchBytes = size_t(8) << 20;
-  using Sink = OutboxSink<WatchReactor, v1::WatchJobEvent>;
+  using Sink = OutboxSink<WatchReactor, v1::WatchJobEvent, grpc::ByteBuffer>;
 
   WatchReactor(Coordinator& c, const v1::WatchJobRequest& req) : coord_(c), sink_(std::make_shared<Sink>(this)) {
-    // A client that reads `tiles` events gets every tile in one, the stored bytes as they are,
-    // with the tiles queued behind it; any other, one parsed `tile` event a tile. The bounds keep
-    // a message far below what a client accepts (64 MiB).
+    // A client that reads `tiles` events gets every tile in one with the tiles queued behind it;
+    // any other, one `tile` event a tile. The bounds keep a message far below what a client
+    // accepts (64 MiB).
     if (req.tile_batches()) {
       sink_->box.set_batching(batch_event, kMaxTilesPerMessage, kMaxBatchBytes);
     } else {
@@ -159,14 +162,9 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::WatchJobEvent> {
   }
 
  private:
-  static void tile_event(v1::WatchJobEvent* ev, const std::shared_ptr<const std::string>* tiles, size_t) {
-    ev->mutable_tile()->ParseFromString(*tiles[0]);
-  }
-  // No parse and re-serialization: the bytes stored are the bytes sent.
-  static void batch_event(v1::WatchJobEvent* ev, const std::shared_ptr<const std::string>* tiles, size_t n) {
-    auto* batch = ev->mutable_tiles();
-    batch->mutable_tiles()->Reserve(int(n));
-    for (size_t i = 0; i < n; ++i) batch->add_tiles(*tiles[i]);
+  static void tile_event(grpc::ByteBuffer* out, const SharedTile* tiles, size_t) { *out = tile_event_bytes(tiles[0]); }
+  static void batch_event(grpc::ByteBuffer* out, const SharedTile* tiles, size_t n) {
+    *out = tile_batch_event_bytes(tiles, n);
   }
 
   Coordinator& coord_;
@@ -239,13 +237,20 @@ grpc::ServerUnaryReactor* ClientServiceImpl::SubmitJob(grpc::CallbackServerConte
   return reply(ctx, std::move(s));
 }
 
-grpc::ServerWriteReactor<v1::WatchJobEvent>* ClientServiceImpl::WatchJob(grpc::CallbackServerContext* ctx,
-                                                                        const v1::WatchJobRequest* req) {
+grpc::ServerWriteReactor<grpc::ByteBuffer>* ClientServiceImpl::WatchJob(grpc::CallbackServerContext* ctx,
+                                                                       const grpc::ByteBuffer* request) {
   Caller caller;
   Status s = authenticate(*ctx, &caller);
-  if (s.ok()) s = authorize(req->job_id(), caller, "watch");
-  if (!s.ok()) return new farm::Refused<grpc::ServerWriteReactor<v1::WatchJobEvent>>(std::move(s));
-  return new WatchReactor(coord_, *req);
+  v1::WatchJobRequest req;
+  if (s.ok()) {
+    grpc::ByteBuffer bytes(*request);  // refers to the same slices: Deserialize consumes its argument
+    if (!grpc::SerializationTraits<v1::WatchJobRequest>::Deserialize(&bytes, &req).ok()) {
+      s = Status(StatusCode::INVALID_ARGUMENT, "the WatchJobRequest does not parse");
+    }
+  }
+  if (s.ok()) s = authorize(req.job_id(), caller, "watch");
+  if (!s.ok()) return new farm::Refused<grpc::ServerWriteReactor<grpc::ByteBuffer>>(std::move(s));
+  return new WatchReactor(coord_, req);
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::AckFrame(grpc::CallbackServerContext* ctx, const v1::AckFrameRequest* req,

@@ -15,7 +15,10 @@
 
 namespace tessera::server {
 
-class ClientServiceImpl final : public tessera::v1::ClientService::CallbackService {
+// WatchJob is a raw method: its stream writes bytes, so that stored tiles go out as they are
+// stored (watch_wire.h); its request is parsed here like any other.
+class ClientServiceImpl final
+    : public tessera::v1::ClientService::WithRawCallbackMethod_WatchJob<tessera::v1::ClientService::CallbackService> {
  public:
   // Every method first checks the client token (auth.h); uploads and submissions the limits.
   // The per-client quota starts from the active jobs the coordinator restored: a restart does
@@ -36,8 +39,8 @@ class ClientServiceImpl final : public tessera::v1::ClientService::CallbackServi
                                                                   tessera::v1::UploadBundleResponse*) override;
   grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext*, const tessera::v1::SubmitJobRequest*,
                                       tessera::v1::JobStatus*) override;
-  grpc::ServerWriteReactor<tessera::v1::WatchJobEvent>* WatchJob(grpc::CallbackServerContext*,
-                                                                 const tessera::v1::WatchJobRequest*) override;
+  grpc::ServerWriteReactor<grpc::ByteBuffer>* WatchJob(grpc::CallbackServerContext*,
+                                                       const grpc::ByteBuffer* request) override;
   grpc::ServerUnaryReactor* AckFrame(grpc::CallbackServerContext*, const tessera::v1::AckFrameRequest*,
                                      tessera::v1::AckFrameResponse*) override;
   grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext*, const tessera::v1::GetJobRequest*,

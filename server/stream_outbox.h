@@ -17,9 +17,15 @@
 // writes keep up sends one a message; one that falls behind catches up in fewer, fuller
 // messages, and each message costs the coordinator a hand-off between gRPC's threads and a
 // system call or two, whatever its size.
+//
+// What is written (`Wire`) is the message type itself, or grpc::ByteBuffer for a stream that
+// sends bytes it did not serialize (a raw method): queued messages are then serialized when their
+// turn comes, and the batch builder makes the bytes directly (watch_wire.h: tiles go out as the
+// slices the coordinator stores, not copied).
 #pragma once
 
 #include <grpcpp/grpcpp.h>
+#include <grpcpp/impl/codegen/proto_utils.h>  // SerializationTraits of protobuf messages
 
 #include <algorithm>
 #include <atomic>
@@ -28,18 +34,19 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <type_traits>
 #include <variant>
 #include <vector>
 
 namespace tessera::server {
 
-template <class Reactor, class Msg>
+template <class Reactor, class Msg, class Wire = Msg>
 class Outbox {
  public:
   using Deferred = std::function<void(Msg*)>;  // fills a cleared message
   using Shared = std::shared_ptr<const std::string>;
   // Fills a cleared message with `n` shared payloads (n >= 1, as many as the bounds allowed).
-  using BatchBuilder = std::function<void(Msg*, const Shared* payloads, size_t n)>;
+  using BatchBuilder = std::function<void(Wire*, const Shared* payloads, size_t n)>;
 
   explicit Outbox(Reactor* reactor) : reactor_(reactor) {}
 
@@ -72,11 +79,12 @@ class Outbox {
     if (!queue_.empty()) {
       Item& front = queue_.front();
       if (front.index() == 0) {
-        current_ = std::move(std::get<0>(front));
+        set_current(std::move(std::get<0>(front)));
         queue_.pop_front();
       } else if (front.index() == 1) {
-        current_.Clear();
-        std::get<1>(front)(&current_);
+        Msg m;
+        std::get<1>(front)(&m);
+        set_current(std::move(m));
         queue_.pop_front();
       } else {
         // The run of shared payloads at the front, within the bounds.
@@ -138,6 +146,15 @@ class Outbox {
 
  private:
   using Item = std::variant<Msg, Deferred, Shared>;
+  void set_current(Msg&& m) {
+    if constexpr (std::is_same_v<Msg, Wire>) {
+      current_ = std::move(m);
+    } else {
+      current_.Clear();
+      bool own = false;
+      grpc::SerializationTraits<Msg>::Serialize(m, &current_, &own);
+    }
+  }
   void enqueue(Item item) {
     std::lock_guard lock(mu_);
     if (finish_requested_ || !reactor_) return;
@@ -149,7 +166,7 @@ class Outbox {
   Reactor* reactor_;
   std::deque<Item> queue_;
   std::atomic<size_t> queued_{0};
-  Msg current_;
+  Wire current_;
   BatchBuilder build_;
   size_t max_items_ = 1;
   size_t max_bytes_ = 0;

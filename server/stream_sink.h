@@ -37,7 +37,7 @@ class StreamSink {
 
 // A StreamSink that queues into the outbox of `Reactor`. The reactor forwards its OnWriteDone and
 // OnDone to `box` (stream_outbox.h says why writes go through an outbox at all).
-template <class Reactor, class Msg>
+template <class Reactor, class Msg, class Wire = Msg>
 struct OutboxSink : StreamSink<Msg> {
   explicit OutboxSink(Reactor* r) : box(r) {}
   void push(Msg m) override { box.push(std::move(m)); }
@@ -46,7 +46,7 @@ struct OutboxSink : StreamSink<Msg> {
   void finish(grpc::Status s) override { box.finish(std::move(s)); }
   void pump() override { box.pump(); }
   size_t queued() const override { return box.queued(); }
-  Outbox<Reactor, Msg> box;
+  Outbox<Reactor, Msg, Wire> box;
 };
 
 }  // namespace tessera::server
