@@ -181,6 +181,7 @@ void Scheduler::remove_worker(WorkerId id, std::string_view reason) {
   if (it == workers_.end()) return;
   const std::vector<LeaseId> leases(it->second.leases.begin(), it->second.leases.end());
   WorkerStats stats = it->second.stats;  // in_flight: the leases it held when it left
+  it->second.stats.wanted = 0;  // ending its leases below must not make it wanting again
   wanting_.erase(id);
   for (LeaseId lid : leases) end_lease(lid, LeaseEnd::kWorkerLeft, true);
   workers_.erase(it);
@@ -200,7 +201,15 @@ void Scheduler::request_tiles(WorkerId id, int count) {
   if (it == workers_.end() || count <= 0) return;
   int& wanted = it->second.stats.wanted;
   wanted = std::min(options_.max_wanted_per_worker, wanted + count);
-  wanting_.insert(id);
+  update_wanting(it->second);
+}
+
+void Scheduler::update_wanting(Worker& w) {
+  if (w.stats.wanted > 0 && int64_t(w.leases.size()) < credit(w)) {
+    wanting_.insert(w.stats.id);
+  } else {
+    wanting_.erase(w.stats.id);
+  }
 }
 
 int Scheduler::credit(const Worker& w) const {
@@ -261,12 +270,12 @@ std::vector<Assignment> Scheduler::dispatch() {
     const std::vector<WorkerId> ids(wanting_.begin(), wanting_.end());
     for (WorkerId id : ids) {
       Worker& w = workers_.at(id);
-      // Not more than it has earned: it stays wanting, and its next result makes room.
-      if (int64_t(w.leases.size()) >= credit(w)) continue;
+      if (!wanting_.count(id)) continue;  // its credit ran out this round
       std::optional<Assignment> a = next_for(w);
       if (!a && options_.speculate) a = speculate_for(w);
       if (!a) continue;
-      if (--w.stats.wanted <= 0) wanting_.erase(id);
+      --w.stats.wanted;
+      update_wanting(w);
       out.push_back(std::move(*a));
       progress = true;
     }
@@ -349,6 +358,7 @@ void Scheduler::end_lease(LeaseId id, LeaseEnd why, bool requeue) {
   if (auto wit = workers_.find(lease.worker); wit != workers_.end()) {
     wit->second.leases.erase(id);
     wit->second.stats.in_flight = int(wit->second.leases.size());
+    update_wanting(wit->second);
   }
   Job& job = *find_job(lease.tile.job);
   const int fi = lease.tile.frame - job.spec.first_frame;
@@ -381,6 +391,7 @@ Scheduler::ResultOutcome Scheduler::complete(WorkerId worker, LeaseId lease_id, 
     wit->second.stats.seconds += output.seconds;
     ++wit->second.results;
     wit->second.last_progress = now_();
+    update_wanting(wit->second);
   }
   if (tile.state == TileState::kDone) {
     ++job.duplicates_discarded;
@@ -482,6 +493,7 @@ int Scheduler::fault(WorkerId worker, const JobId& job_id, std::optional<LeaseId
     // blocklist it (a session that returns nothing earns none). Past the blocklist it earns no more.
     ++wit->second.results;
     wit->second.last_progress = now_();
+    update_wanting(wit->second);
   }
   const bool now_blocked = faults >= options_.max_faults && job->blocklisted.insert(name).second;
   events().worker_faulted(job_id, wit->second.stats, reason, faults, now_blocked);
@@ -643,6 +655,7 @@ void Scheduler::revoke_stalled(TimePoint now) {
     const std::vector<LeaseId> held(w.leases.begin(), w.leases.end());
     for (LeaseId lid : held) end_lease(lid, LeaseEnd::kStalled, true);
     w.credit_base = w.results;  // earned again from the start, like a new session
+    update_wanting(w);
   }
 }
 

@@ -309,6 +309,8 @@ class Scheduler {
   // Leases the worker may still take now: what it has earned (SchedulerOptions::
   // initial_leases_per_thread) less what it holds. INT_MAX when unbounded; 0 for an unknown id.
   int lease_credit(WorkerId id) const;
+  // The workers dispatch() looks at: those that want tiles and have credit left, in id order.
+  std::vector<WorkerId> wanting_workers() const { return {wanting_.begin(), wanting_.end()}; }
   std::vector<WorkerStats> workers() const;
   std::optional<WorkerStats> worker(WorkerId id) const;
   std::optional<Lease> lease(LeaseId id) const;
@@ -370,6 +372,11 @@ class Scheduler {
   std::optional<Assignment> next_for(Worker& w);
   bool blocked(const Job& job, const Worker& w) const { return job.blocklisted.count(w.stats.info.name) > 0; }
   int credit(const Worker& w) const;
+  // Keeps wanting_ exact: a worker is in it while it wants tiles and holds fewer leases than its
+  // credit, so that dispatch, which runs on every worker message, looks only at workers it can
+  // serve (a farm of workers at their credit would otherwise cost a scan of all of them each time).
+  // Called wherever a worker's wanted count, leases or credit change.
+  void update_wanting(Worker& w);
   // The one rule for what may reach a client: a done tile, and of a passes job only once its frame
   // is final (between passes a done tile is an intermediate result).
   static bool deliverable(const Job& job, const Frame& frame, const Tile& tile) {
@@ -406,7 +413,7 @@ class Scheduler {
   std::set<QueueKey> runnable_;       // jobs with queued tiles
   std::set<JobId> speculable_;        // jobs with a non-empty single_copies
   std::map<WorkerId, Worker> workers_;
-  std::set<WorkerId> wanting_;        // workers with a standing request: dispatch() looks only here
+  std::set<WorkerId> wanting_;        // workers with a standing request and credit left: dispatch() looks only here
   std::map<LeaseId, Lease> leases_;   // ids grow with time: begin() is the oldest lease
   uint64_t next_seq_ = 1;
   int64_t tiles_held_ = 0;            // tiles of every job in jobs_ (Job::tiles_resident summed)

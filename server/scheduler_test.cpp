@@ -624,6 +624,72 @@ TEST_F(SchedulerTest, LeaseCreditBoundsWhatASessionHoldsBeforeItRenders) {
   EXPECT_EQ(sc.dispatch().size(), 3u);
 }
 
+// Dispatch runs on every worker message and looks only at the workers it could serve: those that
+// want tiles and hold fewer leases than their credit. Random requests, results, faults, returns,
+// stalls and departures over 40 workers; after each, the set dispatch looks at is exactly the set
+// the rule names (a worker at its credit re-enters it when a result, an ended lease or a new
+// request gives it room, and leaves it when it has what it asked for).
+TEST_F(SchedulerTest, DispatchLooksOnlyAtWorkersItCanServeWhateverHappens) {
+  SchedulerOptions o = opts();
+  o.initial_leases_per_thread = 1;
+  o.stall_timeout = 30s;
+  o.lease_timeout = 3600s;
+  o.max_faults = 1 << 20;  // faults here test credit, not the blocklist
+  Scheduler sc{o, [this] { return now; }};
+  const JobId id = sc.submit(spec(640, 640, 16));  // 400 tiles
+  std::mt19937 rng(5);
+  std::vector<WorkerId> ws;
+  for (int i = 0; i < 40; ++i) ws.push_back(sc.add_worker({"w" + std::to_string(i), "", 1 + i % 3, "AVX2"}));
+  std::map<WorkerId, std::vector<LeaseId>> held;
+  for (int step = 0; step < 3000; ++step) {
+    const WorkerId w = ws[rng() % ws.size()];
+    switch (rng() % 6) {
+      case 0: sc.request_tiles(w, 1 + int(rng() % 5)); break;
+      case 1: case 2:
+        if (!held[w].empty()) {
+          sc.complete(w, held[w].back(), out());
+          held[w].pop_back();
+        }
+        break;
+      case 3:  // a bad result for a lease it holds, or a stray one: both earn credit
+        if (!held[w].empty() && rng() % 2) {
+          sc.fault(w, id, held[w].back(), "bad");
+          held[w].pop_back();
+        } else {
+          sc.fault(w, id, std::nullopt, "stray");
+        }
+        break;
+      case 4:
+        if (!held[w].empty()) {
+          sc.return_leases(w, {held[w].back()});
+          held[w].pop_back();
+        }
+        break;
+      case 5:
+        now += 11s;  // past the stall timeout for a worker idle three times in a row
+        for (WorkerId x : ws) sc.heartbeat(x);
+        sc.expire();
+        break;
+    }
+    for (const Assignment& a : sc.dispatch()) held[a.lease.worker].push_back(a.lease.id);
+    for (auto& [x, leases] : held) {  // leases revoked meanwhile (stalls, blocklists) are gone
+      std::erase_if(leases, [&](LeaseId l) { return !sc.lease(l); });
+    }
+    std::vector<WorkerId> expected;
+    for (WorkerId x : ws) {
+      const auto st = sc.worker(x);
+      if (st && st->wanted > 0 && sc.lease_credit(x) > 0) expected.push_back(x);
+    }
+    ASSERT_EQ(sc.wanting_workers(), expected) << "step " << step;
+    if (step == 1500) {
+      sc.remove_worker(ws.back(), "test");
+      held.erase(ws.back());
+      ws.pop_back();
+    }
+  }
+  EXPECT_GT(sc.job(id)->tiles_done, 50) << "the run rendered: the rule was checked on a farm at work";
+}
+
 // Heartbeats keep a worker connected but not its leases: one that returns nothing for longer
 // than the stall timeout loses them (requeued for others) and its credit starts again.
 TEST_F(SchedulerTest, ASessionThatReturnsNothingLosesItsLeasesWhateverItsHeartbeats) {
