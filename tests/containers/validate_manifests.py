@@ -50,19 +50,31 @@ def load_yaml_docs(path):
         return [d for d in yaml.safe_load_all(f) if d is not None]
 
 
-# The folders beside the base manifests: the KEDA overlay and the batch Job (keys "keda/NAME").
+# The base manifests are docker/k8s/base (keys "NAME"), docker/k8s's own kustomization builds on
+# them (key "top/kustomization.yaml"), and beside them are the KEDA overlay and the batch Job (keys
+# "keda/NAME", "batch/NAME").
 K8S_EXTRAS = ("keda", "batch")
 
 
 def load_k8s(root):
     k8s = os.path.join(root, "docker", "k8s")
     files = {}
-    for sub in ("",) + K8S_EXTRAS:
+    for sub, key in (("base", ""), ("", "top")) + tuple((x, x) for x in K8S_EXTRAS):
         folder = os.path.join(k8s, sub)
         for name in sorted(os.listdir(folder)):
             if name.endswith((".yaml", ".yml")):
-                files[f"{sub}/{name}" if sub else name] = load_yaml_docs(os.path.join(folder, name))
+                files[f"{key}/{name}" if key else name] = load_yaml_docs(os.path.join(folder, name))
     return files
+
+
+def check_top(files):
+    """docker/k8s/kustomization.yaml: `kubectl apply -k docker/k8s` is the base, nothing else."""
+    kust = (files.get("top/kustomization.yaml") or [None])[0]
+    if not kust:
+        return ["docker/k8s: no kustomization.yaml (kubectl apply -k docker/k8s)"]
+    if "base" not in (kust.get("resources") or []):
+        return ["docker/k8s/kustomization.yaml: resources does not include the base (base)"]
+    return []
 
 
 def exported_metrics(root):
@@ -110,8 +122,8 @@ def check_keda(files):
     if not kust:
         return ["docker/k8s/keda: no kustomization.yaml (kubectl apply -k docker/k8s/keda)"]
     resources = kust.get("resources") or []
-    if ".." not in resources and "../" not in resources:
-        errs.append("docker/k8s/keda/kustomization.yaml: resources does not include the base (..)")
+    if "../base" not in resources and "../base/" not in resources:
+        errs.append("docker/k8s/keda/kustomization.yaml: resources does not include the base (../base)")
     for name in files:
         if name.startswith("keda/") and name != "keda/kustomization.yaml" and name[5:] not in resources:
             errs.append(f"docker/k8s/keda/kustomization.yaml: resources does not list {name[5:]}")
@@ -221,7 +233,7 @@ def check_k8s(files):
     files = base_files(files)
     for name, docs in files.items():
         for i, d in enumerate(docs):
-            where = f"docker/k8s/{name} document {i + 1}"
+            where = f"docker/k8s/base/{name} document {i + 1}"
             if not isinstance(d, dict):
                 errs.append(f"{where}: not a mapping")
                 continue
@@ -231,22 +243,22 @@ def check_k8s(files):
             for field in ("apiVersion", "kind", "metadata.name"):
                 if not get(d, field):
                     errs.append(f"{where}: missing {field}")
-            objects.append((f"docker/k8s/{name} {d.get('kind')}/{get(d, 'metadata.name')}", d))
+            objects.append((f"docker/k8s/base/{name} {d.get('kind')}/{get(d, 'metadata.name')}", d))
 
     by_kind = {}
     for where, d in objects:
         by_kind.setdefault(d.get("kind"), []).append((where, d))
 
     if kustomization is None:
-        errs.append("docker/k8s: no kustomization.yaml (kubectl apply -k docker/k8s)")
+        errs.append("docker/k8s/base: no kustomization.yaml")
     else:
         listed = set(kustomization[1].get("resources") or [])
         for name in files:
             if name != kustomization[0] and name not in listed:
-                errs.append(f"docker/k8s/{kustomization[0]}: resources does not list {name}")
+                errs.append(f"docker/k8s/base/{kustomization[0]}: resources does not list {name}")
         for r in listed:
             if r not in files:
-                errs.append(f"docker/k8s/{kustomization[0]}: lists {r}, which does not exist")
+                errs.append(f"docker/k8s/base/{kustomization[0]}: lists {r}, which does not exist")
 
     pvcs = {get(d, "metadata.name"): (w, d) for w, d in by_kind.get("PersistentVolumeClaim", [])}
     for w, d in pvcs.values():
@@ -487,7 +499,7 @@ def check_compose(compose, root_compose, stages):
 
 
 def check_all(k8s, compose, root_compose, stages):
-    return (check_k8s(k8s) + check_keda(k8s) + check_batch(k8s) + check_dockerfile(stages)
+    return (check_k8s(k8s) + check_top(k8s) + check_keda(k8s) + check_batch(k8s) + check_dockerfile(stages)
             + check_compose(compose, root_compose, stages))
 
 
@@ -525,6 +537,7 @@ def self_test(k8s, compose, root_compose, stages):
         "ScaledObject threshold not a quoted number": lambda k, c, r, s: get(find(k, "ScaledObject", "worker"), "spec.triggers.0.metadata").update(threshold=480),
         "KEDA overlay keeps the CPU HPA": lambda k, c, r, s: k["keda/kustomization.yaml"][0].pop("patches"),
         "KEDA overlay without the base": lambda k, c, r, s: k["keda/kustomization.yaml"][0].update(resources=["scaledobject.yaml"]),
+        "docker/k8s without the base": lambda k, c, r, s: k["top/kustomization.yaml"][0].update(resources=["worker.yaml"]),
         "batch Job never exits when idle": lambda k, c, r, s: container(find(k, "Job", "worker"))["args"].pop(),
         "batch Job not Indexed": lambda k, c, r, s: find(k, "Job", "worker")["spec"].pop("completionMode"),
         "batch Job points elsewhere": lambda k, c, r, s: container(find(k, "Job", "worker"))["env"][0].update(value="localhost:7878"),
