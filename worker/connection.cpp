@@ -33,6 +33,11 @@ struct WorkerConnection::Session {
   int depth = 0;                        // tiles to keep requested or assigned and unfinished
   double tile_seconds = 0;              // a tile's wall time on one thread (moving average)
   std::chrono::milliseconds heartbeat{1000};
+  // When the last message went (under write_mu): any message is a sign of life to the
+  // coordinator, so a heartbeat is sent only after an interval without one. A worker busy
+  // sending results sends none; a thousand of them cost the coordinator no thousand messages a
+  // second for nothing.
+  std::chrono::steady_clock::time_point last_write = std::chrono::steady_clock::now();
   bool result_requests = false;         // the coordinator reads TileResult.request_more
   // Set (under write_mu) at the welcome when the coordinator reads result batches. Declared last:
   // destroyed first, while the stream it writes to is still there.
@@ -42,7 +47,18 @@ struct WorkerConnection::Session {
     std::lock_guard lock(write_mu);
     if (!alive) return false;
     if (!stream->Write(m)) alive = false;
+    last_write = std::chrono::steady_clock::now();
     return alive;
+  }
+  // A heartbeat, unless another message went within the interval.
+  void heartbeat_if_quiet() {
+    {
+      std::lock_guard lock(write_mu);
+      if (std::chrono::steady_clock::now() - last_write < heartbeat) return;
+    }
+    v1::WorkerMessage hb;
+    hb.mutable_heartbeat();
+    write(hb);
   }
 };
 
@@ -187,11 +203,8 @@ bool WorkerConnection::run_session() {
                        msg.welcome().worker_id(), pool_.threads(), embree_isa());
           heartbeat = std::thread([&, s] {
             std::unique_lock lock(hb_mu);
-            while (!hb_cv.wait_for(lock, s->heartbeat, [&] { return hb_stop; })) {
-              v1::WorkerMessage hb;
-              hb.mutable_heartbeat();
-              s->write(hb);
-            }
+            // Woken twice an interval, so a quiet stream is never silent for much more than one.
+            while (!hb_cv.wait_for(lock, s->heartbeat / 2, [&] { return hb_stop; })) s->heartbeat_if_quiet();
           });
           // Pull: keep twice as many tiles as threads on hand so no thread waits for the network;
           // once tile times are known, more to cover the time results wait for a batch.

@@ -92,21 +92,28 @@ void SimWorker::request(int count) {
 }
 
 void SimWorker::heartbeat() {
-  v1::WorkerMessage m;
-  m.mutable_heartbeat();
+  // As tessera-worker does: a heartbeat only after an interval without any other message, checked
+  // twice an interval.
+  bool quiet = false;
   {
     std::lock_guard lock(mu_);
     if (stopped_) return;
+    quiet = SteadyClock::now() - last_send_ >= heartbeat_interval_;
   }
-  send(std::move(m));
-  counters_.heartbeats++;
-  timer_.at(SteadyClock::now() + heartbeat_interval_, [this] { heartbeat(); });
+  if (quiet) {
+    v1::WorkerMessage m;
+    m.mutable_heartbeat();
+    send(std::move(m));
+    counters_.heartbeats++;
+  }
+  timer_.at(SteadyClock::now() + heartbeat_interval_ / 2, [this] { heartbeat(); });
 }
 
 void SimWorker::send(v1::WorkerMessage m) {
   std::unique_lock lock(mu_);
   if (stopped_) return;
   counters_.bytes_out += int64_t(m.ByteSizeLong());
+  last_send_ = SteadyClock::now();
   queue_.push_back(std::move(m));
   if (writing_) return;
   writing_ = true;
@@ -157,7 +164,7 @@ void SimWorker::OnReadDone(bool ok) {
       heartbeat_interval_ = std::chrono::milliseconds(std::max(50, in_.welcome().heartbeat_interval_ms()));
       result_requests_ = in_.welcome().reads_request_more();
       result_batches_ = options_.batches && in_.welcome().reads_result_batches();
-      timer_.at(SteadyClock::now() + heartbeat_interval_, [this] { heartbeat(); });
+      timer_.at(SteadyClock::now() + heartbeat_interval_ / 2, [this] { heartbeat(); });
       welcomed_ = true;
       break;
     case v1::CoordinatorMessage::kAssignment:

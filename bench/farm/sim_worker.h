@@ -122,6 +122,7 @@ class SimWorker : public grpc::ClientBidiReactor<tessera::v1::WorkerMessage, tes
   std::deque<tessera::v1::WorkerMessage> queue_;
   tessera::v1::WorkerMessage current_;  // the one write in flight
   bool writing_ = false;
+  SteadyClock::time_point last_send_ = SteadyClock::now();  // a heartbeat goes only after an interval without one
   bool stopped_ = false;        // no more writes
   bool hold_released_ = false;
   std::set<uint64_t> pending_;  // leases "rendering" (waiting on the timer)

@@ -144,6 +144,26 @@ TEST(FarmEndToEnd, WorkerJoiningAfterStartGetsWork) {
   EXPECT_GT(late_tiles, 0) << w.output;
 }
 
+// A worker sends a heartbeat only after an interval without any other message (busy workers send
+// none: their results are their sign of life). One with nothing to do must still send them: idle
+// for three and a half lease timeouts, it stays the one session it was, and then renders.
+TEST(FarmEndToEnd, AnIdleWorkerKeepsItsSessionThroughManyLeaseTimeouts) {
+  Farm farm;
+  farm.start_server({"--lease-timeout-ms", "2000", "--heartbeat-ms", "200"});
+  farm.start_worker("quiet", 1, 0);
+  std::this_thread::sleep_for(std::chrono::seconds(7));
+  const std::string log = farm.server().log();
+  EXPECT_EQ(log.find("missed heartbeats"), std::string::npos) << log;
+  size_t joins = 0;
+  for (size_t at = log.find("'quiet' joined"); at != std::string::npos; at = log.find("'quiet' joined", at + 1)) ++joins;
+  EXPECT_EQ(joins, 1u) << "the worker was dropped and reconnected\n" << log;
+  const fs::path out = farm.dir() / "out";
+  CliResult r = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--tile", "16", "-o",
+                          (out / "frame_####.exr").string()});
+  ASSERT_EQ(r.code, 0) << r.output << farm.server().log();
+  expect_frames_identical(out);
+}
+
 TEST(FarmEndToEnd, CancelStopsTheJob) {
   Farm farm;
   farm.start_server();
