@@ -269,8 +269,7 @@ std::vector<Assignment> Scheduler::dispatch() {
     progress = false;
     const std::vector<WorkerId> ids(wanting_.begin(), wanting_.end());
     for (WorkerId id : ids) {
-      Worker& w = workers_.at(id);
-      if (!wanting_.count(id)) continue;  // its credit ran out this round
+      Worker& w = workers_.at(id);  // in wanting_: only its own turn below changes that
       std::optional<Assignment> a = next_for(w);
       if (!a && options_.speculate) a = speculate_for(w);
       if (!a) continue;
@@ -389,9 +388,8 @@ Scheduler::ResultOutcome Scheduler::complete(WorkerId worker, LeaseId lease_id, 
   if (auto wit = workers_.find(worker); wit != workers_.end()) {
     wit->second.stats.rays += output.rays;
     wit->second.stats.seconds += output.seconds;
-    ++wit->second.results;
+    ++wit->second.results;  // more credit: end_lease below re-evaluates its wanting
     wit->second.last_progress = now_();
-    update_wanting(wit->second);
   }
   if (tile.state == TileState::kDone) {
     ++job.duplicates_discarded;
