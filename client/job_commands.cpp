@@ -51,7 +51,9 @@ nlohmann::json job_json(const v1::JobStatus& j) {
            std::vector<int>(j.frames_acknowledged().begin(), j.frames_acknowledged().end())},
           {"error", j.error()},
           {"blocklisted_workers",
-           std::vector<std::string>(j.blocklisted_workers().begin(), j.blocklisted_workers().end())}};
+           std::vector<std::string>(j.blocklisted_workers().begin(), j.blocklisted_workers().end())},
+          {"tiles_resident", j.tiles_resident()},
+          {"waiting_for_memory", j.waiting_for_memory()}};
 }
 
 void print_job(const v1::JobStatus& j) {
@@ -61,6 +63,10 @@ void print_job(const v1::JobStatus& j) {
   std::printf("%-14s %-10s %5d  %-11s %-11s %6d  %-15s %9s  %s\n", j.job_id().c_str(), state_name(j.state()),
               j.priority(), frames.c_str(), size.c_str(), j.spp(), tiles.c_str(),
               format_duration(j.elapsed_seconds()).c_str(), j.name().c_str());
+  if (j.waiting_for_memory()) {
+    std::printf("%-14s waiting for memory: its next frame would hold more tiles than tessera-server "
+                "--max-job-tiles/--max-resident-tiles allow until clients receive finished frames\n", "");
+  }
 }
 
 // The one job asked for, or every job on the coordinator.

@@ -69,16 +69,16 @@ void Coordinator::restore_locked() {
 }
 
 bool Coordinator::refuse_restore_locked(const JobRecord& r) {
-  // The job's tile table, which restore() would build, must fit under the limits a submission
-  // is held to now: a job accepted by an earlier release or under higher limits must not take
-  // the coordinator's memory at every start. It is not built; the job ends, saying why.
-  const int64_t tiles = r.spec.tiles();
+  // A frame's tile table, which the job builds when the frame starts, must fit under the limits
+  // a submission is held to now: a job accepted by an earlier release or under higher limits must
+  // not take the coordinator's memory at every start. It is not built; the job ends, saying why.
+  const int64_t tiles = r.spec.tiles_per_frame();
   const char* flag = nullptr;
   int64_t limit = 0;
   if (options_.max_job_tiles > 0 && tiles > options_.max_job_tiles) {
     flag = "--max-job-tiles";
     limit = options_.max_job_tiles;
-  } else if (options_.max_resident_tiles > 0 && scheduler_.tiles_held() + tiles > options_.max_resident_tiles) {
+  } else if (options_.max_resident_tiles > 0 && tiles > options_.max_resident_tiles) {
     flag = "--max-resident-tiles";
     limit = options_.max_resident_tiles;
   }
@@ -86,8 +86,8 @@ bool Coordinator::refuse_restore_locked(const JobRecord& r) {
   JobSnapshot s;
   s.header() = r.header();
   for (const RestoredTile& d : r.done) s.rays += d.output.rays;
-  const std::string why = fmt::format("not restored at start: its {} tiles are over this coordinator's limit {} "
-                                      "(tessera-server {}); submit it again as smaller jobs, or raise the limit",
+  const std::string why = fmt::format("not restored at start: its {} tiles a frame are over this coordinator's limit {} "
+                                      "(tessera-server {}); submit it again with larger tiles, or raise the limit",
                                       tiles, limit, flag);
   if (!job_ended(s.state)) {
     s.state = JobState::kFailed;

@@ -67,8 +67,9 @@ struct CoordinatorOptions {
   // stay under it (0: not said).
   int64_t max_message_bytes = 0;
   // Tiles of all jobs in memory together (farm::Limits::max_resident_tiles), and of one job
-  // (max_job_tiles, checked at submit by the Admission): a job a restart cannot fit under them is
-  // not restored but failed, by name. 0: no limit.
+  // (max_job_tiles; a frame over it is refused at submit by the Admission): the scheduler holds
+  // them to it (SchedulerOptions), and a stored job whose one frame cannot fit under them is not
+  // restored but failed, by name. 0: no limit.
   int64_t max_resident_tiles = 0;
   int64_t max_job_tiles = 0;
 };

@@ -126,14 +126,18 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out, 
   JobSpec spec;
   if (Status s = job_spec(req, scene, admission, tile, &spec); !s.ok()) return s;
   const int64_t tiles = spec.tiles();
+  const int64_t frame_tiles = spec.tiles_per_frame();
   Status refused;
   const JobId id = locked([&]() -> JobId {
+    // A job holds a frame's tiles in memory from its first tile on: one that could not start its
+    // first frame now is refused rather than queued behind frames nobody has received.
     const int64_t held = scheduler_.tiles_held();
-    if (options_.max_resident_tiles > 0 && held + tiles > options_.max_resident_tiles) {
+    if (options_.max_resident_tiles > 0 && held + frame_tiles > options_.max_resident_tiles) {
       refused = farm::over_limit(StatusCode::RESOURCE_EXHAUSTED,
-                                 "the tiles held in memory with this job (" + std::to_string(held) + " of jobs already here, " +
-                                     std::to_string(tiles) + " of this one; wait for jobs to finish and be delivered)",
-                                 held + tiles, "--max-resident-tiles", options_.max_resident_tiles);
+                                 "the tiles held in memory with this job's first frame (" + std::to_string(held) +
+                                     " of frames already started and not yet received, " + std::to_string(frame_tiles) +
+                                     " of one frame of this job; wait for jobs to finish and be delivered)",
+                                 held + frame_tiles, "--max-resident-tiles", options_.max_resident_tiles);
       return {};
     }
     JobId id;

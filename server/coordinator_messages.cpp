@@ -52,6 +52,8 @@ void job_status_proto(const JobSnapshot& s, v1::JobStatus* out) {
   for (int f : s.frames_acknowledged) out->add_frames_acknowledged(f);
   out->set_error(s.error);
   for (const auto& w : s.blocklisted) out->add_blocklisted_workers(w);
+  out->set_tiles_resident(s.tiles_resident);
+  out->set_waiting_for_memory(s.waiting_for_memory);
 }
 
 void worker_proto(const WorkerStats& w, v1::WorkerInfo* p) {

@@ -127,6 +127,8 @@ CoordinatorOptions coordinator_options(const ServerFlags& f) {
   opts.max_message_bytes = f.limits.max_message_bytes;
   opts.max_resident_tiles = f.limits.max_resident_tiles;
   opts.max_job_tiles = f.limits.max_job_tiles;
+  opts.scheduler.max_resident_tiles = f.limits.max_resident_tiles;
+  opts.scheduler.max_job_tiles = f.limits.max_job_tiles;
   return opts;
 }
 

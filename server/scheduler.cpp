@@ -58,15 +58,10 @@ const Scheduler::Job* Scheduler::find_job(const JobId& id) const {
 }
 
 int64_t JobSpec::tiles() const {
-  return std::max<int64_t>(0, int64_t(last_frame) - first_frame + 1) * TileGrid(width, height, tile_size).count();
+  return std::max<int64_t>(0, int64_t(last_frame) - first_frame + 1) * tiles_per_frame();
 }
 
-void Scheduler::lay_out_tiles(Job& job) {
-  job.spec.tile_size = std::max(1, job.spec.tile_size);
-  job.grid = TileGrid(job.spec.width, job.spec.height, job.spec.tile_size);
-  job.frames.resize(size_t(std::max(0, job.spec.last_frame - job.spec.first_frame + 1)));
-  for (Frame& fr : job.frames) fr.tiles.resize(size_t(job.grid.count()));
-}
+int64_t JobSpec::tiles_per_frame() const { return TileGrid(width, height, std::max(1, tile_size)).count(); }
 
 JobId Scheduler::submit(const JobSpec& spec) {
   // The job is built aside and added only once whole: when its tiles do not fit in memory
@@ -74,10 +69,7 @@ JobId Scheduler::submit(const JobSpec& spec) {
   Job built;
   built.spec = spec;
   lay_out_tiles(built);
-  const int per_frame = built.grid.count();
-  for (int f = 0; f < int(built.frames.size()); ++f) {
-    for (int t = 0; t < per_frame; ++t) built.queue.emplace_back(f, t);
-  }
+  built.fresh = built.spec.tiles();
   job_order_.reserve(job_order_.size() + 1);
   JobId id = make_id_();
   while (jobs_.count(id)) id = make_id_();
@@ -86,12 +78,10 @@ JobId Scheduler::submit(const JobSpec& spec) {
   built.submitted = now_();
   Job& job = jobs_.emplace(id, std::move(built)).first->second;
   ++next_seq_;
-  job.tiles_resident = job.spec.tiles();
-  tiles_held_ += job.tiles_resident;
   job_order_.push_back(id);  // reserved above: does not throw
   update_runnable(job);
   events().job_submitted(snapshot(job));
-  if (job.queue.empty()) set_state(job, JobState::kDone);  // degenerate: nothing to render
+  if (!has_queued(job)) set_state(job, JobState::kDone);  // degenerate: nothing to render
   return id;
 }
 
@@ -103,31 +93,12 @@ void Scheduler::set_state(Job& job, JobState s) {
   events().job_state_changed(job.id, s);
 }
 
-void Scheduler::release_unfinished(Job& job) {
-  for (Frame& fr : job.frames) {
-    if (fr.final || fr.released) continue;
-    job.tiles_resident -= int64_t(fr.tiles.size());
-    tiles_held_ -= int64_t(fr.tiles.size());
-    std::vector<Tile>().swap(fr.tiles);  // clear() would keep the capacity
-    fr.done = 0;
-    fr.released = true;
-  }
-}
-
-void Scheduler::update_runnable(Job& job) {
-  const bool runnable = !job.queue.empty() && (job.state == JobState::kQueued || job.state == JobState::kRunning);
-  if (runnable) {
-    runnable_.insert(queue_key(job));
-  } else {
-    runnable_.erase(queue_key(job));
-  }
-}
-
 Scheduler::CancelResult Scheduler::cancel(const JobId& id) {
   Job* job = find_job(id);
   if (!job) return CancelResult::kUnknownJob;
   if (job_ended(job->state)) return CancelResult::kAlreadyEnded;
-  job->queue.clear();
+  job->requeued.clear();
+  job->fresh = 0;
   update_runnable(*job);
   // Revoke every active lease of the job: results that still arrive are stale and ignored.
   std::vector<LeaseId> active;
@@ -160,7 +131,7 @@ Scheduler::AckResult Scheduler::acknowledge_frame(const JobId& id, int frame) {
   if (!fr.final) return AckResult::kNotFinished;
   if (!fr.acknowledged) {
     fr.acknowledged = true;
-    for (Tile& t : fr.tiles) t.output = {};  // the client has them: free the pixels
+    drop_frame_tiles(*job, fr);  // the client has them: free the pixels and the frame's table
     events().frame_acknowledged(id, frame);
   }
   return AckResult::kAcknowledged;
@@ -176,14 +147,14 @@ WorkerId Scheduler::add_worker(const WorkerInfo& info) {
   return id;
 }
 
-void Scheduler::remove_worker(WorkerId id, std::string_view reason) {
+void Scheduler::remove_worker(WorkerId id, std::string_view reason, LeaseEnd why) {
   auto it = workers_.find(id);
   if (it == workers_.end()) return;
   const std::vector<LeaseId> leases(it->second.leases.begin(), it->second.leases.end());
   WorkerStats stats = it->second.stats;  // in_flight: the leases it held when it left
   it->second.stats.wanted = 0;  // ending its leases below must not make it wanting again
   wanting_.erase(id);
-  for (LeaseId lid : leases) end_lease(lid, LeaseEnd::kWorkerLeft, true);
+  for (LeaseId lid : leases) end_lease(lid, why, true);
   workers_.erase(it);
   events().worker_left(stats, reason);
 }
@@ -191,9 +162,10 @@ void Scheduler::remove_worker(WorkerId id, std::string_view reason) {
 void Scheduler::heartbeat(WorkerId id) {
   auto it = workers_.find(id);
   if (it == workers_.end()) return;
-  const TimePoint now = now_();
-  it->second.stats.last_seen = now;
-  for (LeaseId lid : it->second.leases) leases_[lid].deadline = now + options_.lease_timeout;
+  // O(1): a lease lives as long as its worker is heard from (expire() drops a silent worker with
+  // its leases), so no lease is touched here. Before, each message renewed every lease of its
+  // worker: a map lookup per lease held, on every message.
+  it->second.stats.last_seen = now_();
 }
 
 void Scheduler::request_tiles(WorkerId id, int count) {
@@ -285,13 +257,12 @@ std::vector<Assignment> Scheduler::dispatch() {
 std::optional<Assignment> Scheduler::next_for(Worker& w) {
   // The first runnable job this worker is not blocklisted for (blocklists are short: almost
   // always the first job).
-  for (const QueueKey& key : runnable_) {
-    Job& job = *find_job(std::get<2>(key));
+  for (auto it = runnable_.begin(); it != runnable_.end();) {
+    Job& job = *find_job(std::get<2>(*it++));  // update_runnable below may erase this job's key
     if (job.held || blocked(job, w)) continue;
-    const auto [fi, t] = job.queue.front();
-    job.queue.pop_front();
+    const auto next = take_queued(job);
     update_runnable(job);
-    return issue(w, job, fi, t, false);
+    if (next) return issue(w, job, next->first, next->second, false);
   }
   return std::nullopt;
 }
@@ -369,7 +340,7 @@ void Scheduler::end_lease(LeaseId id, LeaseEnd why, bool requeue) {
   const bool live = job.state == JobState::kQueued || job.state == JobState::kRunning;
   if (requeue && live && tile.state == TileState::kLeased && tile.leases.empty()) {
     tile.state = TileState::kQueued;
-    job.queue.emplace_front(fi, lease.tile.tile);  // oldest work first
+    job.requeued.emplace_front(fi, lease.tile.tile);  // oldest work first
     update_runnable(job);
   }
 }
@@ -452,7 +423,7 @@ void Scheduler::end_pass(Job& job, int fi) {
       tile.plan = std::move(*next.plans[t]);
       --frame.done;
       --job.tiles_done;
-      job.queue.emplace_front(fi, int(t));
+      job.requeued.emplace_front(fi, int(t));
       ++requeued;
     }
   }
@@ -520,7 +491,8 @@ void Scheduler::count_refused(WorkerId worker) {
 }
 
 void Scheduler::fail_job(Job& job, const std::string& error) {
-  job.queue.clear();
+  job.requeued.clear();
+  job.fresh = 0;
   update_runnable(job);
   std::vector<LeaseId> active;
   for (const auto& [lid, lease] : leases_) {
@@ -540,12 +512,12 @@ void Scheduler::restore(JobRecord rec) {
   lay_out_tiles(job);
   const int frames = int(job.frames.size());
   const int per_frame = job.grid.count();
-  job.tiles_resident = job.spec.tiles();
-  tiles_held_ += job.tiles_resident;
+  // Only frames with stored tiles are laid out; the others stay a range of fresh tiles.
   for (RestoredTile& d : rec.done) {
     const int fi = d.frame - job.spec.first_frame;
     if (fi < 0 || fi >= frames || d.tile < 0 || d.tile >= per_frame) continue;
     Frame& fr = job.frames[size_t(fi)];
+    lay_out_frame(job, fr);
     Tile& t = fr.tiles[size_t(d.tile)];
     if (t.state == TileState::kDone) continue;
     t.state = TileState::kDone;
@@ -571,12 +543,15 @@ void Scheduler::restore(JobRecord rec) {
         --job.tiles_done;
       }
       fr.done = 0;
+      drop_frame_tiles(job, fr);
     }
   }
   for (Frame& fr : job.frames) fr.final = fr.done == per_frame;
   for (int f : rec.acknowledged) {
     const int fi = f - job.spec.first_frame;
-    if (fi >= 0 && fi < frames && job.frames[size_t(fi)].final) job.frames[size_t(fi)].acknowledged = true;
+    if (fi < 0 || fi >= frames || !job.frames[size_t(fi)].final) continue;
+    job.frames[size_t(fi)].acknowledged = true;
+    drop_frame_tiles(job, job.frames[size_t(fi)]);
   }
   if (job.state == JobState::kCancelled || job.state == JobState::kFailed) release_unfinished(job);
   // A job stored as done whose tiles are not all there any more (a damaged or lost segment
@@ -587,13 +562,10 @@ void Scheduler::restore(JobRecord rec) {
     job.ended.reset();
   }
   if (!job_ended(job.state)) {
-    // Leases in flight at the crash come back as queued tiles, oldest work first.
-    for (int f = 0; f < frames; ++f) {
-      for (int t = 0; t < per_frame; ++t) {
-        if (job.frames[size_t(f)].tiles[size_t(t)].state != TileState::kDone) job.queue.emplace_back(f, t);
-      }
-    }
-    if (job.queue.empty()) {
+    // Leases in flight at the crash come back as queued tiles, oldest work first: the cursor
+    // starts again at the first frame and passes over the tiles that are done.
+    job.fresh = int64_t(frames) * per_frame - job.tiles_done;
+    if (job.fresh <= 0) {
       job.state = JobState::kDone;  // the crash came between the last tile and the state change
       job.ended = now_();
     } else if (job.tiles_done == 0) {
@@ -614,9 +586,12 @@ bool Scheduler::forget(const JobId& id) {
   }
   runnable_.erase(queue_key(*job));
   speculable_.erase(id);
+  waiting_for_memory_.erase(id);
   std::erase(job_order_, id);
+  const bool freed = job->tiles_resident > 0;
   tiles_held_ -= job->tiles_resident;
   jobs_.erase(id);
+  if (freed) memory_freed();
   return true;
 }
 
@@ -635,13 +610,8 @@ std::vector<WorkerId> Scheduler::expire() {
   for (const auto& [id, w] : workers_) {
     if (now - w.stats.last_seen > options_.lease_timeout) silent.push_back(id);
   }
-  for (WorkerId id : silent) remove_worker(id, "missed heartbeats");
+  for (WorkerId id : silent) remove_worker(id, "missed heartbeats", LeaseEnd::kExpired);
   revoke_stalled(now);
-  std::vector<LeaseId> expired;
-  for (const auto& [lid, lease] : leases_) {
-    if (lease.deadline < now) expired.push_back(lid);
-  }
-  for (LeaseId lid : expired) end_lease(lid, LeaseEnd::kExpired, true);
   return silent;
 }
 

@@ -50,8 +50,11 @@ struct JobSpec {
   // overrides at submit and at restore.
   bool passes = false;
 
-  // Frames x tiles per frame: what the job's tile table holds (the scheduler's memory for it).
+  // Frames x tiles per frame: every tile the job renders.
   int64_t tiles() const;
+  // Tiles of one frame: what the scheduler holds in memory for each frame the job has started and
+  // a client has not yet acknowledged (a frame not started costs a few bytes, whatever its size).
+  int64_t tiles_per_frame() const;
 };
 
 // kFailed: every connected worker was blocklisted for the job (see SchedulerOptions::max_faults).
@@ -78,7 +81,7 @@ struct Lease {
   WorkerId worker = 0;
   TileKey tile;
   TimePoint issued;
-  TimePoint deadline;
+  TimePoint deadline;  // as issued: any message from the worker extends it (its worker's last_seen + lease_timeout)
   bool speculative = false;  // a second copy of a tile already leased to another worker
 };
 
@@ -107,7 +110,7 @@ enum class LeaseEnd {
   kCompleted,      // its result was accepted
   kLostRace,       // another copy of the tile finished first: the worker should drop it
   kCancelled,      // the job was cancelled: the worker should drop it
-  kExpired,        // deadline passed without renewal
+  kExpired,        // its worker was silent for longer than the lease timeout: requeued
   kReturned,       // the worker gave it back unrendered
   kWorkerLeft,     // the worker disconnected or was dropped
   kFaulted,        // the worker sent a bad result or could not render: requeued
@@ -159,6 +162,10 @@ struct JobSnapshot : JobHeader {
   int64_t tiles_total = 0;
   int64_t tiles_done = 0;
   int64_t tiles_leased = 0;        // tiles with at least one active lease
+  int64_t tiles_resident = 0;      // tiles of its frames held in memory (started, not yet acknowledged)
+  // Its next frame cannot start: the tiles held in memory would go over a limit
+  // (SchedulerOptions::max_job_tiles or max_resident_tiles) until clients acknowledge frames.
+  bool waiting_for_memory = false;
   uint64_t rays = 0;
   double tile_seconds = 0;         // render time of its done tiles, one thread each, summed
   std::vector<std::string> blocklisted;  // worker names refused for this job
@@ -215,6 +222,12 @@ struct SchedulerOptions {
   std::chrono::milliseconds stall_timeout{300000};
   // Faults (bad results, render failures) after which a worker gets no more tiles of a job.
   int max_faults = 3;
+  // Tiles held in memory: of one job, and of every job together. A frame's tile table is built
+  // when its first tile is handed out and freed when a client acknowledges the frame (or the job
+  // ends before the frame is final); a job whose next frame would take the tiles held over either
+  // limit waits (JobSnapshot::waiting_for_memory) until frames are acknowledged. 0: no limit.
+  int64_t max_job_tiles = 0;
+  int64_t max_resident_tiles = 0;
 };
 
 class Scheduler {
@@ -243,8 +256,8 @@ class Scheduler {
 
   // --- workers ----------------------------------------------------------------------------
   WorkerId add_worker(const WorkerInfo& info);
-  // Drops the worker; its leases go back to the queue. No-op for an unknown id.
-  void remove_worker(WorkerId id, std::string_view reason);
+  // Drops the worker; its leases go back to the queue, ended as `why`. No-op for an unknown id.
+  void remove_worker(WorkerId id, std::string_view reason, LeaseEnd why = LeaseEnd::kWorkerLeft);
   // Any sign of life: renews the worker's leases.
   void heartbeat(WorkerId id);
   // Pull: the worker can take `count` more tiles. Assignments come from dispatch().
@@ -279,7 +292,8 @@ class Scheduler {
   // A refused result no job can be blamed for (it names a job that does not exist): counted in
   // the worker's WorkerStats::refused, as fault() counts the others.
   void count_refused(WorkerId worker);
-  // Drops workers silent for longer than the lease timeout and requeues expired leases.
+  // Drops workers silent for longer than the lease timeout, requeueing their leases (a lease has
+  // no deadline of its own: it expires with its worker's silence), and revokes stalled workers'.
   // Returns the workers dropped (the coordinator ends their streams).
   std::vector<WorkerId> expire();
 
@@ -302,8 +316,8 @@ class Scheduler {
   // every tile: too slow for per-frame events of a long animation). Null for an unknown job.
   const JobHeader* header(const JobId& id) const;
   int tiles_per_frame(const JobId& id) const;  // 0 for an unknown job
-  // Tiles of every job held (submitted or restored, not yet forgotten): what the scheduler's
-  // memory grows with.
+  // Tiles of the frames held in memory, of every job (started and not yet acknowledged,
+  // released or forgotten): what the scheduler's memory grows with.
   int64_t tiles_held() const { return tiles_held_; }
   std::vector<JobSnapshot> jobs() const;  // in submit order
   // Leases the worker may still take now: what it has earned (SchedulerOptions::
@@ -330,6 +344,9 @@ class Scheduler {
     WorkerId finished_by = 0;     // passes jobs: who rendered the output (reported at the frame's end)
   };
   struct Frame {
+    // Laid out when the frame's first tile is handed out (or a stored tile of it is restored);
+    // freed when a client acknowledges the frame or the job ends before it is final. Empty, the
+    // frame costs the few bytes of this struct whatever its size (SchedulerOptions::max_job_tiles).
     std::vector<Tile> tiles;
     int done = 0;
     int passes = 0;               // passes jobs: passes ended
@@ -340,7 +357,13 @@ class Scheduler {
   struct Job : JobHeader {
     TileGrid grid;  // how each frame is cut into tiles
     std::vector<Frame> frames;
-    std::deque<std::pair<int, int>> queue;  // (frame index, tile) waiting for a worker
+    // Tiles waiting for a worker: those given back (a returned or expired lease, a frame's next
+    // pass) first, then every tile from the cursor (next_frame, next_tile) on, in frame and tile
+    // order, that was never handed out: a range, not a list, so a job of many frames costs no
+    // memory per tile until its frames start. `fresh` counts the tiles left in that range.
+    std::deque<std::pair<int, int>> requeued;  // (frame index, tile)
+    int next_frame = 0, next_tile = 0;
+    int64_t fresh = 0;
     int64_t tiles_done = 0;
     uint64_t rays = 0;
     double tile_seconds = 0;  // render time of the done tiles (JobSnapshot::tile_seconds)
@@ -350,7 +373,8 @@ class Scheduler {
     // Active leases whose tile has no other copy in flight, oldest first: the candidates for a
     // speculative copy. Kept up to date by issue()/end_lease() so speculation never scans leases_.
     std::set<LeaseId> single_copies;
-    int64_t tiles_resident = 0;  // tiles of its frames not released (what tiles_held() counts)
+    int64_t tiles_resident = 0;  // tiles of its laid-out frames (what tiles_held() counts)
+    bool waiting_for_memory = false;  // see JobSnapshot::waiting_for_memory
   };
   struct Worker {
     WorkerStats stats;
@@ -368,7 +392,22 @@ class Scheduler {
   // Cuts the job's frames into tiles by its spec (tile size at least 1): its grid and an empty
   // tile table, frames x tiles per frame, as submit() and restore() start from.
   static void lay_out_tiles(Job& job);
+  // Files the job in runnable_ when it has a tile to hand out now, and in waiting_for_memory_
+  // when only a frame it cannot start under the memory limits is left.
   void update_runnable(Job& job);
+  // Moves the cursor past tiles it must not hand out: of frames already final or released, and
+  // tiles of a laid-out frame that are not queued (restored done tiles).
+  void settle_cursor(Job& job);
+  // Can the frame at the cursor be laid out under the memory limits (true when it already is)?
+  bool fits(const Job& job) const;
+  // The next tile to hand out, (frame index, tile), or nullopt (nothing queued, or the next
+  // frame does not fit in memory).
+  std::optional<std::pair<int, int>> take_queued(Job& job);
+  bool has_queued(const Job& job) const { return !job.requeued.empty() || job.fresh > 0; }
+  void lay_out_frame(Job& job, Frame& frame);
+  // Frees a frame's tile table; jobs waiting for memory are looked at again.
+  void drop_frame_tiles(Job& job, Frame& frame);
+  void memory_freed();
   std::optional<Assignment> next_for(Worker& w);
   bool blocked(const Job& job, const Worker& w) const { return job.blocklisted.count(w.stats.info.name) > 0; }
   int credit(const Worker& w) const;
@@ -412,6 +451,7 @@ class Scheduler {
   std::vector<JobId> job_order_;      // submit order
   std::set<QueueKey> runnable_;       // jobs with queued tiles
   std::set<JobId> speculable_;        // jobs with a non-empty single_copies
+  std::set<JobId> waiting_for_memory_;  // live jobs whose next frame does not fit (Job::waiting_for_memory)
   std::map<WorkerId, Worker> workers_;
   std::set<WorkerId> wanting_;        // workers with a standing request and credit left: dispatch() looks only here
   std::map<LeaseId, Lease> leases_;   // ids grow with time: begin() is the oldest lease

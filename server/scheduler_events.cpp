@@ -73,10 +73,6 @@ void Coordinator::lease_ended(const Lease& lease, LeaseEnd why) {
   notify([&](SchedulerListener& o) { o.lease_ended(lease, why); });
 
   if (jobs_store_) jobs_store_->lease_ended(lease.id);
-  if (why == LeaseEnd::kExpired) {
-    spdlog::warn("lease {} of worker {} expired: job {} frame {} tile {} requeued", lease.id, lease.worker,
-                 lease.tile.job, lease.tile.frame, lease.tile.tile);
-  }
   if (why == LeaseEnd::kStalled) {
     peer_warnings_.warn(lease.worker, "worker {} returned nothing for longer than the stall limit: its leases are "
                                       "requeued (lease {}, job {} frame {} tile {})",

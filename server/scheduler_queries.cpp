@@ -11,6 +11,8 @@ JobSnapshot Scheduler::snapshot(const Job& job) const {
   s.tiles_per_frame = job.grid.count();
   s.tiles_total = int64_t(job.frames.size()) * s.tiles_per_frame;
   s.tiles_done = job.tiles_done;
+  s.tiles_resident = job.tiles_resident;
+  s.waiting_for_memory = job.waiting_for_memory;
   s.rays = job.rays;
   s.tile_seconds = job.tile_seconds;
   s.blocklisted.assign(job.blocklisted.begin(), job.blocklisted.end());
@@ -90,7 +92,9 @@ std::optional<TileRect> Scheduler::tile_rect(const JobId& id, int frame, int til
 
 size_t Scheduler::queued_tiles() const {
   size_t n = 0;
-  for (const auto& key : runnable_) n += find_job(std::get<2>(key))->queue.size();
+  const auto queued = [](const Job& job) { return job.requeued.size() + size_t(job.fresh); };
+  for (const auto& key : runnable_) n += queued(*find_job(std::get<2>(key)));
+  for (const JobId& id : waiting_for_memory_) n += queued(*find_job(id));
   return n;
 }
 

@@ -155,6 +155,8 @@ TEST_F(SchedulerTest, MissedHeartbeatsExpireTheWorker) {
   auto dropped = s.expire();
   EXPECT_EQ(dropped, (std::vector<WorkerId>{a}));
   EXPECT_FALSE(s.worker(a));
+  ASSERT_EQ(rec.ended.size(), 1u);
+  EXPECT_EQ(rec.ended[0].second, LeaseEnd::kExpired) << "what tessera_lease_expiries_total counts";
   auto re = pull(b, 1);
   ASSERT_EQ(re.size(), 1u);
   EXPECT_EQ(re[0].lease.tile.tile, 0);
@@ -330,6 +332,7 @@ TEST_F(SchedulerTest, RestoreKeepsDoneTilesAndQueuesTheRest) {
   EXPECT_EQ(snap->tiles_done, 3);
   EXPECT_EQ(snap->frames_acknowledged, std::vector<int>{0});
   EXPECT_EQ(s.finished_tiles("old").size(), 1u);  // frame 1 tile 1; frame 0 was delivered
+  EXPECT_EQ(s.tiles_held(), 2) << "only frame 1 is in memory: frame 0 was delivered";
   auto got = pull(worker("a"), 5);
   ASSERT_EQ(got.size(), 1u);
   EXPECT_EQ(got[0].lease.tile.frame, 1);
@@ -729,10 +732,11 @@ TEST_F(SchedulerTest, ASessionThatReturnsNothingLosesItsLeasesWhateverItsHeartbe
 // they no longer count against the resident limit, and the final ones stay deliverable.
 TEST_F(SchedulerTest, ACancelledJobReleasesItsUnfinishedFramesAtOnce) {
   const JobId id = s.submit(spec(32, 16, 16, 3));  // 2 tiles a frame, 3 frames
-  EXPECT_EQ(s.tiles_held(), 6);
+  EXPECT_EQ(s.tiles_held(), 0) << "no frame has started";
   const WorkerId w = worker("a");
   auto as = pull(w, 3);  // frame 0 both tiles, frame 1 tile 0
   for (const auto& a : as) s.complete(w, a.lease.id, out());
+  EXPECT_EQ(s.tiles_held(), 4) << "frames 0 and 1 have started";
   ASSERT_EQ(s.cancel(id), Scheduler::CancelResult::kCancelled);
   EXPECT_EQ(s.tiles_held(), 2) << "frame 0 is final and not yet delivered; frames 1 and 2 are released";
   EXPECT_EQ(s.finished_tiles(id).size(), 2u);
@@ -743,6 +747,97 @@ TEST_F(SchedulerTest, ACancelledJobReleasesItsUnfinishedFramesAtOnce) {
   EXPECT_TRUE(s.all_acknowledged(id)) << "nothing left to deliver";
   EXPECT_TRUE(s.forget(id));
   EXPECT_EQ(s.tiles_held(), 0);
+}
+
+// A job's memory does not grow with its frames: a frame's tile table is built when its first
+// tile goes out and freed when a client acknowledges it, so 10,000 frames of 16,384 tiles each
+// (164 million: 17 GB of tile tables built at submit) cost nothing per tile until they start, and
+// tiles still go out in frame and tile order with given-back tiles first.
+TEST_F(SchedulerTest, AFrameCostsMemoryOnlyFromItsFirstTileToItsAcknowledgement) {
+  const JobId id = s.submit(spec(512, 512, 4, 10000));
+  constexpr int kPerFrame = 128 * 128;
+  const auto snap = s.job(id);
+  EXPECT_EQ(snap->tiles_total, int64_t(10000) * kPerFrame);
+  EXPECT_EQ(s.tiles_held(), 0);
+  EXPECT_EQ(s.queued_tiles(), size_t(10000) * kPerFrame);
+  const WorkerId w = worker("a");
+  auto first = pull(w, 3);
+  ASSERT_EQ(first.size(), 3u);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(first[size_t(i)].lease.tile.frame, 0);
+    EXPECT_EQ(first[size_t(i)].lease.tile.tile, i);
+  }
+  EXPECT_EQ(s.tiles_held(), kPerFrame) << "frame 0's table, and only it";
+  s.return_leases(w, {first[1].lease.id});
+  auto again = pull(w, 2);
+  ASSERT_EQ(again.size(), 2u);
+  EXPECT_EQ(again[0].lease.tile.tile, 1) << "a given-back tile goes out before fresh ones";
+  EXPECT_EQ(again[1].lease.tile.tile, 3);
+  EXPECT_EQ(s.queued_tiles(), size_t(10000) * kPerFrame - 4);
+
+  // A small job: every frame laid out and freed in turn.
+  const JobId small = s.submit(spec(32, 16, 16, 3, /*priority=*/1));  // 2 tiles a frame
+  const WorkerId v = worker("b");
+  for (int frame = 0; frame < 3; ++frame) {
+    auto as = pull(v, 2);
+    ASSERT_EQ(as.size(), 2u);
+    for (const auto& a : as) {
+      EXPECT_EQ(a.lease.tile.job, small);
+      EXPECT_EQ(a.lease.tile.frame, frame);
+      ASSERT_EQ(s.complete(v, a.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+    }
+    EXPECT_EQ(s.job(small)->tiles_resident, 2);
+    EXPECT_EQ(s.acknowledge_frame(small, frame), Scheduler::AckResult::kAcknowledged);
+    EXPECT_EQ(s.job(small)->tiles_resident, 0);
+  }
+  EXPECT_EQ(s.job(small)->state, JobState::kDone);
+  EXPECT_EQ(s.job(small)->tiles_done, 6);
+  EXPECT_TRUE(s.all_acknowledged(small));
+}
+
+// Under the memory limits a job whose next frame does not fit waits, says so, and starts it as
+// soon as a client's acknowledgement (or another job's end) makes room: of one job, and of all.
+TEST_F(SchedulerTest, AJobWaitsForMemoryAndStartsItsNextFrameWhenAFrameIsAcknowledged) {
+  SchedulerOptions o = opts();
+  o.max_job_tiles = 4;        // two frames of 2 tiles
+  o.max_resident_tiles = 6;   // three
+  o.speculate = false;        // idle workers would take second copies of the tiles in flight
+  Scheduler sc{o, [this] { return now; }, [this] { return "job" + std::to_string(++next_id); }};
+  const JobId a = sc.submit(spec(32, 16, 16, 4));  // 2 tiles a frame, 4 frames
+  const WorkerId w = sc.add_worker({"w", "", 1, "AVX2"});
+  const auto render = [&](int n) {
+    sc.request_tiles(w, n);
+    auto as = sc.dispatch();
+    for (const auto& x : as) EXPECT_EQ(sc.complete(w, x.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+    return as;
+  };
+  EXPECT_EQ(render(10).size(), 4u) << "frames 0 and 1; frame 2 would hold 6 tiles of the job";
+  EXPECT_TRUE(sc.job(a)->waiting_for_memory);
+  EXPECT_EQ(sc.queued_tiles(), 4u) << "waiting tiles are still queued";
+  EXPECT_FALSE(sc.dispatchable());
+  ASSERT_EQ(sc.acknowledge_frame(a, 0), Scheduler::AckResult::kAcknowledged);
+  EXPECT_FALSE(sc.job(a)->waiting_for_memory);
+  auto next = sc.dispatch();  // the standing request is served at once
+  ASSERT_EQ(next.size(), 2u);
+  EXPECT_EQ(next[0].lease.tile.frame, 2);
+
+  // Another job: 4 tiles of `a` held (frames 1 and 2), so one frame of `b` fits the farm's 6.
+  const JobId b = sc.submit(spec(32, 16, 16, 2, /*priority=*/1));
+  const WorkerId v = sc.add_worker({"v", "", 1, "AVX2"});
+  sc.request_tiles(v, 4);
+  auto bs = sc.dispatch();
+  ASSERT_EQ(bs.size(), 2u) << "frame 0 of b; its frame 1 would take the farm to 8";
+  EXPECT_TRUE(sc.job(b)->waiting_for_memory);
+  for (const auto& x : next) sc.complete(w, x.lease.id, out());
+  ASSERT_EQ(sc.cancel(a), Scheduler::CancelResult::kCancelled);  // frame 3 never started
+  EXPECT_TRUE(sc.job(b)->waiting_for_memory) << "a's final frames 1 and 2 are not yet delivered";
+  ASSERT_TRUE(sc.acknowledge_frame(a, 1) == Scheduler::AckResult::kAcknowledged);
+  EXPECT_FALSE(sc.job(b)->waiting_for_memory);
+  auto rest = sc.dispatch();
+  ASSERT_EQ(rest.size(), 2u);
+  EXPECT_EQ(rest[0].lease.tile.job, b);
+  EXPECT_EQ(rest[0].lease.tile.frame, 1);
+  EXPECT_EQ(sc.tiles_held(), 6);
 }
 
 // Model-based: random interleavings of workers (fast, slow, dying), speculation, clients

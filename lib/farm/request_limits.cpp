@@ -19,10 +19,11 @@ void Limits::add_flags(CLI::App& app) {
   app.add_option("--max-frames", max_frames, "Most frames in one job")
       ->check(CLI::Range(1, tessera::SceneLimits::kMaxFrames))->capture_default_str()->group("Limits");
   app.add_option("--max-job-tiles", max_job_tiles,
-                 "Most tiles in one job (frames x tiles per frame; each costs ~150 bytes of coordinator memory)")
+                 "Most tiles of one job held in memory: of its frames started and not yet received by a client "
+                 "(each tile costs ~100 bytes of coordinator memory; a frame not started, none)")
       ->check(CLI::Range(int64_t(1), int64_t(1) << 40))->capture_default_str()->group("Limits");
   app.add_option("--max-resident-tiles", max_resident_tiles,
-                 "Most tiles of all jobs held in memory together (queued, running, or ended and undelivered)")
+                 "Most tiles of all jobs held in memory together (of frames started and not yet received)")
       ->check(CLI::Range(int64_t(1), int64_t(1) << 40))->capture_default_str()->group("Limits");
   app.add_option("--max-primitives", max_primitives, "Most primitives in a scene (triangles of every mesh instance)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40))->capture_default_str()->group("Limits");
@@ -70,12 +71,14 @@ grpc::Status Limits::check_job(const Scene& scene, int first_frame, int last_fra
     return over_limit(grpc::StatusCode::INVALID_ARGUMENT, "the job's frame count", frames, "--max-frames", max_frames);
   }
   if (tile > 0) {
+    // A frame's tiles are held in memory from its first tile to its delivery: one frame must fit.
     const int64_t per_frame = TileGrid(scene.image.width, scene.image.height, tile).count();
-    if (frames * per_frame > max_job_tiles) {
+    if (per_frame > max_job_tiles) {
       return over_limit(grpc::StatusCode::INVALID_ARGUMENT,
-                        "the job's tile count (" + std::to_string(frames) + " frames of " + std::to_string(per_frame) +
-                            " tiles of " + std::to_string(tile) + " px; larger tiles or fewer frames a job need fewer)",
-                        frames * per_frame, "--max-job-tiles", max_job_tiles);
+                        "the tile count of one frame (" + std::to_string(scene.image.width) + "x" +
+                            std::to_string(scene.image.height) + " in tiles of " + std::to_string(tile) +
+                            " px; larger tiles need fewer)",
+                        per_frame, "--max-job-tiles", max_job_tiles);
     }
   }
   return grpc::Status::OK;

@@ -25,10 +25,12 @@ struct Limits {
   int64_t max_pixels = int64_t(8192) * 8192;  // width * height of a job's frames
   int max_spp = 65536;
   int max_frames = 10000;                     // frames in one job
-  // Tiles of one job, and of every job the coordinator holds in memory together (queued,
-  // running, or ended and not yet delivered or expired). Each tile costs the coordinator about
-  // 150 bytes while its job is in memory, whatever its size (coordinator_load's "B/queued tile":
-  // 116-184), so the defaults hold a job to ~1.5 GB and all of them to ~3 GB.
+  // Tiles the coordinator holds in memory, of one job and of every job together: the tiles of
+  // the frames started and not yet acknowledged by a client (a frame not started costs a few
+  // bytes, whatever its size). Each costs the coordinator about 100 bytes besides its pixels, so
+  // the defaults hold a job's tile tables to ~1 GB and all of them to ~2 GB. A job whose one frame
+  // is over either is refused; one whose next frame would go over waits for clients to receive
+  // frames (docs/farm.md, "Memory").
   int64_t max_job_tiles = 10000000;
   int64_t max_resident_tiles = 20000000;
   uint64_t max_primitives = 20000000;         // triangles of every mesh instance + spheres + planes

@@ -84,6 +84,8 @@ class JobStatus:
     frames_acknowledged: list[int]
     error: str
     blocklisted_workers: list[str]
+    tiles_resident: int = 0
+    waiting_for_memory: bool = False
     overrides: dict[str, Union[int, float, str]] = field(default_factory=dict)
 
     @property
@@ -115,6 +117,7 @@ class JobStatus:
                    submitted_unix=j.submitted_unix, elapsed_seconds=j.elapsed_seconds,
                    frames_done=list(j.frames_done), frames_acknowledged=list(j.frames_acknowledged),
                    error=j.error, blocklisted_workers=list(j.blocklisted_workers),
+                   tiles_resident=j.tiles_resident, waiting_for_memory=j.waiting_for_memory,
                    overrides=overrides_dict(j.overrides))
 
 

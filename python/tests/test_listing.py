@@ -18,7 +18,8 @@ import tessera
 # `tessera status --json` keys that JobStatus has under the same name.
 SAME_KEYS = ["job_id", "name", "state", "priority", "first_frame", "last_frame", "width", "height", "spp",
              "tile_size", "tiles_total", "tiles_done", "tiles_leased", "tiles_rendered_twice", "rays", "frames_done",
-             "frames_acknowledged", "error", "blocklisted_workers", "target_rmse", "block_rmse"]
+             "frames_acknowledged", "error", "blocklisted_workers", "target_rmse", "block_rmse", "tiles_resident",
+             "waiting_for_memory"]
 
 
 def test_workers_are_what_the_cli_lists(worker_farm):

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace tessera::farmtest {
@@ -90,6 +91,17 @@ class Farm {
   std::vector<std::unique_ptr<Process>> workers_;
   int cli_runs_ = 0;
 };
+
+// Calls `done` every 50 ms until it returns true (true) or `timeout` passes (false).
+template <class Fn>
+bool poll_until(std::chrono::milliseconds timeout, Fn done) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > end) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return true;
+}
 
 // Peak resident memory of a process, in MiB (VmHWM); negative when it cannot be read.
 double peak_rss_mib(int pid);

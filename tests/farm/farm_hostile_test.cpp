@@ -255,17 +255,25 @@ TEST(FarmHostile, ResultsForUnknownJobsAreLoggedWithARateLimitAndBoundedIds) {
   EXPECT_LT(log.size(), size_t(256) << 10);
 }
 
-// A cancelled job gives its unfinished tiles back to --max-resident-tiles at once: another
-// client's job fits right after, also after a restart.
+// A cancelled job gives the tiles of its started, unfinished frames back to --max-resident-tiles
+// at once: another client's job fits right after, also after a restart.
 TEST(FarmHostile, ACancelledJobReleasesItsResidentTilesAtOnce) {
   Farm farm;
-  // whitted_orbit: 3 frames of 96x64 in 8-px tiles = 288 tiles; the limit holds one such job.
-  farm.start_server({"--max-resident-tiles", "300"});
+  // whitted_orbit: frames of 96x64 in 8-px tiles = 96 tiles; the limit holds one started frame.
+  farm.start_server({"--max-resident-tiles", "150"});
   const auto submit = [&] {
     return farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--tile", "8", "--detach"});
   };
   CliResult first = submit();
   ASSERT_EQ(first.code, 0) << first.output;
+  // A slow worker starts the first frame (its table is built with its first lease), then dies
+  // holding its leases: the frame stays in memory, unfinished.
+  Process& slow = farm.start_worker("slow", 1, 60000);
+  ASSERT_TRUE(poll_until(30s, [&] {
+    CliResult st = farm.cli({"status", job_id_from(first.output), "--json", "--coordinator", farm.address()});
+    return st.code == 0 && nlohmann::json::parse(st.output).value("tiles_resident", 0) == 96;
+  })) << farm.server_logs();
+  slow.signal(SIGKILL);
   CliResult refused = submit();
   ASSERT_NE(refused.code, 0) << "the limit does not hold two jobs: the test tests nothing";
   ASSERT_NE(refused.output.find("--max-resident-tiles"), std::string::npos) << refused.output;

@@ -1,0 +1,110 @@
+// SPDX-License-Identifier: Apache-2.0
+// The scheduler's tile queue and frame memory: a job's queue is a range of fresh tiles from a
+// cursor plus the tiles given back, and a frame's tile table exists only from its first lease to
+// its acknowledgement, under SchedulerOptions::max_job_tiles and max_resident_tiles
+// (docs/farm.md, "Memory").
+#include "scheduler.h"
+
+#include <algorithm>
+
+namespace tessera::server {
+
+void Scheduler::lay_out_tiles(Job& job) {
+  job.spec.tile_size = std::max(1, job.spec.tile_size);
+  job.grid = TileGrid(job.spec.width, job.spec.height, job.spec.tile_size);
+  job.frames.resize(size_t(std::max(0, job.spec.last_frame - job.spec.first_frame + 1)));
+}
+
+void Scheduler::lay_out_frame(Job& job, Frame& frame) {
+  if (!frame.tiles.empty()) return;
+  frame.tiles.resize(size_t(job.grid.count()));
+  job.tiles_resident += int64_t(frame.tiles.size());
+  tiles_held_ += int64_t(frame.tiles.size());
+}
+
+void Scheduler::drop_frame_tiles(Job& job, Frame& frame) {
+  if (frame.tiles.empty()) return;
+  job.tiles_resident -= int64_t(frame.tiles.size());
+  tiles_held_ -= int64_t(frame.tiles.size());
+  std::vector<Tile>().swap(frame.tiles);  // clear() would keep the capacity
+  memory_freed();
+}
+
+void Scheduler::memory_freed() {
+  if (waiting_for_memory_.empty()) return;
+  const std::vector<JobId> waiting(waiting_for_memory_.begin(), waiting_for_memory_.end());
+  for (const JobId& id : waiting) update_runnable(*find_job(id));
+}
+
+bool Scheduler::fits(const Job& job) const {
+  if (job.next_frame >= int(job.frames.size()) || !job.frames[size_t(job.next_frame)].tiles.empty()) return true;
+  const int64_t per_frame = job.grid.count();
+  return (options_.max_job_tiles <= 0 || job.tiles_resident + per_frame <= options_.max_job_tiles) &&
+         (options_.max_resident_tiles <= 0 || tiles_held_ + per_frame <= options_.max_resident_tiles);
+}
+
+void Scheduler::settle_cursor(Job& job) {
+  const int frames = int(job.frames.size());
+  const int per_frame = job.grid.count();
+  while (job.next_frame < frames) {
+    const Frame& fr = job.frames[size_t(job.next_frame)];
+    if (fr.final || fr.released || job.next_tile >= per_frame) {
+      ++job.next_frame;
+      job.next_tile = 0;
+    } else if (!fr.tiles.empty() && fr.tiles[size_t(job.next_tile)].state != TileState::kQueued) {
+      ++job.next_tile;
+    } else {
+      return;
+    }
+  }
+}
+
+std::optional<std::pair<int, int>> Scheduler::take_queued(Job& job) {
+  if (!job.requeued.empty()) {
+    const auto next = job.requeued.front();
+    job.requeued.pop_front();
+    return next;
+  }
+  if (job.fresh <= 0) return std::nullopt;
+  settle_cursor(job);
+  if (job.next_frame >= int(job.frames.size()) || !fits(job)) return std::nullopt;
+  lay_out_frame(job, job.frames[size_t(job.next_frame)]);
+  --job.fresh;
+  return std::pair{job.next_frame, job.next_tile++};
+}
+
+void Scheduler::release_unfinished(Job& job) {
+  job.requeued.clear();
+  job.fresh = 0;
+  for (Frame& fr : job.frames) {
+    if (fr.final || fr.released) continue;
+    fr.done = 0;
+    fr.released = true;
+    drop_frame_tiles(job, fr);
+  }
+  update_runnable(job);
+}
+
+void Scheduler::update_runnable(Job& job) {
+  const bool live = job.state == JobState::kQueued || job.state == JobState::kRunning;
+  bool runnable = live && !job.requeued.empty();
+  bool waiting = false;
+  if (live && !runnable && job.fresh > 0) {
+    settle_cursor(job);
+    runnable = fits(job);
+    waiting = !runnable;
+  }
+  if (runnable) {
+    runnable_.insert(queue_key(job));
+  } else {
+    runnable_.erase(queue_key(job));
+  }
+  job.waiting_for_memory = waiting;
+  if (waiting) {
+    waiting_for_memory_.insert(job.id);
+  } else {
+    waiting_for_memory_.erase(job.id);
+  }
+}
+
+}  // namespace tessera::server
