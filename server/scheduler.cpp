@@ -143,6 +143,7 @@ WorkerId Scheduler::add_worker(const WorkerInfo& info) {
   w.stats.id = id;
   w.stats.info = info;
   w.stats.connected = w.stats.last_seen = now_();
+  threads_total_ += credit_threads(w);
   events().worker_joined(w.stats);
   return id;
 }
@@ -155,6 +156,7 @@ void Scheduler::remove_worker(WorkerId id, std::string_view reason, LeaseEnd why
   it->second.stats.wanted = 0;  // ending its leases below must not make it wanting again
   wanting_.erase(id);
   for (LeaseId lid : leases) end_lease(lid, why, true);
+  threads_total_ -= credit_threads(it->second);
   workers_.erase(it);
   events().worker_left(stats, reason);
 }
@@ -186,7 +188,7 @@ void Scheduler::update_wanting(Worker& w) {
 
 int Scheduler::credit(const Worker& w) const {
   if (options_.initial_leases_per_thread <= 0) return INT_MAX;
-  const int threads = std::clamp(w.stats.info.threads, 1, SchedulerOptions::kMaxCreditThreads);
+  const int threads = credit_threads(w);
   const int64_t earned = int64_t(options_.initial_leases_per_thread) * threads + 2 * (w.results - w.credit_base);
   return int(std::min<int64_t>(earned, std::max(options_.max_wanted_per_worker, 1)));
 }
@@ -236,12 +238,22 @@ std::vector<Assignment> Scheduler::dispatch() {
   // Every worker message ends in a dispatch: with nothing to hand out, looking at each waiting
   // worker would cost workers x jobs per message for nothing.
   if (wanting_.empty() || !dispatchable()) return out;
+  // Factoring's share, leases a thread, from the queue as this dispatch finds it.
+  int64_t share = int64_t(1) << 40;  // no cap (and no overflow when multiplied by threads)
+  if (options_.factoring > 0 && threads_total_ > 0) {
+    const int64_t queued = int64_t(queued_tiles());
+    const int64_t per = int64_t(options_.factoring) * threads_total_;
+    share = std::max<int64_t>(2, (queued + per - 1) / per);
+  }
   bool progress = true;
   while (progress && !wanting_.empty()) {
     progress = false;
     const std::vector<WorkerId> ids(wanting_.begin(), wanting_.end());
     for (WorkerId id : ids) {
       Worker& w = workers_.at(id);  // in wanting_: only its own turn below changes that
+      // Over its share: it stays wanting and is served by a later dispatch, when what it holds
+      // has gone down (its results) or the queue has grown (a new job).
+      if (int64_t(w.leases.size()) >= share * credit_threads(w)) continue;
       std::optional<Assignment> a = next_for(w);
       if (!a && options_.speculate) a = speculate_for(w);
       if (!a) continue;

@@ -208,6 +208,12 @@ struct SchedulerOptions {
   std::chrono::milliseconds lease_timeout{15000};
   // When nothing is queued, idle workers take a second copy of the oldest in-flight tiles.
   bool speculate = true;
+  // Factoring (guided self-scheduling): a worker holds at most its share of what is queued, 1 /
+  // `factoring` of it, by threads: max(2, ceil(queued / (factoring x threads of every worker)))
+  // leases a thread. Early in a job that is no limit; as the queue runs out, what each worker may
+  // hold shrinks to two a thread, so the last tiles are spread over the farm instead of waiting
+  // deep in a few workers' queues while others idle and copy them. 0: no cap.
+  int factoring = 2;
   int max_wanted_per_worker = 1024;  // caps a worker's standing request
   // Leases a worker may hold before it has returned anything, per thread it declares (at most
   // kMaxCreditThreads of them); each result it returns earns it two more, up to
@@ -411,6 +417,7 @@ class Scheduler {
   std::optional<Assignment> next_for(Worker& w);
   bool blocked(const Job& job, const Worker& w) const { return job.blocklisted.count(w.stats.info.name) > 0; }
   int credit(const Worker& w) const;
+  static int credit_threads(const Worker& w) { return std::clamp(w.stats.info.threads, 1, SchedulerOptions::kMaxCreditThreads); }
   // Keeps wanting_ exact: a worker is in it while it wants tiles and holds fewer leases than its
   // credit, so that dispatch, which runs on every worker message, looks only at workers it can
   // serve (a farm of workers at their credit would otherwise cost a scan of all of them each time).
@@ -453,6 +460,7 @@ class Scheduler {
   std::set<JobId> speculable_;        // jobs with a non-empty single_copies
   std::set<JobId> waiting_for_memory_;  // live jobs whose next frame does not fit (Job::waiting_for_memory)
   std::map<WorkerId, Worker> workers_;
+  int64_t threads_total_ = 0;         // threads of every connected worker (each clamped as credit() does)
   std::set<WorkerId> wanting_;        // workers with a standing request and credit left: dispatch() looks only here
   std::map<LeaseId, Lease> leases_;   // ids grow with time: begin() is the oldest lease
   uint64_t next_seq_ = 1;

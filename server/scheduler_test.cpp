@@ -32,6 +32,7 @@ class SchedulerTest : public ::testing::Test {
     SchedulerOptions o;
     o.lease_timeout = 10s;
     o.initial_leases_per_thread = 0;  // unbounded; LeaseCredit* tests turn it on
+    o.factoring = 0;                  // no share either; Factoring* tests turn it on
     return o;
   }
   Scheduler s{opts(), [this] { return now; }, [this] { return "job" + std::to_string(++next_id); }};
@@ -161,6 +162,52 @@ TEST_F(SchedulerTest, MissedHeartbeatsExpireTheWorker) {
   ASSERT_EQ(re.size(), 1u);
   EXPECT_EQ(re[0].lease.tile.tile, 0);
   EXPECT_FALSE(re[0].lease.speculative);
+}
+
+// Factoring: each dispatch gives a worker at most its share of the queue, ceil(queued / (2 x
+// threads of the farm)) leases a thread but never fewer than two, so a worker that asks for
+// much early takes a large share and the last tiles are spread over every worker.
+TEST_F(SchedulerTest, FactoringGivesEachWorkerItsShareOfWhatIsQueued) {
+  SchedulerOptions o = opts();
+  o.factoring = 2;
+  o.speculate = false;
+  Scheduler sc{o, [this] { return now; }, [this] { return "job" + std::to_string(++next_id); }};
+  sc.submit(spec(64, 64, 8));  // 64 tiles
+  const WorkerId a = sc.add_worker({"a", "", 2, "AVX2"});
+  const WorkerId b = sc.add_worker({"b", "", 2, "AVX2"});
+  const auto pull_from = [&](WorkerId w, int n) {
+    sc.request_tiles(w, n);
+    std::vector<Assignment> mine;
+    for (auto& x : sc.dispatch()) {
+      if (x.lease.worker == w) mine.push_back(x);
+    }
+    return mine;
+  };
+  auto got_a = pull_from(a, 100);
+  EXPECT_EQ(got_a.size(), 16u) << "64 queued / (2 x 4 threads) = 8 a thread, 2 threads";
+  EXPECT_EQ(sc.queued_tiles(), 48u);
+  auto got_b = pull_from(b, 100);
+  EXPECT_EQ(got_b.size(), 12u) << "48 / 8 = 6 a thread";
+  // a renders its 16: its next share is 36 / 8, rounded up, = 5 a thread.
+  for (const auto& x : got_a) ASSERT_EQ(sc.complete(a, x.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  got_a = sc.dispatch();
+  EXPECT_EQ(got_a.size(), 10u);
+  // Near the end the share is the floor, two a thread: what is left goes to b too.
+  for (const auto& x : got_a) sc.complete(a, x.lease.id, out());
+  for (const auto& x : got_b) sc.complete(b, x.lease.id, out());
+  EXPECT_EQ(sc.queued_tiles(), 26u);
+  int rounds = 0;
+  while (sc.queued_tiles() > 0 && rounds++ < 20) {
+    auto as = sc.dispatch();
+    int held_a = 0, held_b = 0;
+    for (const auto& x : as) (x.lease.worker == a ? held_a : held_b)++;
+    const int floor_or_share = std::max(2, int((sc.queued_tiles() + as.size() + 7) / 8)) * 2;
+    EXPECT_LE(held_a, floor_or_share);
+    EXPECT_LE(held_b, floor_or_share);
+    EXPECT_GT(held_b, 0) << "b gets its share of every round";
+    for (const auto& x : as) sc.complete(x.lease.worker, x.lease.id, out());
+  }
+  EXPECT_EQ(sc.queued_tiles(), 0u);
 }
 
 TEST_F(SchedulerTest, IdleWorkerDuplicatesOldestInFlightTileFirstCopyWins) {
