@@ -19,6 +19,9 @@ TESSERA_ISA_CLONES void render_samples(const RenderScene& scene, const TileRect&
   constexpr int P = RenderScene::kPacket;
   if (to <= from || pixels.width <= 0 || pixels.height <= 0) return;
   const ImageSettings& img = scene.image();
+  // The lattice sampler's edge pixels take the default sampler's samples, bit for bit
+  // (render/lattice_sampler.h).
+  const SamplerKind kind = img.sampler == SamplerKind::kLattice ? SamplerKind::kSobol : img.sampler;
   const auto& cam = scene.camera();
   // The next sample to set up: pixel (x, y), sample `s`, the pixel's estimate `e`; its camera
   // sampler is made once per pixel (the pixel's key and the scramble seeds are most of a
@@ -27,9 +30,9 @@ TESSERA_ISA_CLONES void render_samples(const RenderScene& scene, const TileRect&
   uint32_t s = from;
   PixelEstimate* e = est;
   uint64_t key = PixelSampler::pixel_key(img.seed, scene.frame(), x, y);
-  CameraSampler camera(img.sampler, key, uint32_t(img.spp));
+  CameraSampler camera(kind, key, uint32_t(img.spp));
   static_assert(P == kOwenLanes);
-  const bool sobol_lanes = img.sampler == SamplerKind::kSobol;
+  const bool sobol_lanes = kind == SamplerKind::kSobol;
   PixelSampler samplers[P];
   PixelEstimate* lane_est[P];
   uint32_t lane_sample[P];
@@ -47,7 +50,7 @@ TESSERA_ISA_CLONES void render_samples(const RenderScene& scene, const TileRect&
     // changes no bit; the estimates still take each pixel's samples in sample order.
     int n = 0;
     for (; n < P && y < pixels.y0 + pixels.height; ++n) {
-      samplers[n] = PixelSampler(img.sampler, key, s, uint32_t(img.spp));
+      samplers[n] = PixelSampler(kind, key, s, uint32_t(img.spp));
       if (sobol_lanes) {
         const OwenSeeds& seeds = camera.seeds(s);
         sobol.index[n] = stream_index(s);
@@ -66,7 +69,7 @@ TESSERA_ISA_CLONES void render_samples(const RenderScene& scene, const TileRect&
       if (++x == pixels.x0 + pixels.width) x = pixels.x0, ++y;
       if (y < pixels.y0 + pixels.height) {
         key = PixelSampler::pixel_key(img.seed, scene.frame(), x, y);
-        camera = CameraSampler(img.sampler, key, uint32_t(img.spp));
+        camera = CameraSampler(kind, key, uint32_t(img.spp));
       }
     }
     // The default sampler's pixel positions for all lanes at once (render/sampler.h); lanes past
@@ -79,13 +82,7 @@ TESSERA_ISA_CLONES void render_samples(const RenderScene& scene, const TileRect&
     for (int i = 0; i < P; ++i) {
       const float u = (fx[i] + su[i]) / float(img.width);
       const float v = (fy[i] + sv[i]) / float(img.height);
-      const float px = cam.p0.x + cam.du.x * u + cam.dv.x * v;
-      const float py = cam.p0.y + cam.du.y * u + cam.dv.y * v;
-      const float pz = cam.p0.z + cam.du.z * u + cam.dv.z * v;
-      const float len = std::sqrt(px * px + py * py + pz * pz);
-      r.dx[i] = px / len;
-      r.dy[i] = py / len;
-      r.dz[i] = pz / len;
+      set_camera_direction(cam, u, v, &r, i);
     }
     Rgb Ls[P];
     rays->camera += uint64_t(n);

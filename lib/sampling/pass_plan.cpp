@@ -120,6 +120,40 @@ std::optional<std::vector<uint32_t>> next_pass_counts(const std::vector<BlockSta
   return want;
 }
 
+std::optional<std::vector<uint32_t>> next_pass_counts(const std::vector<BlockStat>& stats, const BlockGrid& grid,
+                                                      const ImageSettings& img, int passes_done,
+                                                      const std::vector<uint8_t>& frozen) {
+  if (frozen.empty()) return next_pass_counts(stats, grid, img, passes_done);
+  if (passes_done >= kMaxTargetPasses) return std::nullopt;
+  std::vector<uint32_t> have(stats.size());
+  for (size_t b = 0; b < stats.size(); ++b) have[b] = stats[b].spp;
+  const double target = img.target_rmse * img.target_rmse;
+  if (predicted_frame_mse(stats, have) <= target) return std::nullopt;
+  // The open blocks alone, shaped among all their neighbours, and the target left to them.
+  const std::vector<BlockStat> all = shaped(stats, grid);
+  std::vector<BlockStat> open;
+  std::vector<size_t> index;
+  double frozen_error = 0, pixels = 0, open_pixels = 0;
+  for (size_t b = 0; b < stats.size(); ++b) {
+    pixels += double(stats[b].pixels);
+    if (frozen[b]) {
+      frozen_error += double(stats[b].pixels) * stats[b].mse;
+      continue;
+    }
+    open.push_back(all[b]);
+    index.push_back(b);
+    open_pixels += double(stats[b].pixels);
+  }
+  if (open.empty()) return std::nullopt;
+  const double left = std::max((target * pixels - frozen_error) / open_pixels, 0.25 * target);
+  const std::vector<uint32_t> counts =
+      allocate_samples(open, {left, uint32_t(img.first_spp()), uint32_t(img.max_spp)});
+  std::vector<uint32_t> want = have;
+  for (size_t i = 0; i < index.size(); ++i) want[index[i]] = counts[i];
+  if (want == have) return std::nullopt;
+  return want;
+}
+
 SamplePlan tile_plan(const BlockGrid& grid, const TileRect& rect, const std::vector<uint32_t>& counts) {
   const BlockGrid::Range r = grid.meeting(rect);
   SamplePlan plan;

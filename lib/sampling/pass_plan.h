@@ -66,6 +66,15 @@ BlockStat updated_stat(const BlockStat& before, const BlockStat& now);
 std::optional<std::vector<uint32_t>> next_pass_counts(const std::vector<BlockStat>& stats, const BlockGrid& grid,
                                                       const ImageSettings& img, int passes_done);
 
+// The same for a frame some of whose blocks are frozen (frozen[b] != 0: the lattice sampler's
+// smooth blocks, render/lattice_sampler.h): their counts never move and their error counts toward
+// the target as it is; the other blocks share what is left of the target (at least a quarter of
+// it a pixel, should the frozen blocks' error alone exceed it). An empty `frozen` is the overload
+// above.
+std::optional<std::vector<uint32_t>> next_pass_counts(const std::vector<BlockStat>& stats, const BlockGrid& grid,
+                                                      const ImageSettings& img, int passes_done,
+                                                      const std::vector<uint8_t>& frozen);
+
 // The plan of one tile for a pass, from the frame's counts.
 SamplePlan tile_plan(const BlockGrid& grid, const TileRect& rect, const std::vector<uint32_t>& counts);
 

@@ -1,0 +1,224 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "render/lattice_sampler.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "render/integrator.h"
+#include "render/ray_lanes.h"
+#include "sampling/pass_plan.h"
+#include "tile/bfloat16.h"
+
+namespace tessera {
+
+namespace {
+
+// A pixel is smooth where the lattice's second differences at its corners are at most this many
+// times the frame's target RMSE. For L quadratic across the pixel the corners' mean is off by
+// (Lxx + Lyy) / 12, so a smooth pixel's own error stays below a sixth of the target; a step
+// between two corners shows as a second difference of the step's height at both.
+constexpr float kSmoothCurvature = 1.0f;
+
+// Audit probabilities: kAuditFloor for a flat pixel, rising linearly with its curvature to
+// kAuditCeiling at the threshold. Sub-pixel features the lattice missed sit in flat-looking pixels,
+// so the floor is what catches them (in proportion to their area); the pixels near the threshold
+// are where a smooth pixel's own error is largest.
+constexpr float kAuditFloor = 1.0f / 16;
+constexpr float kAuditCeiling = 0.5f;
+
+// Keys of the lattice's and the audits' own random decisions (area-light samples along a corner's
+// path, whether and where a pixel is audited), apart from every pixel sample's.
+constexpr uint64_t kCornerKey = 0x6c61747469636531ULL;  // "lattice1"
+constexpr uint64_t kAuditKey = 0x6175646974303031ULL;   // "audit001"
+
+uint64_t corner_key(const ImageSettings& img, int frame, int cx, int cy) {
+  return hash_combine(PixelSampler::pixel_key(img.seed, frame, cx, cy), kCornerKey);
+}
+
+float second_difference(const Rgb& a, const Rgb& b, const Rgb& c) {
+  float m = 0;
+  for (int k = 0; k < 3; ++k) m = std::max(m, std::abs(a[k] - 2.0f * b[k] + c[k]));
+  return m;
+}
+
+// Traces corner rows [y0, y1) of the lattice into corners (row-major, width + 1 a row).
+void trace_corner_rows(const RenderScene& scene, int y0, int y1, std::vector<Rgb>* corners, RayCounts* rays) {
+  const ImageSettings& img = scene.image();
+  const int cols = img.width + 1;
+  constexpr int P = RenderScene::kPacket;
+  float x[P], y[P];
+  PixelSampler samplers[P];
+  int n = 0;
+  size_t first = size_t(y0) * size_t(cols);
+  for (int cy = y0; cy < y1; ++cy) {
+    for (int cx = 0; cx < cols; ++cx) {
+      x[n] = float(cx);
+      y[n] = float(cy);
+      samplers[n] = PixelSampler(SamplerKind::kIndependent, corner_key(img, scene.frame(), cx, cy), 0, 1);
+      if (++n == P || (cy == y1 - 1 && cx == cols - 1)) {
+        trace_film_points(scene, x, y, samplers, n, &(*corners)[first], rays);
+        first += size_t(n);
+        n = 0;
+      }
+    }
+  }
+}
+
+}  // namespace
+
+void trace_film_points(const RenderScene& scene, const float* x, const float* y, const PixelSampler* samplers, int n,
+                       Rgb* out, RayCounts* rays) {
+  constexpr int P = RenderScene::kPacket;
+  static_assert(P == kRayLanes);
+  const ImageSettings& img = scene.image();
+  const auto& cam = scene.camera();
+  RayLanes r;  // camera rays: origin 0, tmax infinite
+  std::fill(r.tmax, r.tmax + P, std::numeric_limits<float>::infinity());
+  for (int at = 0; at < n; at += P) {
+    const int m = std::min(P, n - at);
+    for (int i = 0; i < m; ++i) {
+      // The film position as render_samples makes it (render/pixel_samples.cpp).
+      const float u = x[at + i] / float(img.width);
+      const float v = y[at + i] / float(img.height);
+      set_camera_direction(cam, u, v, &r, i);
+    }
+    rays->camera += uint64_t(m);
+    trace_radiance_packet(scene, r, samplers + at, m, rays, out + at);
+    for (int i = 0; i < m; ++i) {
+      if (!is_finite(out[at + i])) {
+        ++rays->nonfinite_samples;
+        out[at + i] = Rgb(0.0f);
+      }
+    }
+  }
+}
+
+float corner_curvature(const std::vector<Rgb>& corners, int width, int height, int px, int py) {
+  // Too narrow for a second difference along an axis: no pixel can be called smooth.
+  if (width < 2 || height < 2) return std::numeric_limits<float>::infinity();
+  const int cols = width + 1;
+  auto at = [&](int x, int y) -> const Rgb& { return corners[size_t(y) * size_t(cols) + size_t(x)]; };
+  float m = 0;
+  for (int cy = py; cy <= py + 1; ++cy) {
+    for (int cx = px; cx <= px + 1; ++cx) {
+      // Centred differences, moved one corner inwards on the lattice's border.
+      const int mx = std::clamp(cx, 1, width - 1), my = std::clamp(cy, 1, height - 1);
+      m = std::max(m, second_difference(at(mx - 1, cy), at(mx, cy), at(mx + 1, cy)));
+      m = std::max(m, second_difference(at(cx, my - 1), at(cx, my), at(cx, my + 1)));
+    }
+  }
+  return m;
+}
+
+LatticePilot render_lattice_pilot(const RenderScene& scene) {
+  const ImageSettings& img = scene.image();
+  const int W = img.width, H = img.height;
+  const BlockGrid grid(W, H);
+  constexpr int B = kAllocationBlock;
+  LatticePilot out;
+  const size_t pixels = size_t(W) * size_t(H);
+  out.rgb.assign(3 * pixels, 0.0f);
+  out.variance.assign(pixels, 0.0f);
+  out.spp.assign(pixels, 0);
+  out.smooth_block.assign(size_t(grid.count()), 0);
+  out.stats.assign(size_t(grid.count()), BlockStat{});
+
+  // The lattice, in bands of corner rows (each corner traced once: it is its own pure function).
+  std::vector<Rgb> corners(size_t(W + 1) * size_t(H + 1));
+  constexpr int kBand = 8;
+  const int bands = (H + 1 + kBand - 1) / kBand;
+  std::vector<RayCounts> band_rays(static_cast<size_t>(bands));
+  tbb::parallel_for(0, bands, [&](int b) {
+    trace_corner_rows(scene, b * kBand, std::min(H + 1, (b + 1) * kBand), &corners, &band_rays[size_t(b)]);
+  });
+  for (int b = 0; b < bands; ++b) out.rays += band_rays[size_t(b)];
+
+  // Per row of blocks: classify, then audit and store the smooth blocks.
+  const float threshold = kSmoothCurvature * float(img.target_rmse);
+  std::vector<RayCounts> row_rays(size_t(grid.rows));
+  std::vector<int64_t> row_smooth(size_t(grid.rows), 0), row_audited(size_t(grid.rows), 0);
+  tbb::parallel_for(0, grid.rows, [&](int row) {
+    for (int col = 0; col < grid.cols; ++col) {
+      const int bx = col * B, by = row * B;
+      const int w = std::min(B, W - bx), h = std::min(B, H - by);
+      float curvature[B * B];
+      bool smooth = true;
+      for (int i = 0; i < w * h; ++i) {
+        curvature[i] = corner_curvature(corners, W, H, bx + i % w, by + i / w);
+        smooth = smooth && curvature[i] <= threshold;
+      }
+      if (!smooth) continue;
+      const int b = row * grid.cols + col;
+      out.smooth_block[size_t(b)] = 1;
+      // Audits: which pixels, where, and with which probability, all from their own keys.
+      float ax[B * B], ay[B * B], aq[B * B];
+      int audit_pixel[B * B];
+      PixelSampler samplers[B * B];
+      int audits = 0;
+      for (int i = 0; i < w * h; ++i) {
+        const int px = bx + i % w, py = by + i / w;
+        const float q = kAuditFloor + (kAuditCeiling - kAuditFloor) * std::min(1.0f, curvature[i] / threshold);
+        const uint64_t key = hash_combine(PixelSampler::pixel_key(img.seed, scene.frame(), px, py), kAuditKey);
+        const uint64_t pick = mix64(key);
+        if (!(to_unit_float(uint32_t(pick)) < q)) continue;
+        ax[audits] = float(px) + to_unit_float(uint32_t(pick >> 32));
+        ay[audits] = float(py) + to_unit_float(uint32_t(mix64(pick)));
+        aq[audits] = q;
+        audit_pixel[audits] = i;
+        samplers[audits] = PixelSampler(SamplerKind::kIndependent, key, 0, 1);
+        ++audits;
+      }
+      Rgb La[B * B];
+      trace_film_points(scene, ax, ay, samplers, audits, La, &row_rays[size_t(row)]);
+      BlockStat& s = out.stats[size_t(b)];
+      s.block = b;
+      s.spp = 1;
+      s.pixels = uint32_t(w * h);
+      s.cost = 1;
+      s.rate = first_rate(SamplerKind::kSobol);
+      double sum = 0, mean[3] = {0, 0, 0};
+      for (int i = 0, k = 0; i < w * h; ++i) {
+        const int px = bx + i % w, py = by + i / w;
+        const size_t p = size_t(py) * size_t(W) + size_t(px);
+        const auto c = [&](int dx, int dy) -> const Rgb& {
+          return corners[size_t(py + dy) * size_t(W + 1) + size_t(px + dx)];
+        };
+        for (int ch = 0; ch < 3; ++ch) {
+          out.rgb[3 * p + size_t(ch)] = ((c(0, 0)[ch] + c(1, 0)[ch]) + (c(0, 1)[ch] + c(1, 1)[ch])) * 0.25f;
+          mean[ch] += double(out.rgb[3 * p + size_t(ch)]);
+        }
+        out.spp[p] = 1;
+        if (k < audits && audit_pixel[k] == i) {
+          // The bilinear interpolant of the corners at the audit's position.
+          const float fx = ax[k] - float(px), fy = ay[k] - float(py);
+          double d2 = 0;
+          for (int ch = 0; ch < 3; ++ch) {
+            const float top = c(0, 0)[ch] + (c(1, 0)[ch] - c(0, 0)[ch]) * fx;
+            const float bottom = c(0, 1)[ch] + (c(1, 1)[ch] - c(0, 1)[ch]) * fx;
+            const double d = double(La[k][ch]) - double(top + (bottom - top) * fy);
+            d2 += d * d;
+          }
+          out.variance[p] = round_to_bfloat16(float(d2 / 3.0 / double(aq[k])));
+          out.spp[p] = 2;
+          ++k;
+        }
+        sum += double(out.variance[p]);
+      }
+      for (int ch = 0; ch < 3; ++ch) s.mean[size_t(ch)] = float(mean[ch] / double(w * h));
+      s.mse = s.shape_mse = sum / double(w * h);
+      row_smooth[size_t(row)] += w * h;
+      row_audited[size_t(row)] += audits;
+    }
+  });
+  for (int row = 0; row < grid.rows; ++row) {
+    out.rays += row_rays[size_t(row)];
+    out.smooth_pixels += row_smooth[size_t(row)];
+    out.audited_pixels += row_audited[size_t(row)];
+  }
+  return out;
+}
+
+}  // namespace tessera
