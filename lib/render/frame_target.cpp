@@ -10,7 +10,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "render/lattice_sampler.h"
+#include "render/lattice_frame.h"
 #include "render/pixel_samples.h"
 #include "tile/bfloat16.h"
 
@@ -45,8 +45,8 @@ TileResult render_tile_planned(const RenderScene& scene, const TileRect& rect, c
   const auto start = std::chrono::steady_clock::now();
   const ImageSettings& img = scene.image();
   if (img.sampler == SamplerKind::kLattice) {
-    // Its pilot classifies blocks from a lattice that crosses tiles, and the coordinator's planner
-    // does not yet keep its smooth blocks frozen: in-process renders only.
+    // Its pilot classifies pixels from a lattice that crosses tiles, and the coordinator's planner
+    // does not keep its smooth pixels frozen: in-process renders only.
     throw std::invalid_argument("render_tile_planned: the lattice sampler renders a frame target in-process only "
                                 "(tessera render), not on a farm");
   }
@@ -91,6 +91,7 @@ TileResult render_tile_planned(const RenderScene& scene, const TileRect& rect, c
 
 FrameResult render_frame_to_target(const RenderScene& scene, int threads,
                                    const std::function<void(int64_t, int64_t)>& progress) {
+  if (scene.image().sampler == SamplerKind::kLattice) return render_frame_lattice(scene, threads, progress);
   const auto start = std::chrono::steady_clock::now();
   const ImageSettings& img = scene.image();
   const BlockGrid grid(img.width, img.height);
@@ -104,19 +105,6 @@ FrameResult render_frame_to_target(const RenderScene& scene, int threads,
   std::atomic<int64_t> samples_done{0};
   int64_t samples_planned = 0;
   tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
-  // The lattice sampler: its pilot settles the smooth blocks for good (frozen at spp 1, never
-  // planned again); its edge blocks are the default sampler's (render/lattice_sampler.h).
-  const bool lattice = img.sampler == SamplerKind::kLattice;
-  const SamplerKind streams = lattice ? SamplerKind::kSobol : img.sampler;
-  LatticePilot pilot;
-  if (lattice) {
-    arena.execute([&] { pilot = render_lattice_pilot(scene); });
-    for (int b = 0; b < grid.count(); ++b) {
-      if (!pilot.smooth_block[size_t(b)]) continue;
-      stats[size_t(b)] = pilot.stats[size_t(b)];
-      want[size_t(b)] = stats[size_t(b)].spp;
-    }
-  }
   for (int passes = 0;;) {
     for (int b = 0; b < grid.count(); ++b) samples_planned += int64_t(want[size_t(b)] - stats[size_t(b)].spp) * B * B;
     arena.execute([&] {
@@ -129,11 +117,11 @@ FrameResult render_frame_to_target(const RenderScene& scene, int threads,
         PixelEstimate* block = &est[size_t(b) * B * B];
         RayCounts& rays = rays_per_block[size_t(b)];
         render_samples(scene, {bx, by, w, h}, from, to, block, &rays);
-        s = updated_stat(s, block_stat(b, block, w, h, to, rays.total(), streams));
+        s = updated_stat(s, block_stat(b, block, w, h, to, rays.total(), img.sampler));
         if (progress) progress(samples_done += int64_t(to - from) * w * h, samples_planned);
       });
     });
-    auto next = next_pass_counts(stats, grid, img, ++passes, pilot.smooth_block);
+    auto next = next_pass_counts(stats, grid, img, ++passes);
     if (!next) break;
     want = std::move(*next);
   }
@@ -145,30 +133,18 @@ FrameResult render_frame_to_target(const RenderScene& scene, int threads,
   for (int b = 0; b < grid.count(); ++b) {
     const int bx = (b % grid.cols) * B, by = (b / grid.cols) * B;
     const int w = std::min(B, img.width - bx), h = std::min(B, img.height - by);
-    out.rays += rays_per_block[size_t(b)];
-    if (lattice && pilot.smooth_block[size_t(b)]) {
-      for (int y = by; y < by + h; ++y) {
-        for (int x = bx; x < bx + w; ++x) {
-          const size_t i = size_t(y) * size_t(img.width) + size_t(x);
-          std::copy_n(&pilot.rgb[3 * i], 3, out.image.at(x, y));
-          out.variance[i] = pilot.variance[i];
-          out.spp[i] = pilot.spp[i];
-        }
-      }
-      continue;
-    }
     for (int y = 0; y < h; ++y) {
       for (int x = 0; x < w; ++x) {
         const PixelEstimate& e = est[size_t(b) * B * B + size_t(y * w + x)];
         const size_t i = size_t(by + y) * size_t(img.width) + size_t(bx + x);
         float* rgb = out.image.at(bx + x, by + y);
         for (int c = 0; c < 3; ++c) rgb[c] = e.mean(c);
-        out.variance[i] = round_to_bfloat16(float(e.variance(streams)));
+        out.variance[i] = round_to_bfloat16(float(e.variance(img.sampler)));
         out.spp[i] = e.samples();
       }
     }
+    out.rays += rays_per_block[size_t(b)];
   }
-  out.rays += pilot.rays;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   out.settings = img;
   return out;

@@ -20,7 +20,7 @@ namespace {
 // times the frame's target RMSE. For L quadratic across the pixel the corners' mean is off by
 // (Lxx + Lyy) / 12, so a smooth pixel's own error stays below a sixth of the target; a step
 // between two corners shows as a second difference of the step's height at both.
-constexpr float kSmoothCurvature = 1.0f;
+constexpr float kSmoothCurvature = 4.0f;
 
 // Audit probabilities: kAuditFloor for a flat pixel, rising linearly with its curvature to
 // kAuditCeiling at the threshold. Sub-pixel features the lattice missed sit in flat-looking pixels,
@@ -101,17 +101,111 @@ float corner_curvature(const std::vector<Rgb>& corners, int width, int height, i
   if (width < 2 || height < 2) return std::numeric_limits<float>::infinity();
   const int cols = width + 1;
   auto at = [&](int x, int y) -> const Rgb& { return corners[size_t(y) * size_t(cols) + size_t(x)]; };
+  // Second differences centred on corner (x, y), along x and along y; moved one corner inwards on
+  // the lattice's border.
+  auto along_x = [&](int x, int y) {
+    const int m = std::clamp(x, 1, width - 1);
+    return second_difference(at(m - 1, y), at(m, y), at(m + 1, y));
+  };
+  auto along_y = [&](int x, int y) {
+    const int m = std::clamp(y, 1, height - 1);
+    return second_difference(at(x, m - 1), at(x, m), at(x, m + 1));
+  };
   float m = 0;
-  for (int cy = py; cy <= py + 1; ++cy) {
-    for (int cx = px; cx <= px + 1; ++cx) {
-      // Centred differences, moved one corner inwards on the lattice's border.
-      const int mx = std::clamp(cx, 1, width - 1), my = std::clamp(cy, 1, height - 1);
-      m = std::max(m, second_difference(at(mx - 1, cy), at(mx, cy), at(mx + 1, cy)));
-      m = std::max(m, second_difference(at(cx, my - 1), at(cx, my), at(cx, my + 1)));
-    }
-  }
+  for (int y = py; y <= py + 1; ++y) m = std::max(m, std::min(along_x(px, y), along_x(px + 1, y)));
+  for (int x = px; x <= px + 1; ++x) m = std::max(m, std::min(along_y(x, py), along_y(x, py + 1)));
   return m;
 }
+
+namespace {
+
+// One pixel's audit: where, with which probability, its sampler, and what it saw.
+struct Audit {
+  int px = 0, py = 0;
+  float x = 0, y = 0, q = 0;
+  PixelSampler sampler;
+};
+
+// The smooth pixels of one row of allocation blocks (pixel rows [y0, y1)), given each pixel's
+// curvature (row-major over the band): their values, audits and variance estimates in `out`, the
+// audits' rays in `rays`; returns how many were audited.
+int64_t settle_smooth_band(const RenderScene& scene, const std::vector<Rgb>& corners, int y0, int y1,
+                           const std::vector<float>& curvature, float threshold, LatticePilot* out, RayCounts* rays) {
+  const ImageSettings& img = scene.image();
+  const int W = img.width;
+  // Audits: which pixels, where, and with which probability, all from their own keys; traced
+  // together, so that their packets are full.
+  std::vector<Audit> audits;
+  for (int py = y0; py < y1; ++py) {
+    for (int px = 0; px < W; ++px) {
+      if (!out->smooth[size_t(py) * size_t(W) + size_t(px)]) continue;
+      const float c = curvature[size_t(py - y0) * size_t(W) + size_t(px)];
+      const float q = kAuditFloor + (kAuditCeiling - kAuditFloor) * std::min(1.0f, c / threshold);
+      const uint64_t key = hash_combine(PixelSampler::pixel_key(img.seed, scene.frame(), px, py), kAuditKey);
+      const uint64_t pick = mix64(key);
+      if (!(to_unit_float(uint32_t(pick)) < q)) continue;
+      audits.push_back({px, py, float(px) + to_unit_float(uint32_t(pick >> 32)),
+                        float(py) + to_unit_float(uint32_t(mix64(pick))), q,
+                        PixelSampler(SamplerKind::kIndependent, key, 0, 1)});
+    }
+  }
+  std::vector<float> ax(audits.size()), ay(audits.size());
+  std::vector<PixelSampler> samplers(audits.size());
+  for (size_t k = 0; k < audits.size(); ++k) ax[k] = audits[k].x, ay[k] = audits[k].y, samplers[k] = audits[k].sampler;
+  std::vector<Rgb> La(audits.size());
+  trace_film_points(scene, ax.data(), ay.data(), samplers.data(), int(audits.size()), La.data(), rays);
+  size_t k = 0;
+  for (int py = y0; py < y1; ++py) {
+    for (int px = 0; px < W; ++px) {
+      const size_t p = size_t(py) * size_t(W) + size_t(px);
+      if (!out->smooth[p]) continue;
+      const auto c = [&](int dx, int dy) -> const Rgb& {
+        return corners[size_t(py + dy) * size_t(W + 1) + size_t(px + dx)];
+      };
+      for (int ch = 0; ch < 3; ++ch) {
+        out->rgb[3 * p + size_t(ch)] = ((c(0, 0)[ch] + c(1, 0)[ch]) + (c(0, 1)[ch] + c(1, 1)[ch])) * 0.25f;
+      }
+      out->spp[p] = 1;
+      if (k == audits.size() || audits[k].px != px || audits[k].py != py) continue;
+      // The bilinear interpolant of the corners at the audit's position.
+      const float fx = audits[k].x - float(px), fy = audits[k].y - float(py);
+      double d2 = 0;
+      for (int ch = 0; ch < 3; ++ch) {
+        const float top = c(0, 0)[ch] + (c(1, 0)[ch] - c(0, 0)[ch]) * fx;
+        const float bottom = c(0, 1)[ch] + (c(1, 1)[ch] - c(0, 1)[ch]) * fx;
+        const double d = double(La[k][ch]) - double(top + (bottom - top) * fy);
+        d2 += d * d;
+      }
+      out->variance[p] = round_to_bfloat16(float(d2 / 3.0 / double(audits[k].q)));
+      out->spp[p] = 2;
+      ++k;
+    }
+  }
+  return int64_t(audits.size());
+}
+
+// The statistics of block b (at bx, by, w x h) all of whose pixels are smooth.
+BlockStat smooth_block_stat(const LatticePilot& pilot, int width, int b, int bx, int by, int w, int h) {
+  BlockStat s;
+  s.block = b;
+  s.spp = 1;
+  s.pixels = uint32_t(w * h);
+  s.cost = 1;
+  s.rate = first_rate(SamplerKind::kSobol);
+  double sum = 0, mean[3] = {0, 0, 0};
+  for (int y = by; y < by + h; ++y) {
+    for (int x = bx; x < bx + w; ++x) {
+      const size_t p = size_t(y) * size_t(width) + size_t(x);
+      sum += double(pilot.variance[p]);
+      for (int ch = 0; ch < 3; ++ch) mean[ch] += double(pilot.rgb[3 * p + size_t(ch)]);
+    }
+  }
+  for (int ch = 0; ch < 3; ++ch) s.mean[size_t(ch)] = float(mean[ch] / double(w * h));
+  s.mse = s.shape_mse = sum / double(w * h);
+  return s;
+}
+
+}  // namespace
 
 LatticePilot render_lattice_pilot(const RenderScene& scene) {
   const ImageSettings& img = scene.image();
@@ -120,10 +214,12 @@ LatticePilot render_lattice_pilot(const RenderScene& scene) {
   constexpr int B = kAllocationBlock;
   LatticePilot out;
   const size_t pixels = size_t(W) * size_t(H);
+  out.smooth.assign(pixels, 0);
   out.rgb.assign(3 * pixels, 0.0f);
   out.variance.assign(pixels, 0.0f);
   out.spp.assign(pixels, 0);
-  out.smooth_block.assign(size_t(grid.count()), 0);
+  out.frozen.blocks.assign(size_t(grid.count()), 0);
+  out.frozen.frame_pixels = int64_t(pixels);
   out.stats.assign(size_t(grid.count()), BlockStat{});
 
   // The lattice, in bands of corner rows (each corner traced once: it is its own pure function).
@@ -136,87 +232,42 @@ LatticePilot render_lattice_pilot(const RenderScene& scene) {
   });
   for (int b = 0; b < bands; ++b) out.rays += band_rays[size_t(b)];
 
-  // Per row of blocks: classify, then audit and store the smooth blocks.
+  // Per row of blocks: classify the pixels, settle the smooth ones, and give the blocks all of
+  // whose pixels are smooth their statistics.
   const float threshold = kSmoothCurvature * float(img.target_rmse);
   std::vector<RayCounts> row_rays(size_t(grid.rows));
   std::vector<int64_t> row_smooth(size_t(grid.rows), 0), row_audited(size_t(grid.rows), 0);
   tbb::parallel_for(0, grid.rows, [&](int row) {
+    const int y0 = row * B, y1 = std::min(H, y0 + B);
+    std::vector<float> curvature(size_t(y1 - y0) * size_t(W));
+    for (int py = y0; py < y1; ++py) {
+      for (int px = 0; px < W; ++px) {
+        const float c = corner_curvature(corners, W, H, px, py);
+        curvature[size_t(py - y0) * size_t(W) + size_t(px)] = c;
+        const bool smooth = c <= threshold;
+        out.smooth[size_t(py) * size_t(W) + size_t(px)] = uint8_t(smooth);
+        row_smooth[size_t(row)] += int64_t(smooth);
+      }
+    }
+    row_audited[size_t(row)] = settle_smooth_band(scene, corners, y0, y1, curvature, threshold, &out, &row_rays[size_t(row)]);
     for (int col = 0; col < grid.cols; ++col) {
-      const int bx = col * B, by = row * B;
-      const int w = std::min(B, W - bx), h = std::min(B, H - by);
-      float curvature[B * B];
-      bool smooth = true;
-      for (int i = 0; i < w * h; ++i) {
-        curvature[i] = corner_curvature(corners, W, H, bx + i % w, by + i / w);
-        smooth = smooth && curvature[i] <= threshold;
+      const int bx = col * B, w = std::min(B, W - bx), b = row * grid.cols + col;
+      bool all = true;
+      for (int py = y0; py < y1; ++py) {
+        for (int px = bx; px < bx + w; ++px) all = all && out.smooth[size_t(py) * size_t(W) + size_t(px)];
       }
-      if (!smooth) continue;
-      const int b = row * grid.cols + col;
-      out.smooth_block[size_t(b)] = 1;
-      // Audits: which pixels, where, and with which probability, all from their own keys.
-      float ax[B * B], ay[B * B], aq[B * B];
-      int audit_pixel[B * B];
-      PixelSampler samplers[B * B];
-      int audits = 0;
-      for (int i = 0; i < w * h; ++i) {
-        const int px = bx + i % w, py = by + i / w;
-        const float q = kAuditFloor + (kAuditCeiling - kAuditFloor) * std::min(1.0f, curvature[i] / threshold);
-        const uint64_t key = hash_combine(PixelSampler::pixel_key(img.seed, scene.frame(), px, py), kAuditKey);
-        const uint64_t pick = mix64(key);
-        if (!(to_unit_float(uint32_t(pick)) < q)) continue;
-        ax[audits] = float(px) + to_unit_float(uint32_t(pick >> 32));
-        ay[audits] = float(py) + to_unit_float(uint32_t(mix64(pick)));
-        aq[audits] = q;
-        audit_pixel[audits] = i;
-        samplers[audits] = PixelSampler(SamplerKind::kIndependent, key, 0, 1);
-        ++audits;
-      }
-      Rgb La[B * B];
-      trace_film_points(scene, ax, ay, samplers, audits, La, &row_rays[size_t(row)]);
-      BlockStat& s = out.stats[size_t(b)];
-      s.block = b;
-      s.spp = 1;
-      s.pixels = uint32_t(w * h);
-      s.cost = 1;
-      s.rate = first_rate(SamplerKind::kSobol);
-      double sum = 0, mean[3] = {0, 0, 0};
-      for (int i = 0, k = 0; i < w * h; ++i) {
-        const int px = bx + i % w, py = by + i / w;
-        const size_t p = size_t(py) * size_t(W) + size_t(px);
-        const auto c = [&](int dx, int dy) -> const Rgb& {
-          return corners[size_t(py + dy) * size_t(W + 1) + size_t(px + dx)];
-        };
-        for (int ch = 0; ch < 3; ++ch) {
-          out.rgb[3 * p + size_t(ch)] = ((c(0, 0)[ch] + c(1, 0)[ch]) + (c(0, 1)[ch] + c(1, 1)[ch])) * 0.25f;
-          mean[ch] += double(out.rgb[3 * p + size_t(ch)]);
-        }
-        out.spp[p] = 1;
-        if (k < audits && audit_pixel[k] == i) {
-          // The bilinear interpolant of the corners at the audit's position.
-          const float fx = ax[k] - float(px), fy = ay[k] - float(py);
-          double d2 = 0;
-          for (int ch = 0; ch < 3; ++ch) {
-            const float top = c(0, 0)[ch] + (c(1, 0)[ch] - c(0, 0)[ch]) * fx;
-            const float bottom = c(0, 1)[ch] + (c(1, 1)[ch] - c(0, 1)[ch]) * fx;
-            const double d = double(La[k][ch]) - double(top + (bottom - top) * fy);
-            d2 += d * d;
-          }
-          out.variance[p] = round_to_bfloat16(float(d2 / 3.0 / double(aq[k])));
-          out.spp[p] = 2;
-          ++k;
-        }
-        sum += double(out.variance[p]);
-      }
-      for (int ch = 0; ch < 3; ++ch) s.mean[size_t(ch)] = float(mean[ch] / double(w * h));
-      s.mse = s.shape_mse = sum / double(w * h);
-      row_smooth[size_t(row)] += w * h;
-      row_audited[size_t(row)] += audits;
+      if (!all) continue;
+      out.frozen.blocks[size_t(b)] = 1;
+      out.stats[size_t(b)] = smooth_block_stat(out, W, b, bx, y0, w, y1 - y0);
     }
   });
   for (int row = 0; row < grid.rows; ++row) {
     out.rays += row_rays[size_t(row)];
     out.smooth_pixels += row_smooth[size_t(row)];
     out.audited_pixels += row_audited[size_t(row)];
+  }
+  for (size_t p = 0; p < pixels; ++p) {
+    if (out.smooth[p]) out.frozen.error += double(out.variance[p]);
   }
   return out;
 }

@@ -6,9 +6,9 @@
 // mean of a pixel's four corners' of its second derivative (for L quadratic across the pixel,
 // exactly -(Lxx + Lyy) / 12): far smaller on most of a Whitted image, for one ray a pixel.
 //
-//  - Smooth pixels: where every second difference of the lattice at the pixel's corners is small
-//    (sampling/pass_plan.h's allocation blocks whose four pixels all are), a pixel's value is the
-//    mean of its corners: the integral of their bilinear interpolant P over the pixel.
+//  - Smooth pixels: where the lattice's second differences along the pixel's sides are small
+//    (corner_curvature), a pixel's value is the mean of its corners: the integral of their
+//    bilinear interpolant P over the pixel.
 //  - Its error estimate: an audit. Each smooth pixel draws, with a known probability q (larger
 //    where its second differences come near the threshold), one hold-out sample x uniform in the
 //    pixel, independent of the lattice. (L(x) - P(x))^2 / q is an unbiased estimate of
@@ -17,9 +17,9 @@
 //    in expectation, sub-pixel features the lattice missed included, in proportion to their area.
 //    An audit never changes its pixel nor decides where to refine: a pixel whose audit is large
 //    stays as it is, and the audit measures exactly the error left there.
-//  - Every other block is an edge block: it is rendered with the default sampler's two stratified
-//    streams from sample 0 (bit for bit a sobol render of its pixels) and its samples allocated
-//    by the frame target's passes with the smooth blocks frozen (sampling/pass_plan.h).
+//  - Every other pixel is an edge pixel: it is rendered with the default sampler's two stratified
+//    streams from sample 0 (bit for bit a sobol render of it), its samples allocated per allocation
+//    block by the frame target's passes with the smooth pixels frozen (render/lattice_frame.h).
 //
 // Every corner, classification and audit is a pure function of (scene, frame, settings, global
 // lattice coordinates), never of a tile or thread: the frame is the same bits for any thread count.
@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "render/render_scene.h"
+#include "sampling/pass_plan.h"
 #include "tile/block_stat.h"
 #include "tile/tile_result.h"
 
@@ -40,16 +41,18 @@ namespace tessera {
 void trace_film_points(const RenderScene& scene, const float* x, const float* y, const PixelSampler* samplers, int n,
                        Rgb* out, RayCounts* rays);
 
-// The pilot of a lattice frame target over the frame's grid of allocation blocks.
+// The pilot of a lattice frame target.
 struct LatticePilot {
-  // Per allocation block (row-major): 1 where all its pixels are smooth. Their values are final.
-  std::vector<uint8_t> smooth_block;
-  // Per allocation block: for smooth blocks their statistics (spp 1, the audited mean error; the
-  // planner never gives them more), default for the others.
+  // Per pixel (row-major over the frame): 1 where it is smooth; its value is then final.
+  std::vector<uint8_t> smooth;
+  // The smooth pixels' blocks and error as the passes take them (sampling/pass_plan.h).
+  FrozenPixels frozen;
+  // Per allocation block: for blocks all of whose pixels are smooth their statistics (spp 1, the
+  // audited mean error; the planner never gives them more), default for the others.
   std::vector<BlockStat> stats;
-  // Per pixel (row-major over the frame), set for the pixels of smooth blocks: the corners' mean,
-  // the audit's estimate of its squared error (bfloat16, as tiles carry it; 0 when not audited)
-  // and the samples it took (1: its share of the lattice, plus its audit).
+  // Per pixel, set for smooth pixels: the corners' mean, the audit's estimate of its squared error
+  // (bfloat16, as tiles carry it; 0 when not audited) and the samples it took (1: its share of
+  // the lattice, plus its audit).
   std::vector<float> rgb, variance;
   std::vector<uint32_t> spp;
   RayCounts rays;
@@ -59,9 +62,13 @@ struct LatticePilot {
 // Traces the lattice and the audits (tbb::parallel_for: run it inside the caller's arena).
 LatticePilot render_lattice_pilot(const RenderScene& scene);
 
-// What the pilot decides from, exposed for tests: the largest absolute second difference (over
-// R, G, B, along x and y) of the lattice at the four corners of pixel (px, py), given the corners'
-// radiance row-major over (width + 1) x (height + 1) corners.
+// What the pilot decides from, exposed for tests: the curvature of the lattice at pixel (px, py),
+// given the corners' radiance row-major over (width + 1) x (height + 1) corners. Along each of the
+// pixel's four sides, the smaller of the two second differences (along that side, largest over
+// R, G, B) centred on its ends; the largest over the sides. Why the smaller: a step between two
+// corners shows in the second differences of both, so a pixel next to an edge would see it in the
+// difference centred on its shared corner, but not in the other; an edge through the pixel shows
+// in both, and so does curvature.
 float corner_curvature(const std::vector<Rgb>& corners, int width, int height, int px, int py);
 
 }  // namespace tessera

@@ -95,6 +95,15 @@ TEST(LatticeSampler, CurvatureIsTheLargestSecondDifference) {
   EXPECT_FLOAT_EQ(corner_curvature(c, 3, 2, 0, 0), 2.0f);
   EXPECT_FLOAT_EQ(corner_curvature(c, 3, 2, 1, 1), 2.0f);
   EXPECT_FLOAT_EQ(corner_curvature(c, 3, 2, 2, 1), 1.0f);
+  // A step of 1 between corner columns 2 and 3 of a 6 x 4 pixel lattice: only the pixels it
+  // crosses see it, not their neighbours, whose own corners agree.
+  std::vector<Rgb> step;
+  for (int y = 0; y <= 4; ++y) {
+    for (int x = 0; x <= 6; ++x) step.push_back(Rgb(x >= 3 ? 1.0f : 0.0f));
+  }
+  for (int py = 0; py < 4; ++py) {
+    for (int px = 0; px < 6; ++px) EXPECT_FLOAT_EQ(corner_curvature(step, 6, 4, px, py), px == 2 ? 1.0f : 0.0f) << px;
+  }
 }
 
 TEST(LatticeSampler, SmoothShadingFarBelowJitteredSamplesAtEqualSamples) {
@@ -114,7 +123,7 @@ TEST(LatticeSampler, SmoothShadingFarBelowJitteredSamplesAtEqualSamples) {
               e2);
   // A quarter of two jittered samples' error (measured: a fifth; the light close to the wall
   // curves the shading), with fewer rays.
-  EXPECT_LT(e_lattice, 0.25 * e2);
+  EXPECT_LT(e_lattice, 0.1 * e2);
   EXPECT_LT(e_lattice, 0.2 * e1);
   EXPECT_LT(e_lattice, 0.01) << "the target";
   // Its estimate bounds the error (it estimates E (L - P)^2, at least the pixel's squared error).
