@@ -133,44 +133,63 @@ float corner_curvature(const std::vector<Rgb>& corners, int width, int height, i
 
 namespace {
 
-// One pixel's audit: where, with which probability, its sampler, and what it saw.
-struct Audit {
+// One hold-out sample of a smooth pixel: where, drawn with which probability, and its squared
+// difference from the corners' bilinear interpolant there (mean over R, G, B).
+struct HoldOut {
   int px = 0, py = 0;
   float x = 0, y = 0, q = 0;
-  PixelSampler sampler;
+  double d2 = 0;
 };
 
-// The smooth pixels of one row of allocation blocks (pixel rows [y0, y1)), given every pixel's
-// curvature and edge neighbours (row-major over the frame): their values, audits and variance estimates in `out`, the
-// audits' rays in `rays`; returns how many were audited.
-int64_t settle_smooth_band(const RenderScene& scene, const std::vector<Rgb>& corners, int y0, int y1,
-                           const std::vector<float>& curvature, const std::vector<uint8_t>& edge_neighbours,
-                           float threshold, LatticePilot* out, RayCounts* rays) {
+// The hold-out samples of the smooth pixels of rows [y0, y1) under `domain` (the key of their own
+// draws), each pixel drawing one with probability q[p]; traced together, so that their packets
+// are full. Their rays go to `rays`.
+std::vector<HoldOut> hold_outs(const RenderScene& scene, const std::vector<Rgb>& corners, const LatticePilot& pilot,
+                               const std::vector<float>& q, uint64_t domain, int y0, int y1, RayCounts* rays) {
   const ImageSettings& img = scene.image();
   const int W = img.width;
-  // Audits: which pixels, where, and with which probability, all from their own keys; traced
-  // together, so that their packets are full.
-  std::vector<Audit> audits;
+  std::vector<HoldOut> out;
+  std::vector<float> x, y;
+  std::vector<PixelSampler> samplers;
   for (int py = y0; py < y1; ++py) {
     for (int px = 0; px < W; ++px) {
-      if (!out->smooth[size_t(py) * size_t(W) + size_t(px)]) continue;
       const size_t p = size_t(py) * size_t(W) + size_t(px);
-      const float busy = std::max(std::min(1.0f, curvature[p] / threshold), float(edge_neighbours[p]) / 8.0f);
-      const float q = kAuditFloor + (kAuditCeiling - kAuditFloor) * busy;
-      const uint64_t key = hash_combine(PixelSampler::pixel_key(img.seed, scene.frame(), px, py), kAuditKey);
+      if (!pilot.smooth[p]) continue;
+      const uint64_t key = hash_combine(PixelSampler::pixel_key(img.seed, scene.frame(), px, py), domain);
       const uint64_t pick = mix64(key);
-      if (!(to_unit_float(uint32_t(pick)) < q)) continue;
-      audits.push_back({px, py, float(px) + to_unit_float(uint32_t(pick >> 32)),
-                        float(py) + to_unit_float(uint32_t(mix64(pick))), q,
-                        PixelSampler(SamplerKind::kIndependent, key, 0, 1)});
+      if (!(to_unit_float(uint32_t(pick)) < q[p])) continue;
+      out.push_back({px, py, float(px) + to_unit_float(uint32_t(pick >> 32)),
+                     float(py) + to_unit_float(uint32_t(mix64(pick))), q[p], 0.0});
+      x.push_back(out.back().x);
+      y.push_back(out.back().y);
+      samplers.push_back(PixelSampler(SamplerKind::kIndependent, key, 0, 1));
     }
   }
-  std::vector<float> ax(audits.size()), ay(audits.size());
-  std::vector<PixelSampler> samplers(audits.size());
-  for (size_t k = 0; k < audits.size(); ++k) ax[k] = audits[k].x, ay[k] = audits[k].y, samplers[k] = audits[k].sampler;
-  std::vector<Rgb> La(audits.size());
-  trace_film_points(scene, ax.data(), ay.data(), samplers.data(), int(audits.size()), La.data(), rays);
-  size_t k = 0;
+  std::vector<Rgb> L(out.size());
+  trace_film_points(scene, x.data(), y.data(), samplers.data(), int(out.size()), L.data(), rays);
+  for (size_t k = 0; k < out.size(); ++k) {
+    HoldOut& h = out[k];
+    const auto c = [&](int dx, int dy) -> const Rgb& {
+      return corners[size_t(h.py + dy) * size_t(W + 1) + size_t(h.px + dx)];
+    };
+    // The bilinear interpolant of the corners at the sample's position.
+    const float fx = h.x - float(h.px), fy = h.y - float(h.py);
+    for (int ch = 0; ch < 3; ++ch) {
+      const float top = c(0, 0)[ch] + (c(1, 0)[ch] - c(0, 0)[ch]) * fx;
+      const float bottom = c(0, 1)[ch] + (c(1, 1)[ch] - c(0, 1)[ch]) * fx;
+      const double d = double(L[k][ch]) - double(top + (bottom - top) * fy);
+      h.d2 += d * d / 3.0;
+    }
+  }
+  return out;
+}
+
+// The smooth pixels of rows [y0, y1): their values (the corners' mean), and from their audits
+// their variance estimates, in `out`; the audits' rays in `rays`. Returns how many were audited.
+int64_t settle_smooth_band(const RenderScene& scene, const std::vector<Rgb>& corners, const std::vector<float>& q,
+                           int y0, int y1, LatticePilot* out, RayCounts* rays) {
+  const int W = scene.image().width;
+  const std::vector<HoldOut> audits = hold_outs(scene, corners, *out, q, kAuditKey, y0, y1, rays);
   for (int py = y0; py < y1; ++py) {
     for (int px = 0; px < W; ++px) {
       const size_t p = size_t(py) * size_t(W) + size_t(px);
@@ -182,20 +201,12 @@ int64_t settle_smooth_band(const RenderScene& scene, const std::vector<Rgb>& cor
         out->rgb[3 * p + size_t(ch)] = ((c(0, 0)[ch] + c(1, 0)[ch]) + (c(0, 1)[ch] + c(1, 1)[ch])) * 0.25f;
       }
       out->spp[p] = 1;
-      if (k == audits.size() || audits[k].px != px || audits[k].py != py) continue;
-      // The bilinear interpolant of the corners at the audit's position.
-      const float fx = audits[k].x - float(px), fy = audits[k].y - float(py);
-      double d2 = 0;
-      for (int ch = 0; ch < 3; ++ch) {
-        const float top = c(0, 0)[ch] + (c(1, 0)[ch] - c(0, 0)[ch]) * fx;
-        const float bottom = c(0, 1)[ch] + (c(1, 1)[ch] - c(0, 1)[ch]) * fx;
-        const double d = double(La[k][ch]) - double(top + (bottom - top) * fy);
-        d2 += d * d;
-      }
-      out->variance[p] = round_to_bfloat16(float(d2 / 3.0 / double(audits[k].q)));
-      out->spp[p] = 2;
-      ++k;
     }
+  }
+  for (const HoldOut& h : audits) {
+    const size_t p = size_t(h.py) * size_t(W) + size_t(h.px);
+    out->variance[p] = round_to_bfloat16(float(h.d2 / double(h.q)));
+    out->spp[p] = 2;
   }
   return int64_t(audits.size());
 }
@@ -219,6 +230,43 @@ BlockStat smooth_block_stat(const LatticePilot& pilot, int width, int b, int bx,
   for (int ch = 0; ch < 3; ++ch) s.mean[size_t(ch)] = float(mean[ch] / double(w * h));
   s.mse = s.shape_mse = sum / double(w * h);
   return s;
+}
+
+}  // namespace
+
+namespace {
+
+// The first classification (the curvature test, then kBusyNeighbours) and every smooth pixel's
+// hold-out probability, into pilot->smooth and q.
+void classify(const std::vector<Rgb>& corners, int W, int H, float threshold, LatticePilot* pilot,
+              std::vector<float>* q) {
+  const size_t pixels = size_t(W) * size_t(H);
+  std::vector<float> curvature(pixels);
+  tbb::parallel_for(0, H, [&](int py) {
+    for (int px = 0; px < W; ++px) {
+      const size_t p = size_t(py) * size_t(W) + size_t(px);
+      curvature[p] = corner_curvature(corners, W, H, px, py);
+      pilot->smooth[p] = uint8_t(curvature[p] <= threshold);
+    }
+  });
+  std::vector<uint8_t> edge_neighbours(pixels, 0);
+  tbb::parallel_for(0, H, [&](int py) {
+    for (int px = 0; px < W; ++px) {
+      int n = 0;
+      for (int y = std::max(0, py - 1); y <= std::min(H - 1, py + 1); ++y) {
+        for (int x = std::max(0, px - 1); x <= std::min(W - 1, px + 1); ++x) n += !pilot->smooth[size_t(y) * size_t(W) + size_t(x)];
+      }
+      edge_neighbours[size_t(py) * size_t(W) + size_t(px)] = uint8_t(n);
+    }
+  });
+  // A smooth pixel among edges is an edge pixel too (decided from the lattice alone, so no audit
+  // decides it).
+  q->assign(pixels, 0.0f);
+  for (size_t p = 0; p < pixels; ++p) {
+    if (edge_neighbours[p] >= kBusyNeighbours) pilot->smooth[p] = 0;
+    const float busy = std::max(std::min(1.0f, curvature[p] / threshold), float(edge_neighbours[p]) / 8.0f);
+    (*q)[p] = kAuditFloor + (kAuditCeiling - kAuditFloor) * busy;
+  }
 }
 
 }  // namespace
@@ -248,40 +296,17 @@ LatticePilot render_lattice_pilot(const RenderScene& scene) {
   });
   for (int b = 0; b < bands; ++b) out.rays += band_rays[size_t(b)];
 
-  // Every pixel's curvature and class, then its edge neighbours (of the eight around it).
   const float threshold = kSmoothCurvature * float(img.target_rmse);
-  std::vector<float> curvature(pixels);
-  tbb::parallel_for(0, H, [&](int py) {
-    for (int px = 0; px < W; ++px) {
-      const size_t p = size_t(py) * size_t(W) + size_t(px);
-      curvature[p] = corner_curvature(corners, W, H, px, py);
-      out.smooth[p] = uint8_t(curvature[p] <= threshold);
-    }
-  });
-  std::vector<uint8_t> edge_neighbours(pixels, 0);
-  tbb::parallel_for(0, H, [&](int py) {
-    for (int px = 0; px < W; ++px) {
-      int n = 0;
-      for (int y = std::max(0, py - 1); y <= std::min(H - 1, py + 1); ++y) {
-        for (int x = std::max(0, px - 1); x <= std::min(W - 1, px + 1); ++x) n += !out.smooth[size_t(y) * size_t(W) + size_t(x)];
-      }
-      edge_neighbours[size_t(py) * size_t(W) + size_t(px)] = uint8_t(n);
-    }
-  });
-  // A smooth pixel among edges is an edge pixel too (decided from the lattice alone, so no audit
-  // decides it).
-  for (size_t p = 0; p < pixels; ++p) {
-    if (edge_neighbours[p] >= kBusyNeighbours) out.smooth[p] = 0;
-  }
+  std::vector<float> q;
+  classify(corners, W, H, threshold, &out, &q);
+  std::vector<RayCounts> row_rays(size_t(grid.rows));
   // Per row of blocks: settle the smooth pixels, and give the blocks all of whose pixels are
   // smooth their statistics.
-  std::vector<RayCounts> row_rays(size_t(grid.rows));
   std::vector<int64_t> row_smooth(size_t(grid.rows), 0), row_audited(size_t(grid.rows), 0);
   tbb::parallel_for(0, grid.rows, [&](int row) {
     const int y0 = row * B, y1 = std::min(H, y0 + B);
     for (size_t p = size_t(y0) * size_t(W); p < size_t(y1) * size_t(W); ++p) row_smooth[size_t(row)] += out.smooth[p];
-    row_audited[size_t(row)] =
-        settle_smooth_band(scene, corners, y0, y1, curvature, edge_neighbours, threshold, &out, &row_rays[size_t(row)]);
+    row_audited[size_t(row)] = settle_smooth_band(scene, corners, q, y0, y1, &out, &row_rays[size_t(row)]);
     for (int col = 0; col < grid.cols; ++col) {
       const int bx = col * B, w = std::min(B, W - bx), b = row * grid.cols + col;
       bool all = true;

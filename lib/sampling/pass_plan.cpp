@@ -145,7 +145,7 @@ std::optional<std::vector<uint32_t>> next_pass_counts(const std::vector<BlockSta
   if (open.empty()) return std::nullopt;
   const double target = img.target_rmse * img.target_rmse, pixels = double(frozen.frame_pixels);
   if ((frozen.error + predicted_frame_mse(open_now, have) * open_pixels) / pixels <= target) return std::nullopt;
-  const double left = std::max((target * pixels - frozen.error) / open_pixels, 0.25 * target);
+  const double left = std::max((target * pixels - frozen.error) / open_pixels, 0.5 * target);
   const std::vector<uint32_t> counts =
       allocate_samples(open, {left, uint32_t(img.first_spp()), uint32_t(img.max_spp)});
   if (counts == have) return std::nullopt;

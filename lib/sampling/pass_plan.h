@@ -77,8 +77,10 @@ struct FrozenPixels {
 };
 
 // The decision between passes for a frame with frozen pixels: their error counts toward the
-// target as it is, and the other pixels' blocks share what is left of it (at least a quarter of it
-// a pixel, should the frozen pixels' error alone exceed it).
+// target as it is, and the other pixels' blocks share what is left of it, but at least half of it
+// a pixel: where the frozen pixels' error takes more than the rest of the target (sub-pixel
+// features the lattice missed and its audits found), the target is out of reach, and pushing the
+// other pixels far below it sent a quarter of a Whitted frame's pixels to max_spp for nothing.
 std::optional<std::vector<uint32_t>> next_pass_counts(const std::vector<BlockStat>& stats, const BlockGrid& grid,
                                                       const ImageSettings& img, int passes_done,
                                                       const FrozenPixels& frozen);
