@@ -10,11 +10,14 @@
 //    (corner_curvature), a pixel's value is the mean of its corners: the integral of their
 //    bilinear interpolant P over the pixel.
 //  - Its error estimate: an audit. Each smooth pixel draws, with a known probability q (larger
-//    where its second differences come near the threshold), one hold-out sample x uniform in the
-//    pixel, independent of the lattice. (L(x) - P(x))^2 / q is an unbiased estimate of
-//    E_x[(L - P)^2] >= (integral of (L - P))^2, the pixel's squared error (Jensen), and 0 where
-//    there is no audit; their mean over the frame (a Horvitz-Thompson sum) bounds the frame's MSE
-//    in expectation, sub-pixel features the lattice missed included, in proportion to their area.
+//    where its second differences come near the threshold or its neighbours are edges), two
+//    hold-out samples x1, x2 uniform in the pixel, independent of the lattice and of each other.
+//    With e the pixel's error (the integral of L - P over it), (L(x1) - P(x1)) (L(x2) - P(x2)) / q
+//    is an unbiased estimate of e^2, and 0 where there is no audit; their mean over the frame (a
+//    Horvitz-Thompson sum) estimates the smooth pixels' share of the frame's MSE, sub-pixel
+//    features the lattice missed included, in proportion to their area. (One sample's
+//    (L(x) - P(x))^2 would bound e^2 instead, by Jensen, but 1/p times over for a feature
+//    covering a fraction p of the pixel.) A negative product is stored as 0.
 //    An audit never changes its pixel nor decides where to refine: a pixel whose audit is large
 //    stays as it is, and the audit measures exactly the error left there.
 //  - Every other pixel is an edge pixel: it is rendered with the default sampler's two stratified
@@ -52,7 +55,7 @@ struct LatticePilot {
   std::vector<BlockStat> stats;
   // Per pixel, set for smooth pixels: the corners' mean, the audit's estimate of its squared error
   // (bfloat16, as tiles carry it; 0 when not audited) and the samples it took (1: its share of
-  // the lattice, plus its audit).
+  // the lattice, plus the audit's two).
   std::vector<float> rgb, variance;
   std::vector<uint32_t> spp;
   RayCounts rays;
