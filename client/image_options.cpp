@@ -15,7 +15,8 @@ void add_image_options(CLI::App& cmd, ImageOptions& o) {
                  "Russian roulette on reflection/refraction rays below this path weight, in [0, 1] (default: the "
                  "scene's, 0.01; 0 traces every branch)");
   cmd.add_option("--sampler", o.sampler,
-                 "sobol (default; also called stratified), cmj, independent or center");
+                 "sobol (default; also called stratified), cmj, independent, center, or lattice (with --target-rmse: "
+                 "shared pixel corners where the image is smooth, audited; render/lattice_sampler.h)");
   cmd.add_option("--target-rmse", o.overrides.target_rmse,
                  "Render to a target error of the frame: its estimated RMSE (linear light) at most this, samples "
                  "where they pay most");

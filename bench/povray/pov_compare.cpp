@@ -14,7 +14,9 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <algorithm>
 #include <map>
+#include <vector>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -44,18 +46,22 @@ double rmse(const ImageRGB& a, const ImageRGB& b) {
 struct Run {
   int spp = 0;
   double mean_spp = 0;
-  double wall = 0, cpu = 0, rmse = 0;
+  double wall = 0, cpu = 0, rmse = 0, estimated_rmse = 0;
+  double camera_rays = 0;  // camera rays a pixel (lattice corners and audits included)
   ImageRGB image;
 };
 
 // Renders `reps` times and keeps the fastest (CPU): a render here takes a tenth of a second, and
 // the first one also pays for starting the thread pool.
 Run render(const Scene& base, const RenderOptions& options, int spp, int threads, const ImageRGB& ref,
-           double target_rmse = 0, int min_spp = 16, int reps = 3) {
+           double target_rmse = 0, int min_spp = 16, int reps = 3, SamplerKind sampler = SamplerKind::kSobol,
+           uint64_t seed_offset = 0) {
   Scene s = base;
   s.image.spp = spp;
   s.image.target_rmse = target_rmse;
   s.image.min_spp = min_spp;
+  s.image.sampler = sampler;
+  s.image.seed += seed_offset;
   RenderScene rs(s, 0, options);
   Run run;
   run.cpu = run.wall = 1e30;
@@ -68,6 +74,8 @@ Run render(const Scene& base, const RenderOptions& options, int spp, int threads
     run.wall = r.seconds;
     run.rmse = rmse(r.image, ref);
     run.mean_spp = r.summary().mean_spp;
+    run.estimated_rmse = r.summary().estimated_rmse;
+    run.camera_rays = double(r.rays.camera) / (double(s.image.width) * double(s.image.height));
     run.image = std::move(r.image);
   }
   run.spp = spp;
@@ -106,6 +114,11 @@ int main(int argc, char** argv) {
       {sphere_search_name(SphereSearch::kEmbree), SphereSearch::kEmbree}};
   app.add_option("--spheres", options.spheres, "How Tessera finds the spheres (render/render_options.h)")
       ->transform(CLI::CheckedTransformer(sphere_searches));
+  bool lattice = true;
+  app.add_option("--lattice", lattice, "Also the target-error search with --sampler lattice (render/lattice_sampler.h)");
+  int honesty_seeds = 0;
+  app.add_option("--honesty-seeds", honesty_seeds,
+                 "Render each target-error result again with this many other seeds: estimated / measured RMSE");
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::warn);
 
@@ -150,6 +163,32 @@ int main(int argc, char** argv) {
     if (target.rmse <= pov_rmse) break;
   }
   const bool target_reached = target.rmse <= pov_rmse;
+  // The same search with the lattice sampler.
+  Run lat;
+  double lattice_target = 1.3 * pov_rmse;
+  for (int i = 0; lattice && i < 40; ++i, lattice_target *= 0.95) {
+    lat = render(scene, options, 1, threads, ref, lattice_target, target_min_spp, 3, SamplerKind::kLattice);
+    if (lat.rmse <= pov_rmse) break;
+  }
+  const bool lattice_reached = lattice && lat.rmse <= pov_rmse;
+  // How honest each result's estimate is over other seeds: estimated / measured RMSE.
+  auto honesty = [&](double t, SamplerKind k) {
+    std::vector<double> ratios;
+    for (int seed = 1; seed <= honesty_seeds; ++seed) {
+      const Run r = render(scene, options, 1, threads, ref, t, target_min_spp, 1, k, uint64_t(seed));
+      ratios.push_back(r.estimated_rmse / r.rmse);
+    }
+    std::sort(ratios.begin(), ratios.end());
+    return ratios;
+  };
+  const std::vector<double> target_honesty = honesty(target_rmse, SamplerKind::kSobol);
+  const std::vector<double> lattice_honesty = lattice ? honesty(lattice_target, SamplerKind::kLattice)
+                                                      : std::vector<double>{};
+  auto spread = [](const std::vector<double>& r) {
+    char buf[128] = "";
+    if (!r.empty()) std::snprintf(buf, sizeof buf, "%.2f / %.2f / %.2f", r.front(), r[r.size() / 2], r.back());
+    return std::string(buf);
+  };
   const double px = double(width) * double(height);
   const double t_sps_wall = px * same.spp / same.wall, t_sps_cpu = px * same.spp / same.cpu;
   // POV-Ray's camera rays are its "Pixels" and its "Samples" together: a render without
@@ -179,7 +218,16 @@ int main(int argc, char** argv) {
                        {"rmse", equal.rmse}, {"speedup_wall", pov_wall / equal.wall}, {"speedup_cpu", pov_cpu / equal.cpu}}},
       {"target_error", {{"reached", target_reached}, {"target_rmse", target_rmse}, {"mean_spp", target.mean_spp},
                         {"wall_s", target.wall}, {"cpu_s", target.cpu}, {"rmse", target.rmse},
-                        {"speedup_wall", pov_wall / target.wall}, {"speedup_cpu", pov_cpu / target.cpu}}}};
+                        {"speedup_wall", pov_wall / target.wall}, {"speedup_cpu", pov_cpu / target.cpu},
+                        {"camera_rays_per_pixel", target.camera_rays}, {"estimated_rmse", target.estimated_rmse},
+                        {"honesty", target_honesty}}}};
+  if (lattice) {
+    out["lattice_target_error"] = {{"reached", lattice_reached}, {"target_rmse", lattice_target},
+                                   {"mean_spp", lat.mean_spp}, {"camera_rays_per_pixel", lat.camera_rays},
+                                   {"wall_s", lat.wall}, {"cpu_s", lat.cpu}, {"rmse", lat.rmse},
+                                   {"estimated_rmse", lat.estimated_rmse}, {"speedup_wall", pov_wall / lat.wall},
+                                   {"speedup_cpu", pov_cpu / lat.cpu}, {"honesty", lattice_honesty}};
+  }
   std::cout << out.dump(2) << "\n";
   if (!markdown.empty()) {
     std::ofstream md(markdown, std::ios::app);
@@ -197,6 +245,12 @@ int main(int argc, char** argv) {
     std::snprintf(buf, sizeof buf, "| Tessera, --target-rmse %.3g --min-spp %d | %.1f (mean) | %.3f | %.3f | | | %.4g |\n",
                   target_rmse, target_min_spp, target.mean_spp, target.wall, target.cpu, target.rmse);
     md << buf;
+    if (lattice) {
+      std::snprintf(buf, sizeof buf,
+                    "| Tessera, --sampler lattice --target-rmse %.3g | %.2f (camera rays a pixel) | %.3f | %.3f | | | %.4g |\n",
+                    lattice_target, lat.camera_rays, lat.wall, lat.cpu, lat.rmse);
+      md << buf;
+    }
     const double best_cpu = std::max(pov_cpu / equal.cpu, target_reached ? pov_cpu / target.cpu : 0.0);
     std::snprintf(buf, sizeof buf,
                   "\nRMSE between the two images at %d spp: %.4g. Throughput (samples/s) Tessera / POV-Ray: %.2fx wall, "
@@ -207,6 +261,18 @@ int main(int argc, char** argv) {
                   target_reached ? "reached" : "NOT reached", pov_wall / target.wall, pov_cpu / target.cpu,
                   (reached || target_reached) && best_cpu >= 5 ? "met" : "not met");
     md << buf;
+    if (lattice) {
+      std::snprintf(buf, sizeof buf,
+                    "With --sampler lattice (%s): %.2fx (wall), %.2fx (CPU), estimated RMSE %.4g against %.4g measured.",
+                    lattice_reached ? "reached" : "NOT reached", pov_wall / lat.wall, pov_cpu / lat.cpu,
+                    lat.estimated_rmse, lat.rmse);
+      md << buf;
+    }
+    if (honesty_seeds > 0) {
+      md << " Estimated / measured RMSE over " << honesty_seeds << " other seeds (min / median / max): target "
+         << spread(target_honesty) << (lattice ? ", lattice " + spread(lattice_honesty) : std::string()) << ".";
+    }
+    md << "\n";
   }
   return 0;
 }

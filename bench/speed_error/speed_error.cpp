@@ -200,6 +200,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(2, 65536));
   bool no_block = false;
   app.add_flag("--no-block", no_block, "Skip the block-bound renders");
+  bool no_lattice = false;
+  app.add_flag("--no-lattice", no_lattice, "Skip the frame-target renders with the lattice sampler");
   app.add_option("--target-data", target_data, "Write gnuplot data of the target-error renders to this file");
   app.add_option("--cache", cache_dir, "Directory for cached reference images");
   app.add_option("--markdown", markdown, "Append a markdown table to this file");
@@ -321,13 +323,15 @@ int main(int argc, char** argv) {
   }
   // Each target twice: as the frame's error (--target-rmse) and as every block's (--block-rmse).
   std::vector<Point> adaptive;
-  for (const std::string mode : {"frame", "block"}) {
+  // And the frame's error with the lattice sampler (render/lattice_sampler.h), unless --no-lattice.
+  for (const std::string mode : {"frame", "block", "lattice"}) {
   if (mode == "block" && no_block) continue;
+  if (mode == "lattice" && no_lattice) continue;
   for (double t : targets) {
     Scene s = scene;
-    s.image.sampler = SamplerKind::kSobol;
-    (mode == "frame" ? s.image.target_rmse : s.image.block_rmse) = t;
-    s.image.min_spp = mode == "frame" ? min_spp : block_min_spp;
+    s.image.sampler = mode == "lattice" ? SamplerKind::kLattice : SamplerKind::kSobol;
+    (mode == "block" ? s.image.block_rmse : s.image.target_rmse) = t;
+    s.image.min_spp = mode == "block" ? block_min_spp : min_spp;
     s.image.max_spp = max_spp;
     Point p = measure(s, threads, ref, seeds, repeats);
     p.mode = mode;
@@ -364,7 +368,7 @@ int main(int argc, char** argv) {
   out["target_runs"] = nlohmann::json::array();
   for (const Point& p : adaptive) {
     out["target_runs"].push_back(
-        {{"mode", p.mode}, {"target_rmse", p.target}, {"min_spp", p.mode == "frame" ? min_spp : block_min_spp},
+        {{"mode", p.mode}, {"target_rmse", p.target}, {"min_spp", p.mode == "block" ? block_min_spp : min_spp},
          {"max_spp", max_spp}, {"seconds", p.seconds},
          {"cpu_seconds", p.cpu_seconds}, {"mean_spp", p.mean_spp}, {"spp_min", p.min_spp}, {"spp_max", p.max_spp},
          {"rmse", p.rmse}, {"estimated_rmse", p.est_rmse}, {"unconverged_pixels", p.unconverged_pixels},
@@ -398,7 +402,8 @@ int main(int argc, char** argv) {
     md << "\n";
     if (!adaptive.empty()) {
       md << "\nTarget-error renders (sobol, max_spp " << max_spp << "; frame: --target-rmse, min_spp " << min_spp
-         << "; block: --block-rmse, min_spp " << block_min_spp << ") against uniform sobol at the same measured RMSE:\n\n";
+         << "; block: --block-rmse, min_spp " << block_min_spp
+         << "; lattice: --target-rmse --sampler lattice) against uniform sobol at the same measured RMSE:\n\n";
       md << "| mode | target | CPU (s) | mean spp | spp range | RMSE | est. RMSE | est/RMSE | RMSE/target | uniform CPU (s) at that RMSE | uniform spp | speed-up |\n";
       md << "|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|\n";
       for (const Point& p : adaptive) {

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "render/lattice_frame.h"
 #include "render/pixel_samples.h"
 #include "tile/bfloat16.h"
 
@@ -43,6 +44,12 @@ BlockStat block_stat(int64_t block, const PixelEstimate* pixels, int w, int h, u
 TileResult render_tile_planned(const RenderScene& scene, const TileRect& rect, const SamplePlan& plan) {
   const auto start = std::chrono::steady_clock::now();
   const ImageSettings& img = scene.image();
+  if (img.sampler == SamplerKind::kLattice) {
+    // Its pilot classifies pixels from a lattice that crosses tiles, and the coordinator's planner
+    // does not keep its smooth pixels frozen: in-process renders only.
+    throw std::invalid_argument("render_tile_planned: the lattice sampler renders a frame target in-process only "
+                                "(tessera render), not on a farm");
+  }
   constexpr int B = kAllocationBlock;
   const BlockGrid grid(img.width, img.height);
   const BlockGrid::Range r = grid.meeting(rect);
@@ -84,6 +91,7 @@ TileResult render_tile_planned(const RenderScene& scene, const TileRect& rect, c
 
 FrameResult render_frame_to_target(const RenderScene& scene, int threads,
                                    const std::function<void(int64_t, int64_t)>& progress) {
+  if (scene.image().sampler == SamplerKind::kLattice) return render_frame_lattice(scene, threads, progress);
   const auto start = std::chrono::steady_clock::now();
   const ImageSettings& img = scene.image();
   const BlockGrid grid(img.width, img.height);

@@ -23,6 +23,16 @@ namespace tessera {
 void render_samples(const RenderScene& scene, const TileRect& pixels, uint32_t from, uint32_t to, PixelEstimate* est,
                     RayCounts* rays);
 
+// The same for a list of pixels, each with its own samples [from, to) (from < to) and estimate,
+// rendered in list order and packed across pixels the same way: the lattice sampler's edge pixels,
+// scattered over the frame (render/lattice_sampler.h).
+struct PixelRun {
+  int x = 0, y = 0;
+  uint32_t from = 0, to = 0;
+  PixelEstimate* est = nullptr;
+};
+void render_pixel_runs(const RenderScene& scene, const PixelRun* runs, size_t n, RayCounts* rays);
+
 // Stores pixel `i` of `out` (its mean, its variance estimate at the precision tiles carry it, its
 // sample count).
 void store_pixel(const PixelEstimate& est, SamplerKind kind, size_t i, TileResult* out);

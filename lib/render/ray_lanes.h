@@ -5,6 +5,7 @@
 // (docs/performance.md, "Packets and SIMD stages": 1-3 % fewer instructions a sample).
 #pragma once
 
+#include <cmath>
 #include <limits>
 
 #include "render/ray.h"
@@ -38,5 +39,20 @@ struct RayLanes {
   }
   RayArrays arrays() const { return {ox, oy, oz, dx, dy, dz, tmax}; }
 };
+
+// Lane i of `r` becomes the camera ray through the film point (u, v) in [0, 1]^2 of a camera whose
+// film point is p0 + du u + dv v from the eye at the origin: normalize(p0 + du u + dv v),
+// operation for operation the same wherever a camera ray is made (render/pixel_samples.cpp, the
+// lattice sampler's corners and audits), so the same point makes the same bits.
+template <class Camera>
+[[gnu::always_inline]] inline void set_camera_direction(const Camera& cam, float u, float v, RayLanes* r, int i) {
+  const float px = cam.p0.x + cam.du.x * u + cam.dv.x * v;
+  const float py = cam.p0.y + cam.du.y * u + cam.dv.y * v;
+  const float pz = cam.p0.z + cam.du.z * u + cam.dv.z * v;
+  const float len = std::sqrt(px * px + py * py + pz * pz);
+  r->dx[i] = px / len;
+  r->dy[i] = py / len;
+  r->dz[i] = pz / len;
+}
 
 }  // namespace tessera

@@ -124,6 +124,7 @@ class PixelSampler {
     const uint64_t key = dimension_key(pixel_key_, dim, stream);
     switch (kind_) {
       case SamplerKind::kSobol:
+      case SamplerKind::kLattice:  // its edge pixels' samples are the default sampler's
         owen_sobol_2d(stream_index(sample_), key, u, v);
         return;
       case SamplerKind::kCmj:

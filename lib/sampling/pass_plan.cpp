@@ -62,23 +62,28 @@ double contrast_floor(const std::vector<BlockStat>& stats, const BlockGrid& grid
   return kContrastWeight * d / (n * std::sqrt(n));
 }
 
-std::vector<BlockStat> shaped(const std::vector<BlockStat>& stats, const BlockGrid& grid) {
-  std::vector<BlockStat> out = stats;
-  for (int b = 0; b < grid.count(); ++b) {
-    const int cx = b % grid.cols, cy = b / grid.cols;
-    const BlockStat& me = stats[size_t(b)];
-    double sum = me.mse;
-    int n = 1;
-    for (int y = std::max(0, cy - 1); y <= std::min(grid.rows - 1, cy + 1); ++y) {
-      for (int x = std::max(0, cx - 1); x <= std::min(grid.cols - 1, cx + 1); ++x) {
-        if (x == cx && y == cy) continue;
-        sum += stats[size_t(y * grid.cols + x)].shape_mse;
-        ++n;
-      }
+// Block b's statistics with its shape as the allocation shares samples by.
+BlockStat shaped_stat(const std::vector<BlockStat>& stats, const BlockGrid& grid, int b) {
+  const int cx = b % grid.cols, cy = b / grid.cols;
+  const BlockStat& me = stats[size_t(b)];
+  double sum = me.mse;
+  int n = 1;
+  for (int y = std::max(0, cy - 1); y <= std::min(grid.rows - 1, cy + 1); ++y) {
+    for (int x = std::max(0, cx - 1); x <= std::min(grid.cols - 1, cx + 1); ++x) {
+      if (x == cx && y == cy) continue;
+      sum += stats[size_t(y * grid.cols + x)].shape_mse;
+      ++n;
     }
-    const double pooled = 0.5 * me.mse + 0.5 * sum / double(n);
-    out[size_t(b)].shape_mse = std::max({me.shape_mse, pooled, contrast_floor(stats, grid, b)});
   }
+  const double pooled = 0.5 * me.mse + 0.5 * sum / double(n);
+  BlockStat out = me;
+  out.shape_mse = std::max({me.shape_mse, pooled, contrast_floor(stats, grid, b)});
+  return out;
+}
+
+std::vector<BlockStat> shaped(const std::vector<BlockStat>& stats, const BlockGrid& grid) {
+  std::vector<BlockStat> out(stats.size());
+  for (int b = 0; b < grid.count(); ++b) out[size_t(b)] = shaped_stat(stats, grid, b);
   return out;
 }
 
@@ -117,6 +122,36 @@ std::optional<std::vector<uint32_t>> next_pass_counts(const std::vector<BlockSta
   if (predicted_frame_mse(stats, have) <= bounds.frame_mse) return std::nullopt;
   std::vector<uint32_t> want = allocate_samples(shaped(stats, grid), bounds);
   if (want == have) return std::nullopt;
+  return want;
+}
+
+std::optional<std::vector<uint32_t>> next_pass_counts(const std::vector<BlockStat>& stats, const BlockGrid& grid,
+                                                      const ImageSettings& img, int passes_done,
+                                                      const FrozenPixels& frozen) {
+  if (passes_done >= kMaxTargetPasses) return std::nullopt;
+  // The open blocks alone, shaped among all their neighbours, and the target left to them.
+  std::vector<BlockStat> open, open_now;
+  std::vector<uint32_t> have;
+  std::vector<size_t> index;
+  double open_pixels = 0;
+  for (size_t b = 0; b < stats.size(); ++b) {
+    if (frozen.blocks[b] || stats[b].pixels == 0) continue;
+    open.push_back(shaped_stat(stats, grid, int(b)));
+    open_now.push_back(stats[b]);
+    have.push_back(stats[b].spp);
+    index.push_back(b);
+    open_pixels += double(stats[b].pixels);
+  }
+  if (open.empty()) return std::nullopt;
+  const double target = img.target_rmse * img.target_rmse, pixels = double(frozen.frame_pixels);
+  if ((frozen.error + predicted_frame_mse(open_now, have) * open_pixels) / pixels <= target) return std::nullopt;
+  const double left = std::max((target * pixels - frozen.error) / open_pixels, 0.5 * target);
+  const std::vector<uint32_t> counts =
+      allocate_samples(open, {left, uint32_t(img.first_spp()), uint32_t(img.max_spp)});
+  if (counts == have) return std::nullopt;
+  std::vector<uint32_t> want(stats.size());
+  for (size_t b = 0; b < stats.size(); ++b) want[b] = stats[b].spp;
+  for (size_t i = 0; i < index.size(); ++i) want[index[i]] = counts[i];
   return want;
 }
 

@@ -66,6 +66,25 @@ BlockStat updated_stat(const BlockStat& before, const BlockStat& now);
 std::optional<std::vector<uint32_t>> next_pass_counts(const std::vector<BlockStat>& stats, const BlockGrid& grid,
                                                       const ImageSettings& img, int passes_done);
 
+// Pixels whose values are final before the passes begin (the lattice sampler's smooth pixels,
+// render/lattice_sampler.h).
+struct FrozenPixels {
+  // Per block: 1 where all its pixels are frozen; its statistics are then theirs and its count
+  // never moves. Every other block's statistics cover only its pixels that are not frozen.
+  std::vector<uint8_t> blocks;
+  double error = 0;          // the sum over every frozen pixel of its estimated variance
+  int64_t frame_pixels = 0;  // all the frame's pixels
+};
+
+// The decision between passes for a frame with frozen pixels: their error counts toward the
+// target as it is, and the other pixels' blocks share what is left of it, but at least half of it
+// a pixel: where the frozen pixels' error takes more than the rest of the target (sub-pixel
+// features the lattice missed and its audits found), the target is out of reach, and pushing the
+// other pixels far below it sent a quarter of a Whitted frame's pixels to max_spp for nothing.
+std::optional<std::vector<uint32_t>> next_pass_counts(const std::vector<BlockStat>& stats, const BlockGrid& grid,
+                                                      const ImageSettings& img, int passes_done,
+                                                      const FrozenPixels& frozen);
+
 // The plan of one tile for a pass, from the frame's counts.
 SamplePlan tile_plan(const BlockGrid& grid, const TileRect& rect, const std::vector<uint32_t>& counts);
 

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <set>
 #include <utility>
 
@@ -141,6 +142,52 @@ TEST(PassPlan, AnEdgeItsSamplesMissedIsFoundAcrossTheBlockBoundary) {
   // error meets the target takes no more passes, edge or no edge.
   img.target_rmse = 0.004;
   EXPECT_FALSE(next_pass_counts(stats, g, img, 1).has_value());
+}
+
+// A frame whose first row of blocks is frozen (the lattice sampler's smooth pixels): those blocks
+// keep their counts, and the others take the samples that bring the frame's predicted MSE to the
+// target with the frozen error counted as it is; when the frozen error alone exceeds the target,
+// the others are held to half the target, not pushed toward max_spp.
+TEST(PassPlan, FrozenBlocksKeepTheirCountsAndTheOthersShareWhatIsLeftOfTheTarget) {
+  const BlockGrid g(8, 4);  // 4 x 2 blocks of 2 x 2 pixels
+  ImageSettings img;
+  img.target_rmse = 0.1;  // frame MSE 0.01
+  img.max_spp = 1024;
+  auto plan = [&](double frozen_mse) {
+    std::vector<BlockStat> stats(size_t(g.count()));
+    FrozenPixels frozen;
+    frozen.blocks.assign(size_t(g.count()), 0);
+    frozen.frame_pixels = 32;
+    for (int b = 0; b < g.count(); ++b) {
+      BlockStat& s = stats[size_t(b)];
+      s.block = b;
+      s.pixels = 4;
+      s.rate = 1.5;
+      s.cost = 3;
+      const bool is_frozen = b < g.cols;
+      s.spp = is_frozen ? 1 : 2;
+      s.mse = s.shape_mse = is_frozen ? frozen_mse : 0.08;
+      frozen.blocks[size_t(b)] = uint8_t(is_frozen);
+      if (is_frozen) frozen.error += 4 * frozen_mse;
+    }
+    const auto want = next_pass_counts(stats, g, img, 1, frozen);
+    EXPECT_TRUE(want.has_value());
+    for (int b = 0; b < g.cols; ++b) EXPECT_EQ((*want)[size_t(b)], 1u) << b;
+    // Every open block alike: one count, the least (in pairs) whose MSE 0.08 (2 / n)^1.5 meets
+    // what is left.
+    const uint32_t n = (*want)[size_t(g.cols)];
+    for (int b = g.cols; b < g.count(); ++b) EXPECT_EQ((*want)[size_t(b)], n) << b;
+    return n;
+  };
+  auto mse_at = [](uint32_t n) { return 0.08 * std::pow(2.0 / double(n), 1.5); };
+  // Frozen error 16 x 0.005 = 0.08 of the frame's 32 x 0.01: the open 16 pixels have 0.015 each.
+  const uint32_t n = plan(0.005);
+  EXPECT_LE(mse_at(n), 0.015 * 1.0001);
+  EXPECT_GT(mse_at(n - 2), 0.015);
+  // Frozen error 16 x 0.05 = 0.8, over the whole target: the open pixels are held to 0.005.
+  const uint32_t m = plan(0.05);
+  EXPECT_LE(mse_at(m), 0.005 * 1.0001);
+  EXPECT_GT(mse_at(m - 2), 0.005);
 }
 
 }  // namespace

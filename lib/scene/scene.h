@@ -41,6 +41,10 @@ enum class SamplerKind {
   kCmj,          // correlated multi-jittered (Kensler 2013): stratified for a fixed spp only (comparison)
   kIndependent,  // independent uniform random samples (comparison)
   kCenter,       // every sample at the pixel center: no anti-aliasing (analytic tests)
+  // Frame targets only: a lattice of pixel corners shared by neighbouring pixels, the mean of the
+  // corners where they are smooth, audited by hold-out samples, and kSobol's two streams elsewhere
+  // (render/lattice_sampler.h)
+  kLattice,
 };
 
 struct ImageSettings {

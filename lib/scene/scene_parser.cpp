@@ -189,6 +189,7 @@ std::optional<SamplerKind> sampler_from_name(const std::string& name) {
   if (name == "cmj") return SamplerKind::kCmj;
   if (name == "independent") return SamplerKind::kIndependent;
   if (name == "center") return SamplerKind::kCenter;
+  if (name == "lattice") return SamplerKind::kLattice;
   return std::nullopt;
 }
 
@@ -198,17 +199,22 @@ const char* sampler_name(SamplerKind kind) {
     case SamplerKind::kCmj: return "cmj";
     case SamplerKind::kIndependent: return "independent";
     case SamplerKind::kCenter: return "center";
+    case SamplerKind::kLattice: return "lattice";
   }
   return "?";
 }
 
-const char* sampler_names() { return "sobol, stratified, cmj, independent, center"; }
+const char* sampler_names() { return "sobol, stratified, cmj, independent, center, lattice"; }
 
 namespace {
 
 // The adaptive settings' rules, shared by the scene file and the overrides; `name` spells each
 // field as the caller's user knows it (a JSON path or a command-line flag).
 void check_adaptive(const ImageSettings& s, const std::function<std::string(const char*)>& name) {
+  if (s.sampler == SamplerKind::kLattice && !s.frame_target()) {
+    throw SceneError(name("sampler") + " lattice renders to a frame target only: give " + name("target_rmse") +
+                     " too, or one of the samplers sobol, cmj, independent, center");
+  }
   if (!s.adaptive()) return;
   const char* field = s.frame_target() ? "target_rmse" : "block_rmse";
   if (s.target_rmse > 0 && s.block_rmse > 0) {
@@ -295,7 +301,7 @@ void read_image(const JsonReader& img, const std::string& path, ImageSettings* s
   if (auto v = img.find("roulette_weight")) s.roulette_weight = v->number_in(0, 1);
   if (auto v = img.find("seed")) s.seed = uint64_t(v->integer_in(0, int64_t(1) << 53));
   if (auto v = img.find("sampler")) {
-    s.sampler = *sampler_from_name(v->one_of({"sobol", "stratified", "cmj", "independent", "center"}));
+    s.sampler = *sampler_from_name(v->one_of({"sobol", "stratified", "cmj", "independent", "center", "lattice"}));
   }
   if (auto v = img.find("target_rmse")) {
     s.target_rmse = v->number_in(0, 1e30, true);
