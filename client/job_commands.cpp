@@ -11,6 +11,7 @@
 #include "commands.h"
 #include "duration_text.h"
 #include "farm_command.h"
+#include "job_output.h"
 #include "job_text.h"
 
 namespace tessera::cli {
@@ -53,7 +54,8 @@ nlohmann::json job_json(const v1::JobStatus& j) {
           {"blocklisted_workers",
            std::vector<std::string>(j.blocklisted_workers().begin(), j.blocklisted_workers().end())},
           {"tiles_resident", j.tiles_resident()},
-          {"waiting_for_memory", j.waiting_for_memory()}};
+          {"waiting_for_memory", j.waiting_for_memory()},
+          {"output", job_output_json(j)}};
 }
 
 void print_job(const v1::JobStatus& j) {
@@ -63,6 +65,7 @@ void print_job(const v1::JobStatus& j) {
   std::printf("%-14s %-10s %5d  %-11s %-11s %6d  %-15s %9s  %s\n", j.job_id().c_str(), state_name(j.state()),
               j.priority(), frames.c_str(), size.c_str(), j.spp(), tiles.c_str(),
               format_duration(j.elapsed_seconds()).c_str(), j.name().c_str());
+  if (j.has_output()) std::printf("%-14s output: %s\n", "", j.output().pattern().c_str());
   if (j.waiting_for_memory()) {
     std::printf("%-14s waiting for memory: its next frame would hold more tiles than tessera-server "
                 "--max-job-tiles/--max-resident-tiles allow until clients receive finished frames\n", "");

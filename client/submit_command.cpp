@@ -13,6 +13,7 @@
 #include "farm/overrides_codec.h"
 #include "farm_command.h"
 #include "image_options.h"
+#include "job_output.h"
 #include "job_text.h"
 #include "output_flags.h"
 #include "scene/scene_parser.h"
@@ -79,6 +80,8 @@ v1::SubmitJobRequest job_request(const SubmitArgs& a, const std::string& bundle_
   req.set_tile_size(a.tile);
   req.set_priority(a.priority);
   req.set_name(a.name.empty() ? fs::path(a.scene).filename().string() : a.name);
+  // Recorded with the job: `tessera watch JOB` without -o writes the frames there, as asked here.
+  if (!a.output.empty()) *req.mutable_output() = to_job_output(a.output, a.error_channels, a.color);
   return req;
 }
 
@@ -116,8 +119,12 @@ int run_submit(const SubmitArgs& a) {
               describe_sampling(st).c_str(), (long long)st.tiles_total());
   std::fflush(stdout);
   if (a.detach) {
-    std::printf("detached; get the frames with: tessera watch %s -o %s\n", st.job_id().c_str(),
-                a.output.empty() ? "OUT_####.exr" : a.output.c_str());
+    if (a.output.empty()) {
+      std::printf("detached; get the frames with: tessera watch %s -o OUT_####.exr\n", st.job_id().c_str());
+    } else {
+      std::printf("detached; get the frames (to %s, recorded with the job) with: tessera watch %s\n",
+                  req.output().pattern().c_str(), st.job_id().c_str());
+    }
     return 0;
   }
   return watch_job(client, st.job_id(), {a.output, req.name(), a.quiet, a.color, a.error_channels, a.preview_every});
@@ -129,7 +136,9 @@ void register_submit_command(CLI::App& app) {
   auto a = std::make_shared<SubmitArgs>();
   CLI::App* cmd = app.add_subcommand("submit", "Render a scene on the farm and write its frames");
   cmd->add_option("scene", a->scene, "Scene file: JSON, or glTF 2.0 (.gltf/.glb); see docs/scene-format.md")->required();
-  cmd->add_option("-o,--output", a->output, "Output EXR path; '#' runs become the frame number");
+  cmd->add_option("-o,--output", a->output,
+                  "Output EXR path; '#' runs become the frame number. Recorded with the job (with the output "
+                  "options below): `tessera watch JOB` writes there too");
   add_coordinator_option(cmd, &a->coordinator, &a->security);
   cmd->add_option("--frames", a->frames, "Frames A-B (inclusive) or A (default: all)");
   add_image_options(*cmd, a->image);

@@ -55,6 +55,25 @@ Status load_submitted_scene(BundleStore& store, const v1::SubmitJobRequest& req,
 
 // The job a submission asks for, from its request and its parsed scene: frames checked against the
 // scene, then the admission's checks that need the scene.
+// A recorded output is stored and shown to every client of the job: bounded, and a path a client
+// elsewhere can use (absolute: a relative one would land wherever the attaching client runs).
+Status check_output(const v1::JobOutput& o) {
+  constexpr size_t kMaxPattern = 4096, kMaxOption = 64;
+  const std::string& p = o.pattern();
+  if (p.empty() || p.front() != '/' || p.size() > kMaxPattern || p.find('\0') != std::string::npos) {
+    return Status(StatusCode::INVALID_ARGUMENT, "output.pattern: must be an absolute path of at most " +
+                                                    std::to_string(kMaxPattern) + " bytes, got '" +
+                                                    farm::peer_text(p, 200) + "'");
+  }
+  for (const std::string* option : {&o.tonemap(), &o.format(), &o.dither(), &o.exr_compression()}) {
+    if (option->size() > kMaxOption) {
+      return Status(StatusCode::INVALID_ARGUMENT, "output: an option of " + std::to_string(option->size()) +
+                                                      " bytes, over " + std::to_string(kMaxOption));
+    }
+  }
+  return Status::OK;
+}
+
 Status job_spec(const v1::SubmitJobRequest& req, const Scene& scene, const Admission& admission, int tile,
                 JobSpec* out) {
   JobSpec& spec = *out;
@@ -96,6 +115,10 @@ Status job_spec(const v1::SubmitJobRequest& req, const Scene& scene, const Admis
   }
   spec.passes = scene.image.frame_target();
   spec.overrides = resolved.SerializeAsString();
+  if (req.has_output()) {
+    if (Status s = check_output(req.output()); !s.ok()) return s;
+    spec.output = req.output().SerializeAsString();
+  }
   spec.tile_size = tile;
   spec.priority = req.priority();
   return Status::OK;

@@ -53,6 +53,7 @@ void job_status_proto(const JobSnapshot& s, v1::JobStatus* out) {
   out->set_error(s.error);
   for (const auto& w : s.blocklisted) out->add_blocklisted_workers(w);
   out->set_tiles_resident(s.tiles_resident);
+  if (!s.spec.output.empty()) out->mutable_output()->ParseFromString(s.spec.output);
   out->set_waiting_for_memory(s.waiting_for_memory);
 }
 

@@ -34,12 +34,12 @@ std::optional<JobState> parse_state(const std::string& s) {
 
 const char* const kJobColumns =
     "id, seq, name, bundle, overrides, first_frame, last_frame, width, height, spp, tile_size, priority, state, "
-    "error, submitted, ended, duplicates, rays, owner";
+    "error, submitted, ended, duplicates, rays, owner, output";
 
 const char* const kInsertJobSql =
     "INSERT OR REPLACE INTO jobs(id, seq, name, bundle, overrides, first_frame, last_frame, width, height, spp, "
-    "tile_size, priority, state, error, submitted, ended, duplicates, rays, owner) "
-    "VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13,?14,?15,?16,?17,?18,?19)";
+    "tile_size, priority, state, error, submitted, ended, duplicates, rays, owner, output) "
+    "VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13,?14,?15,?16,?17,?18,?19,?20)";
 
 const char* const kUpdateJobSql =
     "UPDATE jobs SET state=?2, error=?3, ended=?4, duplicates=?5, rays=?6, priority=?7 WHERE id=?1";
@@ -67,6 +67,7 @@ JobSnapshot read_job_row(sqlite3_stmt* st) {
   s.duplicates_discarded = sqlite3_column_int64(st, 16);
   s.rays = uint64_t(sqlite3_column_int64(st, 17));
   s.spec.owner = column_text(st, 18);
+  s.spec.output = column_blob(st, 19);
   s.tiles_per_frame = TileGrid(s.spec.width, s.spec.height, s.spec.tile_size).count();
   s.tiles_total = int64_t(s.spec.last_frame - s.spec.first_frame + 1) * s.tiles_per_frame;
   return s;
@@ -92,6 +93,7 @@ void bind_job_insert(sqlite3_stmt* st, const JobSnapshot& s) {
   sqlite3_bind_int64(st, 17, s.duplicates_discarded);
   sqlite3_bind_int64(st, 18, int64_t(s.rays));
   bind_text(st, 19, s.spec.owner);
+  sqlite3_bind_blob(st, 20, s.spec.output.data(), int(s.spec.output.size()), SQLITE_TRANSIENT);
 }
 
 void bind_job_update(sqlite3_stmt* st, const JobSnapshot& s) {

@@ -21,7 +21,7 @@ CREATE TABLE jobs(
   spp INTEGER NOT NULL, tile_size INTEGER NOT NULL, priority INTEGER NOT NULL,
   state TEXT NOT NULL, error TEXT NOT NULL DEFAULT '', submitted REAL NOT NULL, ended REAL,
   duplicates INTEGER NOT NULL DEFAULT 0, rays INTEGER NOT NULL DEFAULT 0,
-  resident INTEGER NOT NULL DEFAULT 1, owner TEXT NOT NULL DEFAULT '');
+  resident INTEGER NOT NULL DEFAULT 1, owner TEXT NOT NULL DEFAULT '', output BLOB NOT NULL DEFAULT x'');
 -- A row per finished tile; its pixels are the record at byte `offset` of tiles/<segment>.seg
 -- (payload `length` bytes) until the frame is acknowledged. Tiles without a row are queued (or
 -- were leased when the coordinator stopped).
@@ -80,6 +80,16 @@ void migrate_from_version_3(sqlite3* db, const std::string& name) {
   exec_sql(db, name, "UPDATE schema_version SET version=4");
   exec_sql(db, name, "COMMIT");
   spdlog::info("database {}: migrated schema version 3 to 4", name);
+}
+
+void migrate_from_version_4(sqlite3* db, const std::string& name) {
+  // Version 5 added jobs.output (a job's recorded output, a serialized JobOutput). Jobs stored
+  // by version 4 have none: a client attaching names where their frames go, as before.
+  exec_sql(db, name, "BEGIN");
+  exec_sql(db, name, "ALTER TABLE jobs ADD COLUMN output BLOB NOT NULL DEFAULT x''");
+  exec_sql(db, name, "UPDATE schema_version SET version=5");
+  exec_sql(db, name, "COMMIT");
+  spdlog::info("database {}: migrated schema version 4 to 5", name);
 }
 
 }  // namespace
@@ -150,6 +160,10 @@ void create_or_migrate_schema(sqlite3* db, const std::string& name) {
   if (version == 3) {
     migrate_from_version_3(db, name);
     version = 4;
+  }
+  if (version == 4) {
+    migrate_from_version_4(db, name);
+    version = 5;
   }
   if (version != kStoreSchemaVersion) {
     throw std::runtime_error("the database " + name + " has schema version " + std::to_string(version) +

@@ -15,7 +15,7 @@ namespace tessera::server {
 // 3: jobs.owner and the blocklist table.
 // 4: the job_summaries table: evicted jobs shed their tile and frame rows (versions 2 and 3 are
 //    migrated).
-constexpr int kStoreSchemaVersion = 4;
+constexpr int kStoreSchemaVersion = 5;
 
 // PRAGMA quick_check: a file that is not a database, or a damaged one, stops the coordinator at
 // start with the file's name, instead of losing jobs later. Throws std::runtime_error naming

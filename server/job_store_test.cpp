@@ -477,11 +477,12 @@ TEST_F(JobStoreTest, SchemaVersionTwoIsMigratedKeepingItsJobs) {
     store.job_submitted(job("j1", 1));
     ASSERT_EQ(store.barrier().get(), "");
   }
-  // Make it a version-2 database: the same tables without jobs.owner.
+  // Make it a version-2 database: the same tables without jobs.owner (and what versions 4 and 5
+  // added: job_summaries, jobs.output); the migrations run 2 -> 3 -> 4 -> 5.
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open((dir / "tessera.db").c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db, "ALTER TABLE jobs DROP COLUMN owner; DROP TABLE blocklist; DROP TABLE job_summaries; "
-                         "UPDATE schema_version SET version=2",
+  ASSERT_EQ(sqlite3_exec(db, "ALTER TABLE jobs DROP COLUMN output; ALTER TABLE jobs DROP COLUMN owner; "
+                         "DROP TABLE blocklist; DROP TABLE job_summaries; UPDATE schema_version SET version=2",
                          nullptr, nullptr, nullptr),
             SQLITE_OK)
       << sqlite3_errmsg(db);
@@ -493,7 +494,9 @@ TEST_F(JobStoreTest, SchemaVersionTwoIsMigratedKeepingItsJobs) {
     EXPECT_EQ(l.jobs[0].id, "j1");
     EXPECT_EQ(l.jobs[0].spec.owner, "");  // version 2 stored none: the job counts for no client
     EXPECT_EQ(l.jobs[0].spec.priority, 7);
+    EXPECT_EQ(l.jobs[0].spec.output, "");  // nor an output
     JobSnapshot j2 = job("j2", 2);
+    j2.spec.output = std::string("recorded\0output", 15);  // opaque bytes, NULs included
     store.job_submitted(j2);
     store.worker_blocklisted("j1", "bad");  // the migration created the blocklist table
     ASSERT_EQ(store.barrier().get(), "");
@@ -503,6 +506,7 @@ TEST_F(JobStoreTest, SchemaVersionTwoIsMigratedKeepingItsJobs) {
   ASSERT_EQ(l.jobs.size(), 2u);
   EXPECT_EQ(l.jobs[0].blocklisted, std::vector<std::string>{"bad"});
   EXPECT_EQ(l.jobs[1].spec.owner, "ipv4:127.0.0.1");
+  EXPECT_EQ(l.jobs[1].spec.output, std::string("recorded\0output", 15));
   ASSERT_EQ(sqlite3_open((dir / "tessera.db").c_str(), &db), SQLITE_OK);
   sqlite3_stmt* st = nullptr;
   sqlite3_prepare_v2(db, "SELECT version FROM schema_version", -1, &st, nullptr);

@@ -44,6 +44,7 @@ struct JobSpec {
   int tile_size = 32;
   int priority = 0;        // higher first; ties in submit order
   std::string owner;       // the submitting client's identity (request_limits.h); opaque here
+  std::string output;      // where a client writes its frames (a serialized JobOutput); opaque here
   // A frame-target job (docs/farm.md, "Frame targets"): each frame's tiles are rendered in passes
   // that the PassPlanner plans, and its tiles are reported finished (tile_finished, then
   // frame_finished) only when its last pass ends. Not stored: the coordinator derives it from the
