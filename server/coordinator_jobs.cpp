@@ -92,6 +92,13 @@ Status job_spec(const v1::SubmitJobRequest& req, const Scene& scene, const Admis
   if (admission.check) {
     if (Status s = admission.check(scene, spec.first_frame, spec.last_frame, tile); !s.ok()) return s;
   }
+  if (scene.image.sampler == SamplerKind::kLattice) {
+    // Its pilot is a whole-frame lattice the farm's passes do not plan: workers would render the
+    // tiles with the default sampler, a different frame from the one `tessera render` makes.
+    return Status(StatusCode::INVALID_ARGUMENT,
+                  "sampler lattice: renders in-process only (tessera render); the farm's passes do not plan it. "
+                  "Submit with --sampler sobol (the default)");
+  }
   spec.owner = admission.owner;
   spec.name = req.name();
   spec.bundle_sha256 = req.bundle_sha256();

@@ -105,6 +105,21 @@ TEST(FarmAdaptive, TargetErrorJobIsBitIdenticalToRenderThroughAWorkerDeath) {
   EXPECT_EQ(nlohmann::json::parse(st.output).at("block_rmse").get<double>(), 0.01);
 }
 
+// The lattice sampler renders in-process only: a farm job asking for it is refused at submit,
+// naming it, rather than rendered with another sampler into a frame `tessera render` would not
+// make.
+TEST(FarmAdaptive, TheLatticeSamplerIsRefusedAtSubmitByName) {
+  Farm farm;
+  farm.start_server();
+  CliResult r = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--detach", "--target-rmse",
+                          "0.02", "--sampler", "lattice"});
+  EXPECT_NE(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("sampler lattice: renders in-process only"), std::string::npos) << r.output;
+  CliResult list = farm.cli({"status", "--json", "--coordinator", farm.address()});
+  ASSERT_EQ(list.code, 0) << list.output;
+  EXPECT_EQ(nlohmann::json::parse(list.output).size(), 0u) << list.output;
+}
+
 TEST(FarmAdaptive, TargetFromTheSceneFileReachesTheWorkersAndWatch) {
   // The target written in the scene file, not on the command line: the coordinator resolves it
   // into the job's settings, so `tessera watch` (which has no scene) reports against it.
