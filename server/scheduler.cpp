@@ -97,9 +97,7 @@ Scheduler::CancelResult Scheduler::cancel(const JobId& id) {
   Job* job = find_job(id);
   if (!job) return CancelResult::kUnknownJob;
   if (job_ended(job->state)) return CancelResult::kAlreadyEnded;
-  job->requeued.clear();
-  job->fresh = 0;
-  update_runnable(*job);
+  clear_queue(*job);
   // Revoke every active lease of the job: results that still arrive are stale and ignored.
   std::vector<LeaseId> active;
   for (const auto& [lid, lease] : leases_) {
@@ -132,6 +130,7 @@ Scheduler::AckResult Scheduler::acknowledge_frame(const JobId& id, int frame) {
   if (!fr.acknowledged) {
     fr.acknowledged = true;
     drop_frame_tiles(*job, fr);  // the client has them: free the pixels and the frame's table
+    memory_freed();
     events().frame_acknowledged(id, frame);
   }
   return AckResult::kAcknowledged;
@@ -503,9 +502,7 @@ void Scheduler::count_refused(WorkerId worker) {
 }
 
 void Scheduler::fail_job(Job& job, const std::string& error) {
-  job.requeued.clear();
-  job.fresh = 0;
-  update_runnable(job);
+  clear_queue(job);
   std::vector<LeaseId> active;
   for (const auto& [lid, lease] : leases_) {
     if (lease.tile.job == job.id) active.push_back(lid);

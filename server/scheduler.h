@@ -381,7 +381,6 @@ class Scheduler {
     // speculative copy. Kept up to date by issue()/end_lease() so speculation never scans leases_.
     std::set<LeaseId> single_copies;
     int64_t tiles_resident = 0;  // tiles of its laid-out frames (what tiles_held() counts)
-    bool waiting_for_memory = false;  // see JobSnapshot::waiting_for_memory
   };
   struct Worker {
     WorkerStats stats;
@@ -412,9 +411,12 @@ class Scheduler {
   std::optional<std::pair<int, int>> take_queued(Job& job);
   bool has_queued(const Job& job) const { return !job.requeued.empty() || job.fresh > 0; }
   void lay_out_frame(Job& job, Frame& frame);
-  // Frees a frame's tile table; jobs waiting for memory are looked at again.
+  // Frees a frame's tile table. The caller calls memory_freed() once it has dropped what it drops.
   void drop_frame_tiles(Job& job, Frame& frame);
+  // Looks again at the jobs waiting for memory.
   void memory_freed();
+  // Nothing of the job is queued any more (cancelled, failed, or ended unfinished).
+  void clear_queue(Job& job);
   std::optional<Assignment> next_for(Worker& w);
   bool blocked(const Job& job, const Worker& w) const { return job.blocklisted.count(w.stats.info.name) > 0; }
   int credit(const Worker& w) const;
@@ -459,7 +461,7 @@ class Scheduler {
   std::vector<JobId> job_order_;      // submit order
   std::set<QueueKey> runnable_;       // jobs with queued tiles
   std::set<JobId> speculable_;        // jobs with a non-empty single_copies
-  std::set<JobId> waiting_for_memory_;  // live jobs whose next frame does not fit (Job::waiting_for_memory)
+  std::set<JobId> waiting_for_memory_;  // live jobs whose next frame does not fit (JobSnapshot::waiting_for_memory)
   std::map<WorkerId, Worker> workers_;
   int64_t threads_total_ = 0;         // threads of every connected worker (each clamped as credit() does)
   std::set<WorkerId> wanting_;        // workers with a standing request and credit left: dispatch() looks only here

@@ -27,7 +27,6 @@ void Scheduler::drop_frame_tiles(Job& job, Frame& frame) {
   job.tiles_resident -= int64_t(frame.tiles.size());
   tiles_held_ -= int64_t(frame.tiles.size());
   std::vector<Tile>().swap(frame.tiles);  // clear() would keep the capacity
-  memory_freed();
 }
 
 void Scheduler::memory_freed() {
@@ -73,16 +72,22 @@ std::optional<std::pair<int, int>> Scheduler::take_queued(Job& job) {
   return std::pair{job.next_frame, job.next_tile++};
 }
 
-void Scheduler::release_unfinished(Job& job) {
+void Scheduler::clear_queue(Job& job) {
   job.requeued.clear();
   job.fresh = 0;
+  update_runnable(job);
+}
+
+void Scheduler::release_unfinished(Job& job) {
+  const int64_t held = job.tiles_resident;
   for (Frame& fr : job.frames) {
     if (fr.final || fr.released) continue;
     fr.done = 0;
     fr.released = true;
     drop_frame_tiles(job, fr);
   }
-  update_runnable(job);
+  clear_queue(job);
+  if (job.tiles_resident < held) memory_freed();
 }
 
 void Scheduler::update_runnable(Job& job) {
@@ -99,7 +104,6 @@ void Scheduler::update_runnable(Job& job) {
   } else {
     runnable_.erase(queue_key(job));
   }
-  job.waiting_for_memory = waiting;
   if (waiting) {
     waiting_for_memory_.insert(job.id);
   } else {

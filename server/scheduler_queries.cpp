@@ -12,7 +12,7 @@ JobSnapshot Scheduler::snapshot(const Job& job) const {
   s.tiles_total = int64_t(job.frames.size()) * s.tiles_per_frame;
   s.tiles_done = job.tiles_done;
   s.tiles_resident = job.tiles_resident;
-  s.waiting_for_memory = job.waiting_for_memory;
+  s.waiting_for_memory = waiting_for_memory_.count(job.id) > 0;
   s.rays = job.rays;
   s.tile_seconds = job.tile_seconds;
   s.blocklisted.assign(job.blocklisted.begin(), job.blocklisted.end());
