@@ -55,7 +55,8 @@ nlohmann::json job_json(const v1::JobStatus& j) {
            std::vector<std::string>(j.blocklisted_workers().begin(), j.blocklisted_workers().end())},
           {"tiles_resident", j.tiles_resident()},
           {"waiting_for_memory", j.waiting_for_memory()},
-          {"output", job_output_json(j)}};
+          {"output", job_output_json(j)},
+          {"owner", j.owner()}};
 }
 
 void print_job(const v1::JobStatus& j) {
@@ -73,7 +74,7 @@ void print_job(const v1::JobStatus& j) {
 }
 
 // The one job asked for, or every job on the coordinator.
-std::vector<v1::JobStatus> fetch_jobs(FarmClient& client, const std::string& job) {
+std::vector<v1::JobStatus> fetch_jobs(FarmClient& client, const std::string& job, v1::DeliveryBacklog* backlog) {
   std::vector<v1::JobStatus> jobs;
   if (!job.empty()) {
     jobs.push_back(get_job(client, job));
@@ -83,13 +84,15 @@ std::vector<v1::JobStatus> fetch_jobs(FarmClient& client, const std::string& job
     grpc::Status s = client.stub().ListJobs(ctx.get(), {}, &resp);
     if (!s.ok()) throw CommandError{kExitFailure, client.describe(s, "listing jobs")};
     jobs.assign(resp.jobs().begin(), resp.jobs().end());
+    *backlog = resp.delivery();
   }
   return jobs;
 }
 
 int run_status(const JobArgs& a) {
   FarmClient client = connect(a.coordinator, a.security);
-  const std::vector<v1::JobStatus> jobs = fetch_jobs(client, a.job);
+  v1::DeliveryBacklog backlog;
+  const std::vector<v1::JobStatus> jobs = fetch_jobs(client, a.job, &backlog);
   if (a.json) {
     nlohmann::json out = nlohmann::json::array();
     for (const auto& j : jobs) out.push_back(job_json(j));
@@ -103,6 +106,15 @@ int run_status(const JobArgs& a) {
   std::printf("%-14s %-10s %5s  %-11s %-11s %6s  %-15s %9s  %s\n", "JOB", "STATE", "PRIO", "FRAMES", "SIZE", "SPP",
               "TILES", "ELAPSED", "NAME");
   for (const auto& j : jobs) print_job(j);
+  if (backlog.frames() > 0) {
+    char limit[64] = "no limit";
+    if (backlog.limit_bytes()) std::snprintf(limit, sizeof limit, "%.3g GB", double(backlog.limit_bytes()) / 1e9);
+    std::printf("undelivered: %lld finished frames (%.2f GB) of jobs with a recorded output, the oldest finished %s "
+                "ago; kept until `tessera collect` or `tessera watch JOB` writes them (new jobs are refused at %s)\n",
+                (long long)backlog.frames(), double(backlog.bytes()) / 1e9,
+                format_duration(backlog.oldest_seconds()).c_str(),
+                limit);
+  }
   return 0;
 }
 

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   tessera::cli::register_color_commands(app);
   tessera::cli::register_submit_command(app);
   tessera::cli::register_watch_command(app);
+  tessera::cli::register_collect_command(app);
   tessera::cli::register_job_commands(app);
   tessera::cli::register_listing_commands(app);
   tessera::cli::register_health_command(app);

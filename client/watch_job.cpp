@@ -111,6 +111,7 @@ grpc::Status JobWatch::read_stream(bool* ended) {
   v1::WatchJobRequest req;
   req.set_job_id(job_id_);
   req.set_tile_batches(true);
+  req.set_deliver_frames(!o_.output.empty());
   auto stream = client_.stub().WatchJob(ctx.get(), req);
   v1::WatchJobEvent ev;
   v1::TileData tile;
@@ -279,6 +280,7 @@ void check_output_writable(const std::string& pattern, int frame) {
 }
 
 int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions& o) {
+  if (!o.interrupt_notice) return JobWatch(client, job_id, o).run();
   say_on_interrupt(interrupt_notice(job_id, client.address(), o.output));
   struct Ended {
     ~Ended() { say_on_interrupt(""); }  // a watch that has ended has nothing to say

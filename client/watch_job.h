@@ -21,6 +21,9 @@ struct WatchOptions {
   color::OutputOptions color;  // tone mapping / format when the output is not a float EXR
   bool error_channels = false;  // error.Y and spp.Y layers in each EXR
   double preview_every = 0;     // seconds between previews of frames in progress; 0: none
+  // What an interrupt says: how to come back to this job (false: the caller says something else,
+  // as `tessera collect` does for its many jobs).
+  bool interrupt_notice = true;
 };
 
 // Adds --error-channels and --preview-every, the frame output flags of `submit` and `watch`.
@@ -31,6 +34,9 @@ void add_frame_output_options(CLI::App* cmd, bool* error_channels, double* previ
 void check_output_writable(const std::string& pattern, int frame);
 
 // Watches the job to its end; returns the exit code (0 done, kExitCancelled) or throws CommandError.
+// With an output the watch is a deliverer (WatchJobRequest.deliver_frames): it is sent the frames
+// the coordinator leases to it, writes and acknowledges them, and ends once every finished frame of
+// the ended job is delivered, by it or by another client.
 int watch_job(FarmClient& client, const std::string& job_id, const WatchOptions& o);
 
 }  // namespace tessera::cli

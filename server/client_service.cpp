@@ -138,7 +138,7 @@ class WatchReactor : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
     } else {
       sink_->box.set_batching(tile_event, 1, kMaxBatchBytes);
     }
-    Status s = coord_.attach_watcher(req.job_id(), sink_);
+    Status s = coord_.attach_watcher(req.job_id(), sink_, req.deliver_frames());
     if (!s.ok()) {
       sink_->finish(s);
       sink_->pump();

@@ -5,12 +5,18 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+
 namespace tessera::server {
 
 namespace v1 = tessera::v1;
 
 Coordinator::Coordinator(CoordinatorOptions options, BundleStore& store, JobStore* jobs)
-    : options_(options), store_(store), jobs_store_(jobs), scheduler_(options.scheduler) {
+    : options_(options),
+      store_(store),
+      jobs_store_(jobs),
+      scheduler_(options.scheduler),
+      deliveries_(options.delivery_lease) {
   scheduler_.set_listener(this);
   scheduler_.set_pass_planner([this](const JobId& job, int frame, int passes,
                                      const std::vector<const TileOutput*>& outputs) {
@@ -58,6 +64,12 @@ void Coordinator::restore_locked() {
     }
     // restore() settles a job whose last tile was committed but not its state change.
     jobs_store_->job_updated(*s);
+    // Its undelivered frames; when they finished is not stored: from the job's end, else now.
+    for (int f : s->frames_done) {
+      if (std::find(s->frames_acknowledged.begin(), s->frames_acknowledged.end(), f) == s->frames_acknowledged.end()) {
+        frame_undelivered_locked(id, f, s->ended.value_or(Clock::now()));
+      }
+    }
   }
   spdlog::info("restored {} jobs from {} ({} still to render, {} finished tiles); {} leases in flight at the last "
                "stop requeued; {} orphan tile files removed{}",
@@ -106,12 +118,17 @@ void Coordinator::expiry_loop() {
     locked([this] {
       scheduler_.expire();  // worker_left() finishes the dropped workers' streams
       dispatch_locked();
+      expire_deliveries_locked();
       evict_expired_locked();
     });
   }
 }
 
 void Coordinator::evict_locked(const JobId& id, const char* why) {
+  finish_watchers_locked(id, true);  // deliverers still attached hear the final state
+  deliveries_.forget(id);
+  undelivered_.forget(id);
+  kept_for_delivery_.erase(id);
   if (!scheduler_.forget(id)) return;
   ended_.erase(id);
   if (jobs_store_) jobs_store_->job_evicted(id);
@@ -122,7 +139,18 @@ void Coordinator::evict_expired_locked() {
   const TimePoint cutoff = Clock::now() - options_.retention;
   std::vector<JobId> old;
   for (const auto& [id, t] : ended_) {
-    if (t < cutoff) old.push_back(id);
+    if (t >= cutoff) continue;
+    // Frames that have a place to go are not deleted because nobody took them: they stay, counted
+    // against --max-undelivered-gb and reported, until a deliverer writes them.
+    if (undelivered_.holds(id)) {
+      if (kept_for_delivery_.insert(id).second) {
+        spdlog::warn("job {} ended more than the retention time ago, but finished frames of it with a recorded output "
+                     "were never delivered: they are kept until `tessera collect` or `tessera watch {}` writes them",
+                     id, id);
+      }
+      continue;
+    }
+    old.push_back(id);
   }
   for (const JobId& id : old) evict_locked(id, "retention time passed");
 }
@@ -143,6 +171,7 @@ FarmSnapshot Coordinator::snapshot() {
     f.jobs = scheduler_.jobs();
     f.workers = scheduler_.workers();
     f.tiles_queued = scheduler_.queued_tiles();
+    f.delivery = delivery_backlog_locked();
     for (const auto& [job, sink] : watchers_) f.watch_backlog += sink->queued();
     return f;
   });

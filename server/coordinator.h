@@ -33,6 +33,7 @@
 
 #include "bundle_store.h"
 #include "coordinator_messages.h"
+#include "delivery_leases.h"
 #include "farm_control.h"
 #include "frame_passes.h"
 #include "job_store.h"
@@ -41,6 +42,7 @@
 #include "scheduler.h"
 #include "scene/scene.h"
 #include "stream_sink.h"
+#include "undelivered_frames.h"
 #include "tessera/v1/client_service.pb.h"
 #include "tessera/v1/worker_service.pb.h"
 
@@ -72,6 +74,12 @@ struct CoordinatorOptions {
   // restored but failed, by name. 0: no limit.
   int64_t max_resident_tiles = 0;
   int64_t max_job_tiles = 0;
+  // Delivery (docs/farm.md, "Delivery"): a deliverer that was sent a whole frame and has not
+  // acknowledged it this long after loses it to another deliverer of the job, if there is one.
+  std::chrono::milliseconds delivery_lease{std::chrono::minutes(2)};
+  // Finished frames of jobs with a recorded output are kept until delivered, past `retention`; new
+  // jobs are refused once their encoded bytes reach this. 0: no limit.
+  uint64_t max_undelivered_bytes = 0;
 };
 
 // What a submission must satisfy besides naming a valid scene, and whose it is. The scene is
@@ -109,6 +117,7 @@ class Coordinator : private SchedulerListener, public FarmControl {
   // The identity that submitted the job (JobSpec::owner; "" for jobs of older databases), in
   // memory or evicted; nullopt for an unknown job.
   std::optional<std::string> job_owner(const std::string& id) override;
+  // Every job in memory, and the delivery backlog.
   void list_jobs(tessera::v1::ListJobsResponse* out);
   grpc::Status cancel(const std::string& id, tessera::v1::JobStatus* out) override;
   grpc::Status ack_frame(const std::string& id, int frame);
@@ -118,7 +127,10 @@ class Coordinator : private SchedulerListener, public FarmControl {
   grpc::Status set_priority(const std::string& id, int priority, tessera::v1::JobStatus* out) override;
   // Queues the job's status and every unacknowledged finished tile into `sink`, then keeps it
   // attached for new tiles until the job ends. NOT_FOUND for an unknown job.
-  grpc::Status attach_watcher(const std::string& id, std::shared_ptr<WatchSink> sink);
+  // `deliver`: the stream writes frames and acknowledges them (WatchJobRequest.deliver_frames): it
+  // gets only the frames it holds a delivery lease on, and stays attached after the job ended
+  // until every finished frame is acknowledged.
+  grpc::Status attach_watcher(const std::string& id, std::shared_ptr<WatchSink> sink, bool deliver = false);
   void detach_watcher(const std::shared_ptr<WatchSink>& sink);
   // A throttled watch stream is down to half its backlog bound: release its job if no other
   // stream of it is still behind. Called by the stream, without locks.
@@ -182,7 +194,24 @@ class Coordinator : private SchedulerListener, public FarmControl {
   grpc::Status durable(grpc::Status s, const std::string& what);
   void evict_expired_locked();
   std::optional<JobSnapshot> evicted_job(const std::string& id);  // without mu_
-  grpc::Status attach_resident(const std::string& id, const std::shared_ptr<WatchSink>& sink);
+  grpc::Status attach_resident(const std::string& id, const std::shared_ptr<WatchSink>& sink, bool deliver);
+  // Delivery (coordinator_delivery.cpp). The frame's finished tiles, and its frame_done when it is
+  // final, into the stream that holds its delivery lease.
+  void send_frame_locked(const JobId& job, const std::shared_ptr<WatchSink>& sink, int frame);
+  std::shared_ptr<WatchSink> watcher_locked(const JobId& job, DeliveryLeases::Deliverer d) const;
+  // Frames held by nobody (their deliverer went, or overdue) go to another deliverer of the job.
+  void reassign_frames_locked(const JobId& job, const std::vector<int>& frames);
+  void expire_deliveries_locked();
+  // A finished tile / frame, to the spectators and to the frame's deliverer.
+  void route_tile_locked(const TileKey& key, const TileOutput& out);
+  void route_frame_done_locked(const JobId& job, int frame);
+  // The final status into the job's streams, and their end: spectators when the job ends,
+  // deliverers once no finished frame waits for delivery (`all`: every stream, the job leaves).
+  void finish_watchers_locked(const JobId& job, bool all);
+  bool delivered_locked(const JobId& job) const;  // ended, every finished frame acknowledged
+  void frame_undelivered_locked(const JobId& job, int frame, TimePoint finished);
+  tessera::v1::DeliveryBacklog delivery_backlog_locked() const;
+  grpc::Status undelivered_limit_locked() const;
   grpc::Status set_priority_resident(const std::string& id, int priority, tessera::v1::JobStatus* out);
   // Queues a finished tile into a watch stream (shared encoded bytes, parsed when written) and
   // holds the job when that stream's backlog reaches the bound.
@@ -204,6 +233,9 @@ class Coordinator : private SchedulerListener, public FarmControl {
   };
   std::map<WorkerId, WorkerStream> workers_;
   std::multimap<JobId, std::shared_ptr<WatchSink>> watchers_;
+  DeliveryLeases deliveries_;       // which deliverer stream writes which finished frame
+  UndeliveredFrames undelivered_;   // finished frames of jobs with an output, not yet delivered
+  std::set<JobId> kept_for_delivery_;  // past retention, kept for their undelivered frames (logged once)
   std::map<JobId, TimePoint> ended_;  // ended jobs still in memory (retention)
   std::map<JobId, TimePoint> awaiting_first_tile_;  // submit time, until the first tile (logged)
   PeerWarnings peer_warnings_;  // what workers sent wrong, one line a second each

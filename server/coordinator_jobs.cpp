@@ -161,6 +161,7 @@ Status Coordinator::submit(const v1::SubmitJobRequest& req, v1::JobStatus* out, 
   const JobId id = locked([&]() -> JobId {
     // A job holds a frame's tiles in memory from its first tile on: one that could not start its
     // first frame now is refused rather than queued behind frames nobody has received.
+    if (refused = undelivered_limit_locked(); !refused.ok()) return {};
     const int64_t held = scheduler_.tiles_held();
     if (options_.max_resident_tiles > 0 && held + frame_tiles > options_.max_resident_tiles) {
       refused = farm::over_limit(StatusCode::RESOURCE_EXHAUSTED,
@@ -243,6 +244,7 @@ std::optional<std::string> Coordinator::job_owner(const std::string& id) {
 void Coordinator::list_jobs(v1::ListJobsResponse* out) {
   locked([&] {
     for (const auto& s : scheduler_.jobs()) job_status_proto(s, out->add_jobs());
+    *out->mutable_delivery() = delivery_backlog_locked();
   });
 }
 

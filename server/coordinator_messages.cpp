@@ -54,6 +54,7 @@ void job_status_proto(const JobSnapshot& s, v1::JobStatus* out) {
   for (const auto& w : s.blocklisted) out->add_blocklisted_workers(w);
   out->set_tiles_resident(s.tiles_resident);
   if (!s.spec.output.empty()) out->mutable_output()->ParseFromString(s.spec.output);
+  out->set_owner(s.spec.owner);
   out->set_waiting_for_memory(s.waiting_for_memory);
 }
 

@@ -14,8 +14,8 @@ namespace v1 = tessera::v1;
 using grpc::Status;
 using grpc::StatusCode;
 
-Status Coordinator::attach_watcher(const std::string& id, std::shared_ptr<WatchSink> sink) {
-  Status st = attach_resident(id, sink);
+Status Coordinator::attach_watcher(const std::string& id, std::shared_ptr<WatchSink> sink, bool deliver) {
+  Status st = attach_resident(id, sink, deliver);
   if (st.error_code() != StatusCode::NOT_FOUND) return st;
   // Evicted: ended, and its frames delivered. The final status is all there is to send.
   if (auto old = evicted_job(id)) {
@@ -29,13 +29,31 @@ Status Coordinator::attach_watcher(const std::string& id, std::shared_ptr<WatchS
   return st;
 }
 
-Status Coordinator::attach_resident(const std::string& id, const std::shared_ptr<WatchSink>& sink) {
+Status Coordinator::attach_resident(const std::string& id, const std::shared_ptr<WatchSink>& sink, bool deliver) {
   return locked([&] {
     auto s = scheduler_.job(id);
     if (!s) return Status(StatusCode::NOT_FOUND, "no job '" + id + "' on this coordinator");
     v1::WatchJobEvent ev;
     job_status_proto(*s, ev.mutable_status());
     sink->push(ev);
+    if (deliver) {
+      // A deliverer gets the frames no other deliverer holds, and stays until every finished
+      // frame is delivered, by it or by another (a frame another holds comes back if it goes).
+      deliveries_.add(id, sink.get());
+      std::set<int> frames;  // unacknowledged, with finished tiles
+      for (const auto& [key, output] : scheduler_.finished_tiles(id)) frames.insert(key.frame);
+      for (int f : frames) {
+        if (deliveries_.assign(id, f) == sink.get()) send_frame_locked(id, sink, f);
+      }
+      if (job_ended(s->state) && delivered_locked(id)) {
+        deliveries_.remove(id, sink.get());
+        sink->finish(Status::OK);
+      } else {
+        watchers_.emplace(id, sink);
+      }
+      touched_watchers_.push_back(sink);
+      return Status::OK;
+    }
     // Every finished tile not yet acknowledged, frame by frame, each complete frame closed by
     // frame_done: a client that re-attaches gets exactly what it is missing.
     const std::set<int> done(s->frames_done.begin(), s->frames_done.end());
@@ -73,6 +91,16 @@ void Coordinator::detach_watcher(const std::shared_ptr<WatchSink>& sink) {
       } else {
         ++it;
       }
+    }
+    // A deliverer that went (killed, disconnected) loses its frames to the job's other deliverers.
+    for (const JobId& job : jobs) {
+      if (!deliveries_.delivers(job, sink.get())) continue;
+      const std::vector<int> freed = deliveries_.remove(job, sink.get());
+      if (!freed.empty()) {
+        spdlog::info("job {}: a deliverer went with {} frames undelivered; they go to another deliverer if one is "
+                     "attached", job, freed.size());
+      }
+      reassign_frames_locked(job, freed);
     }
     // A stream that held its job back no longer does once it is gone.
     if (sink->throttled.exchange(false)) {

@@ -28,6 +28,7 @@ struct FarmSnapshot {
   std::vector<WorkerStats> workers;
   size_t tiles_queued = 0;
   size_t watch_backlog = 0;           // messages queued and unwritten over every watch stream
+  tessera::v1::DeliveryBacklog delivery;  // finished frames of jobs with an output, not yet delivered
   JobStoreStats store;                // zero without a job store
 };
 

@@ -46,6 +46,8 @@ struct ServerFlags {
   bool no_speculation = false;
   int max_faults = 3;
   double retention_hours = 24;
+  double max_undelivered_gb = 100;
+  int delivery_lease_s = 120;
   size_t watch_backlog_tiles = CoordinatorOptions{}.watch_backlog_tiles;
   int commit_window_ms = int(tessera::server::JobStore::kDefaultCommitWindow.count());
   std::string http_listen;
@@ -75,8 +77,17 @@ std::optional<int> parse_flags(int argc, char** argv, ServerFlags& f) {
   app.add_option("--max-faults", f.max_faults, "Bad results after which a worker gets no more tiles of that job")
       ->check(CLI::Range(1, 1000))->capture_default_str();
   app.add_option("--retention-hours", f.retention_hours,
-                 "Ended jobs whose frames no client took leave memory after this long (they stay in the database)")
+                 "Ended jobs whose frames no client took leave memory after this long (they stay in the database); "
+                 "finished frames of jobs with a recorded output (submit -o) stay until delivered")
       ->check(CLI::Range(0.0, 24.0 * 3650))->capture_default_str();
+  app.add_option("--max-undelivered-gb", f.max_undelivered_gb,
+                 "Refuse new jobs while finished frames of jobs with a recorded output, not yet delivered by "
+                 "`tessera collect` or `tessera watch`, take this many GB of encoded tiles (0: no limit)")
+      ->check(CLI::Range(0.0, 1e9))->capture_default_str();
+  app.add_option("--delivery-lease-s", f.delivery_lease_s,
+                 "A deliverer that received a whole frame and has not acknowledged it after this many seconds "
+                 "loses it to another deliverer of the job")
+      ->check(CLI::Range(1, 86400))->capture_default_str();
   app.add_option("--watch-backlog-tiles", f.watch_backlog_tiles,
                  "Hold a job (no new leases) while one of its watch streams has this many tiles unsent; "
                  "bounds the coordinator's memory for slow clients (0: no bound)")
@@ -123,6 +134,8 @@ CoordinatorOptions coordinator_options(const ServerFlags& f) {
   opts.scheduler.stall_timeout = std::chrono::milliseconds(f.stall_timeout_ms);
   opts.scheduler.max_faults = f.max_faults;
   opts.retention = std::chrono::seconds(int64_t(f.retention_hours * 3600));
+  opts.max_undelivered_bytes = uint64_t(f.max_undelivered_gb * 1e9);
+  opts.delivery_lease = std::chrono::seconds(f.delivery_lease_s);
   opts.watch_backlog_tiles = f.watch_backlog_tiles;
   opts.max_message_bytes = f.limits.max_message_bytes;
   opts.max_resident_tiles = f.limits.max_resident_tiles;

@@ -338,6 +338,10 @@ class Scheduler {
   // Every final, unacknowledged tile of the job, by frame then tile (for a client attaching): see
   // deliverable(), the one rule for what may reach a client.
   std::vector<std::pair<TileKey, TileOutput>> finished_tiles(const JobId& id) const;
+  // The same, of one frame (absolute number).
+  std::vector<std::pair<TileKey, TileOutput>> finished_tiles(const JobId& id, int frame) const;
+  // Has every tile of the frame its final result?
+  bool frame_final(const JobId& id, int frame) const;
   std::optional<TileRect> tile_rect(const JobId& id, int frame, int tile) const;
   size_t queued_tiles() const;
 

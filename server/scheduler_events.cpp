@@ -43,16 +43,7 @@ void Coordinator::job_state_changed(const JobId& id, JobState state) {
   } else {
     spdlog::info("job {} {}", id, job_state_name(state));
   }
-  if (!job_ended(state)) return;
-  auto [b, e] = watchers_.equal_range(id);
-  for (auto it = b; it != e; ++it) {
-    v1::WatchJobEvent ev;
-    job_status_proto(*s, ev.mutable_status());
-    it->second->push(ev);
-    it->second->finish(Status::OK);
-    touched_watchers_.push_back(it->second);
-  }
-  watchers_.erase(id);
+  if (job_ended(state)) finish_watchers_locked(id, false);  // deliverers stay for what is undelivered
 }
 
 void Coordinator::job_priority_changed(const JobId& id, int priority) {
@@ -99,21 +90,15 @@ void Coordinator::tile_finished(const TileKey& key, const TileOutput& out, Worke
                  std::chrono::duration<double>(Clock::now() - it->second).count());
     awaiting_first_tile_.erase(it);
   }
-  auto [b, e] = watchers_.equal_range(key.job);
-  for (auto it = b; it != e; ++it) push_tile_locked(key.job, it->second, out.payload);
+  route_tile_locked(key, out);
 }
 
 void Coordinator::frame_finished(const JobId& id, int frame) {
   notify([&](SchedulerListener& o) { o.frame_finished(id, frame); });
 
   spdlog::info("job {} frame {} finished", id, frame);
-  auto [b, e] = watchers_.equal_range(id);
-  for (auto it = b; it != e; ++it) {
-    v1::WatchJobEvent ev;
-    ev.set_frame_done(frame);
-    it->second->push(ev);
-    touched_watchers_.push_back(it->second);
-  }
+  frame_undelivered_locked(id, frame, Clock::now());
+  route_frame_done_locked(id, frame);
 }
 
 void Coordinator::frame_acknowledged(const JobId& id, int frame) {
@@ -123,6 +108,9 @@ void Coordinator::frame_acknowledged(const JobId& id, int frame) {
     if (const int n = scheduler_.tiles_per_frame(id)) jobs_store_->frame_acknowledged(id, frame, n);
   }
   spdlog::info("job {} frame {} delivered to the client; its tiles are released", id, frame);
+  deliveries_.acknowledged(id, frame);
+  undelivered_.remove(id, frame);
+  if (delivered_locked(id)) finish_watchers_locked(id, true);
 }
 
 void Coordinator::worker_joined(const WorkerStats& w) {

@@ -80,6 +80,27 @@ std::vector<std::pair<TileKey, TileOutput>> Scheduler::finished_tiles(const JobI
   return out;
 }
 
+std::vector<std::pair<TileKey, TileOutput>> Scheduler::finished_tiles(const JobId& id, int frame) const {
+  std::vector<std::pair<TileKey, TileOutput>> out;
+  const Job* job = find_job(id);
+  if (!job) return out;
+  const int fi = frame - job->spec.first_frame;
+  if (fi < 0 || fi >= int(job->frames.size())) return out;
+  const Frame& fr = job->frames[size_t(fi)];
+  if (fr.acknowledged) return out;
+  for (size_t t = 0; t < fr.tiles.size(); ++t) {
+    if (deliverable(*job, fr, fr.tiles[t])) out.push_back({TileKey{id, frame, int(t)}, fr.tiles[t].output});
+  }
+  return out;
+}
+
+bool Scheduler::frame_final(const JobId& id, int frame) const {
+  const Job* job = find_job(id);
+  if (!job) return false;
+  const int fi = frame - job->spec.first_frame;
+  return fi >= 0 && fi < int(job->frames.size()) && job->frames[size_t(fi)].final;
+}
+
 std::optional<TileRect> Scheduler::tile_rect(const JobId& id, int frame, int tile) const {
   const Job* job = find_job(id);
   if (!job) return std::nullopt;

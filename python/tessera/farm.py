@@ -391,13 +391,19 @@ class Job:
         arrive (on the thread iterating). With ``error_channels``, each Frame carries ``error``
         and ``spp`` (the CLI's error.Y and spp.Y layers).
 
-        Ends when the job is done. Raises JobCancelled or JobFailed after yielding every frame
+        Frames are leased, not raced: while another deliverer (``tessera collect``, ``tessera watch``
+        with an output, another ``frames()``) holds a frame, it is not sent here, and comes here if
+        that deliverer goes away. Ends when the job has ended and every frame is delivered, here or
+        elsewhere. Raises JobCancelled or JobFailed after yielding every frame
         that completed; IncompleteFramesError if the job is done but a frame never arrived
         complete; Unavailable when the coordinator cannot be reached (after re-attaching up to 30
         times in a row), another FarmError when it refuses the watch (NotFound: no such job).
         """
         farm = self._farm
-        request = cs.WatchJobRequest(job_id=self.id, tile_batches=True)
+        # A deliverer: the coordinator leases each finished frame to one deliverer at a time
+        # (`tessera collect`, `tessera watch -o`, another frames()), so frames another one holds
+        # are not sent here; the stream ends once every frame is delivered, by whoever.
+        request = cs.WatchJobRequest(job_id=self.id, tile_batches=True, deliver_frames=True)
         assembler: Optional[FrameAssembler] = None
         counter: Optional[ProgressCounter] = None
         final: Optional[JobStatus] = None

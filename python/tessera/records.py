@@ -86,6 +86,11 @@ class JobStatus:
     blocklisted_workers: list[str]
     tiles_resident: int = 0
     waiting_for_memory: bool = False
+    #: The absolute output pattern recorded with the job (``tessera submit -o``), where `tessera
+    #: collect` delivers its frames; None when it was submitted without one.
+    output: Optional[str] = None
+    #: The identity that submitted it ("token:NAME", "cn:NAME"; "" without client tokens).
+    owner: str = ""
     overrides: dict[str, Union[int, float, str]] = field(default_factory=dict)
 
     @property
@@ -118,6 +123,7 @@ class JobStatus:
                    frames_done=list(j.frames_done), frames_acknowledged=list(j.frames_acknowledged),
                    error=j.error, blocklisted_workers=list(j.blocklisted_workers),
                    tiles_resident=j.tiles_resident, waiting_for_memory=j.waiting_for_memory,
+                   output=j.output.pattern if j.HasField("output") else None, owner=j.owner,
                    overrides=overrides_dict(j.overrides))
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import time
 
 import grpc
@@ -19,7 +20,7 @@ import tessera
 SAME_KEYS = ["job_id", "name", "state", "priority", "first_frame", "last_frame", "width", "height", "spp",
              "tile_size", "tiles_total", "tiles_done", "tiles_leased", "tiles_rendered_twice", "rays", "frames_done",
              "frames_acknowledged", "error", "blocklisted_workers", "target_rmse", "block_rmse", "tiles_resident",
-             "waiting_for_memory"]
+             "waiting_for_memory", "owner"]
 
 
 def test_workers_are_what_the_cli_lists(worker_farm):
@@ -47,6 +48,7 @@ def test_jobs_and_priorities_are_what_the_cli_shows(bare_farm, scratch):
     assert set(cli) == set(jobs) and {a.id, b.id} <= set(jobs)
     for job_id, mine in jobs.items():
         assert {k: getattr(mine, k) for k in SAME_KEYS} == {k: cli[job_id][k] for k in SAME_KEYS}, job_id
+        assert mine.output == (cli[job_id]["output"] or {}).get("pattern"), job_id
     for st in statuses:
         one = json.loads(bare_farm.cli("status", st.job_id, "--json").stdout)
         assert {k: getattr(st, k) for k in SAME_KEYS} == {k: one[k] for k in SAME_KEYS}
@@ -54,6 +56,18 @@ def test_jobs_and_priorities_are_what_the_cli_shows(bare_farm, scratch):
     assert (sa.state, sa.priority, sa.first_frame, sa.last_frame, sa.spp) == ("queued", -5, 0, 1, 2)
     assert (sb.priority, sb.first_frame, sb.last_frame, sb.target_rmse, sb.spp) == (12, 2, 2, 0.02, 64)
     assert sb.name == "listing b" and sb.width == 40 and sb.tiles_total == 2  # 32-pixel tiles: 2 x 1
+
+
+def test_a_jobs_recorded_output_and_owner_are_what_the_cli_shows(bare_farm, scratch):
+    anim = scenes.animated_json(os.path.join(scratch, "anim.json"), frames=2)
+    pattern = os.path.join(scratch, "share", "f_####.exr")
+    out = bare_farm.cli("submit", anim, "--detach", "--width", "16", "--height", "16", "-o", pattern).stdout
+    job_id = re.search(r"job ([0-9a-f]+) submitted", out).group(1)
+    with tessera.Farm(bare_farm.address) as farm:
+        st = {j.job_id: j for j in farm.jobs()}[job_id]
+    assert st.output == pattern
+    cli = json.loads(bare_farm.cli("status", job_id, "--json").stdout)
+    assert cli["output"]["pattern"] == pattern and cli["owner"] == st.owner
 
 
 def test_a_raised_priority_runs_first_and_an_ended_job_refuses_a_new_one(make_farm, scratch):

@@ -71,6 +71,17 @@ FarmMetrics::FarmMetrics(FarmView& coordinator)
       watch_backlog_(gauges(registry_, "tessera_watch_backlog_messages",
                             "Messages queued for clients' watch streams and not yet sent")
                          .Add({})),
+      undelivered_frames_(gauges(registry_, "tessera_undelivered_frames",
+                                 "Finished frames of jobs with a recorded output that no client has delivered yet "
+                                 "(kept past retention; docs/farm.md, Delivery)")
+                              .Add({})),
+      undelivered_bytes_(gauges(registry_, "tessera_undelivered_bytes",
+                                "Encoded tile bytes of the undelivered frames (new jobs are refused at "
+                                "tessera-server --max-undelivered-gb)")
+                             .Add({})),
+      undelivered_oldest_(gauges(registry_, "tessera_undelivered_oldest_seconds",
+                                 "Seconds since the oldest undelivered frame finished (0 when none)")
+                              .Add({})),
       store_queued_(gauges(registry_, "tessera_store_queued_writes", "Writes waiting for the store's next batch").Add({})),
       ray_servers_(gauges(registry_, "tessera_ray_servers",
                           "Ray servers (tessera-rays) announced to the coordinator and not expired")
@@ -158,6 +169,9 @@ std::string FarmMetrics::scrape() {
     g.Set(n);
   }
   watch_backlog_.Set(double(f.watch_backlog));
+  undelivered_frames_.Set(double(f.delivery.frames()));
+  undelivered_bytes_.Set(double(f.delivery.bytes()));
+  undelivered_oldest_.Set(f.delivery.oldest_seconds());
   store_queued_.Set(double(f.store.queued));
   ray_servers_.Set(double(coordinator_.live_ray_servers()));
   advance(store_failures_, double(f.store.failures));

@@ -86,6 +86,9 @@ class FarmMetrics : public SchedulerListener {
   prometheus::Family<prometheus::Gauge>& workers_;
   std::set<prometheus::Gauge*> workers_isa_seen_;
   prometheus::Gauge& watch_backlog_;
+  prometheus::Gauge& undelivered_frames_;
+  prometheus::Gauge& undelivered_bytes_;
+  prometheus::Gauge& undelivered_oldest_;
   prometheus::Gauge& store_queued_;
   prometheus::Gauge& ray_servers_;
   prometheus::Family<prometheus::Gauge>& work_;

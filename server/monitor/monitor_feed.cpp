@@ -231,6 +231,8 @@ nlohmann::json MonitorFeed::job_json_locked(const tessera::v1::JobStatus& s, con
          {"rays", s.rays()},
          {"mrays_per_second", elapsed > 0 ? double(s.rays()) / elapsed / 1e6 : 0.0},
          {"error", s.error()},
+         {"output", s.has_output() ? json(s.output().pattern()) : json(nullptr)},
+         {"frames_acknowledged", s.frames_acknowledged_size()},
          {"blocklisted", std::vector<std::string>(s.blocklisted_workers().begin(), s.blocklisted_workers().end())}};
   // ETA: the rest of the tiles at the job's average pace so far.
   j["eta_seconds"] = (s.state() == tessera::v1::JOB_STATE_RUNNING && s.tiles_done() > 0)
@@ -325,7 +327,15 @@ nlohmann::json MonitorFeed::farm() {
                            {"up_seconds", r.up_seconds()},
                            {"since_announcement_seconds", r.since_announcement_seconds()}});
   }
-  return json{{"jobs", jobs}, {"workers", workers}, {"ray_servers", ray_servers}, {"tiles_queued", snap.tiles_queued}};
+  const json delivery{{"frames", snap.delivery.frames()},
+                      {"bytes", snap.delivery.bytes()},
+                      {"oldest_seconds", snap.delivery.oldest_seconds()},
+                      {"limit_bytes", snap.delivery.limit_bytes()}};
+  return json{{"jobs", jobs},
+              {"workers", workers},
+              {"ray_servers", ray_servers},
+              {"tiles_queued", snap.tiles_queued},
+              {"delivery", delivery}};
 }
 
 std::optional<nlohmann::json> MonitorFeed::job(const std::string& id, std::optional<int> frame) {

@@ -32,6 +32,13 @@ export function render(farm) {
     cell(row, fmt.fixed(job.mrays_per_second, 2), 'job-mrays');
     cell(row, fmt.rmse(job.estimated_rmse), 'job-rmse');
   }
+  // Finished frames of jobs with a recorded output that no client has delivered yet.
+  const d = farm.delivery;
+  document.querySelector('#delivery').textContent = d && d.frames > 0
+    ? `Undelivered: ${d.frames} finished frames (${(d.bytes / 1e9).toFixed(2)} GB), the oldest finished ` +
+      `${fmt.seconds(d.oldest_seconds)} ago; kept until \`tessera collect\` or \`tessera watch\` writes them` +
+      (d.limit_bytes > 0 ? ` (new jobs refused at ${(d.limit_bytes / 1e9).toPrecision(3)} GB)` : '')
+    : '';
   const workers = document.querySelector('#workers tbody');
   workers.replaceChildren();
   for (const w of farm.workers) {

@@ -75,6 +75,9 @@ export async function render(id) {
   fact(facts, 'ETA', fmt.seconds(job.eta_seconds));
   fact(facts, 'Mrays/s', fmt.fixed(job.mrays_per_second, 2));
   fact(facts, 'est. RMSE', fmt.rmse(job.estimated_rmse));
+  if (job.output) {
+    fact(facts, 'output', `${job.output} (${job.frames_acknowledged} of ${job.frames_done} finished frames delivered)`);
+  }
   if (job.error) fact(facts, 'error', job.error);
   const priority = document.getElementById('priority');
   if (document.activeElement !== priority) priority.value = job.priority;
