@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
 # Every kustomization a user applies builds with kubectl's own kustomize (no cluster needed), and
-# builds the farm it says: docker/k8s the base with its CPU autoscaler, docker/k8s/keda the same
-# farm with a KEDA ScaledObject instead. validate_manifests.py checks the fields; this checks that
-# kustomize accepts the layout (it refuses, for one, an overlay inside its base's folder).
+# builds what it says: docker/k8s the base with its CPU autoscaler, docker/k8s/keda the same farm
+# with a KEDA ScaledObject instead, docker/k8s/collect the collector alone (it goes beside either
+# farm). validate_manifests.py checks the fields; this checks that kustomize accepts the layout (it
+# refuses, for one, an overlay inside its base's folder).
 # Skipped (77) where there is no kubectl.
 set -uo pipefail
 root=$1
@@ -30,4 +31,5 @@ expect() {  # DIR, then the "COUNT KIND" lines it must build, exactly
 }
 expect docker/k8s "2 Deployment" "1 HorizontalPodAutoscaler" "1 PersistentVolumeClaim" "1 Service"
 expect docker/k8s/keda "2 Deployment" "1 PersistentVolumeClaim" "1 ScaledObject" "1 Service"
+expect docker/k8s/collect "1 Deployment"
 exit $fail

@@ -1,13 +1,15 @@
 #!/usr/bin/python3
 """Checks the container definitions that no test here can run: the Kubernetes manifests in
-docker/k8s, its KEDA overlay (docker/k8s/keda) and batch Job (docker/k8s/batch) (no cluster on
-these machines), and the structure of docker/compose.yaml, the root compose.yaml and
+docker/k8s, its KEDA overlay (docker/k8s/keda), batch Job (docker/k8s/batch) and collector
+(docker/k8s/collect) (no cluster on these machines), the collector's systemd unit
+(docker/systemd/tessera-collect.service), and the structure of docker/compose.yaml, the root compose.yaml and
 docker/Dockerfile. A KEDA query may only read metrics the coordinator registers
 (server/metrics/farm_metrics.cpp).
 
 Every YAML document is parsed; then the fields a cluster or compose would need are checked, and
 the references between objects (Service selector -> pod labels, HPA -> Deployment, volume ->
-PVC, worker -> coordinator Service, compose build target -> Dockerfile stage).
+PVC, worker -> coordinator Service, collector -> the share it writes, compose build target ->
+Dockerfile stage).
 
   validate_manifests.py REPO_ROOT            check the real files (exit 0 ok, 1 problems)
   validate_manifests.py --self-test REPO_ROOT   break the real files in memory, one way at a time,
@@ -16,6 +18,7 @@ PVC, worker -> coordinator Service, compose build target -> Dockerfile stage).
 import copy
 import os
 import re
+import shlex
 import sys
 
 try:
@@ -51,9 +54,9 @@ def load_yaml_docs(path):
 
 
 # The base manifests are docker/k8s/base (keys "NAME"), docker/k8s's own kustomization builds on
-# them (key "top/kustomization.yaml"), and beside them are the KEDA overlay and the batch Job (keys
-# "keda/NAME", "batch/NAME").
-K8S_EXTRAS = ("keda", "batch")
+# them (key "top/kustomization.yaml"), and beside them are the KEDA overlay, the batch Job and the
+# collector (keys "keda/NAME", "batch/NAME", "collect/NAME").
+K8S_EXTRAS = ("keda", "batch", "collect")
 
 
 def load_k8s(root):
@@ -223,6 +226,172 @@ def check_batch(files):
             cpu = str(get(c, "resources.requests.cpu", ""))
             if threads and cpu and not cpu.endswith("m") and threads[0].split("=")[-1] != cpu:
                 errs.append(f"{cw}: {threads[0]} but requests.cpu {cpu}")
+    return errs
+
+
+def flag_values(args, flag):
+    """The values of --flag=V and --flag V in args, in order."""
+    out = []
+    for i, a in enumerate(args):
+        if a.startswith(flag + "="):
+            out.append(a.split("=", 1)[1])
+        elif a == flag and i + 1 < len(args):
+            out.append(args[i + 1])
+    return out
+
+
+def check_collect(files):
+    """docker/k8s/collect: `tessera collect` beside the farm, writing to the studio's share only."""
+    errs = []
+    kust = (files.get("collect/kustomization.yaml") or [None])[0]
+    if not kust:
+        return ["docker/k8s/collect: no kustomization.yaml (kubectl apply -k docker/k8s/collect)"]
+    resources = kust.get("resources") or []
+    for name in files:
+        if name.startswith("collect/") and name != "collect/kustomization.yaml" and name[8:] not in resources:
+            errs.append(f"docker/k8s/collect/kustomization.yaml: resources does not list {name[8:]}")
+    for r in resources:
+        if str(r).rstrip("/") in ("..", "../base", "../keda"):
+            errs.append(f"docker/k8s/collect/kustomization.yaml: includes the farm ({r}): the collector goes beside "
+                        "either farm (applied to the KEDA farm, the base would bring back its CPU autoscaler)")
+    service, sports = coordinator_service(files)
+    # The images the farm's workloads run: each carries the CLI, and `kustomize edit set image` names them.
+    farm_images = {str(get(c, "image", "")).split(":")[0] for docs in base_files(files).values() for d in docs
+                   if isinstance(d, dict) and d.get("kind") in WORKLOADS
+                   for c in get(d, "spec.template.spec.containers") or []}
+    collectors = []
+    for w, d in objects_in(files, "collect", "Deployment"):
+        pod = get(d, "spec.template.spec") or {}
+        for c in pod.get("containers") or []:
+            argv = [str(a) for a in (c.get("command") or []) + (c.get("args") or [])]
+            if len(argv) >= 2 and os.path.basename(argv[0]) == "tessera" and argv[1] == "collect":
+                collectors.append((f"{w} container {c.get('name')}", d, pod, c, argv))
+    if not collectors:
+        errs.append("docker/k8s/collect: no Deployment runs `tessera collect`")
+    for cw, d, pod, c, argv in collectors:
+        if str(c.get("image", "")).split(":")[0] not in farm_images:
+            errs.append(f"{cw}: image {c.get('image')!r} is not one of the farm's images ({', '.join(sorted(farm_images))}), "
+                        "which carry the tessera CLI")
+        env = {e.get("name"): e for e in c.get("env") or []}
+        addr = str(get(env, "TESSERA_COORDINATOR.value", ""))
+        host, _, port = addr.rpartition(":")
+        if service is None or host.split(".")[0] != service or port not in sports:
+            errs.append(f"{cw}: TESSERA_COORDINATOR={addr!r} is not the coordinator Service "
+                        f"{service}:{'/'.join(sorted(sports))}")
+        token = env.get("TESSERA_CLIENT_TOKEN")
+        if token is not None and not get(token, "valueFrom.secretKeyRef.name"):
+            errs.append(f"{cw}: TESSERA_CLIENT_TOKEN is not taken from a Secret (a token in the manifest)")
+        # The share: a PersistentVolumeClaim mounted writable. Every --under must lie on it, and
+        # there must be one: without it the collector takes jobs written anywhere.
+        volumes = {v.get("name"): v for v in pod.get("volumes") or []}
+        shares = []
+        for m in c.get("volumeMounts") or []:
+            if get(volumes.get(m.get("name"), {}), "persistentVolumeClaim.claimName"):
+                if m.get("readOnly"):
+                    errs.append(f"{cw}: the share {m.get('mountPath')} is mounted readOnly")
+                else:
+                    shares.append(str(m.get("mountPath", "")).rstrip("/") + "/")
+        if not shares:
+            errs.append(f"{cw}: mounts no PersistentVolumeClaim to write the frames to (the studio's share)")
+        unders = flag_values(argv, "--under")
+        if not unders:
+            errs.append(f"{cw}: no --under: it would take every job, and write those outside the share into the container")
+        for u in unders:
+            if not any((u.rstrip("/") + "/").startswith(sh) for sh in shares):
+                errs.append(f"{cw}: --under {u} is not on a share it mounts ({', '.join(shares) or 'none'})")
+        if not get(pod, "securityContext.runAsNonRoot") or not get(pod, "securityContext.runAsUser"):
+            errs.append(f"{cw}: the pod does not run as a non-root uid (runAsNonRoot, runAsUser)")
+        if get(pod, "securityContext.fsGroup") is not None:
+            errs.append(f"{cw}: fsGroup on a pod that mounts the studio's share (kubelet may change the group of every file on it)")
+        if get(c, "securityContext.readOnlyRootFilesystem") is not True:
+            errs.append(f"{cw}: readOnlyRootFilesystem is not true: a frame whose pattern lies off the share would be "
+                        "written into the container, acknowledged and lost")
+        grace = pod.get("terminationGracePeriodSeconds")
+        if not isinstance(grace, int) or grace < 30:
+            errs.append(f"{cw}: terminationGracePeriodSeconds {grace!r}: set it, >= 30, to cover writing one frame")
+        for res in ("cpu", "memory"):
+            if not get(c, f"resources.requests.{res}"):
+                errs.append(f"{cw}: missing resources.requests.{res}")
+    return errs
+
+
+def load_unit(path):
+    """A systemd unit as {section: {key: [values, in order]}} (comments and blank lines skipped)."""
+    unit, section = {}, None
+    with open(path) as f:
+        for line in f:
+            line = line.strip()
+            if not line or line[0] in "#;":
+                continue
+            if line.startswith("[") and line.endswith("]"):
+                section = unit.setdefault(line[1:-1], {})
+            elif "=" in line and section is not None:
+                key, value = line.split("=", 1)
+                section.setdefault(key.strip(), []).append(value.strip())
+    return unit
+
+
+def seconds(text):
+    """systemd's time span ("120", "90s", "2min", "1min 30s", "infinity") in seconds; None if unreadable."""
+    if str(text).strip() == "infinity":
+        return float("inf")
+    total, units = 0, {"": 1, "s": 1, "sec": 1, "m": 60, "min": 60, "h": 3600}
+    for n, u in re.findall(r"(\d+)\s*([a-z]*)", str(text)):
+        if u not in units:
+            return None
+        total += int(n) * units[u]
+    return total if re.fullmatch(r"(\s*\d+\s*[a-z]*)+", str(text)) else None
+
+
+def check_unit(unit, where="docker/systemd/tessera-collect.service"):
+    """The collector on a host: `tessera collect --under SHARE`, bound to the share's mount, the
+    file system read-only but for it, restarted, and given time to finish a frame on SIGTERM."""
+    errs = []
+    svc, u = unit.get("Service", {}), unit.get("Unit", {})
+    last = lambda sec, key, default=None: (sec.get(key) or [default])[-1]
+    start = last(svc, "ExecStart", "")
+    try:
+        argv = shlex.split(start)
+    except ValueError:
+        argv = []
+    if len(argv) < 2 or not argv[0].startswith("/") or os.path.basename(argv[0]) != "tessera" or argv[1] != "collect":
+        errs.append(f"{where}: ExecStart={start!r} does not run /.../tessera collect")
+    unders = flag_values(argv, "--under")
+    paths = lambda values: [v.lstrip("-+") for val in values for v in val.split()]
+    writable = paths(svc.get("ReadWritePaths", []))
+    mounts = paths(u.get("RequiresMountsFor", []))
+    checked = [a for pre in svc.get("ExecStartPre", []) for a in shlex.split(pre)[1:]
+               if "mountpoint" in pre and a.startswith("/")]
+    within = lambda path, roots: any((path.rstrip("/") + "/").startswith(r.rstrip("/") + "/") for r in roots)
+    if not unders:
+        errs.append(f"{where}: no --under: it would take every job, and write those off the share")
+    for d in unders:
+        if not within(d, writable):
+            errs.append(f"{where}: --under {d} is not in ReadWritePaths ({' '.join(writable) or 'none'})")
+        if not within(d, mounts):
+            errs.append(f"{where}: --under {d} is not under RequiresMountsFor ({' '.join(mounts) or 'none'}): "
+                        "not bound to the share's mount")
+        if not within(d, checked):
+            errs.append(f"{where}: no ExecStartPre=mountpoint check of the share of --under {d}: an unmounted "
+                        "share's empty directory would take the frames")
+    for key, want in (("ProtectSystem", "strict"), ("NoNewPrivileges", "yes"), ("PrivateTmp", "yes"),
+                      ("Restart", "always"), ("KillSignal", "SIGTERM")):
+        got = last(svc, key, "SIGTERM" if key == "KillSignal" else None)
+        if got != want:
+            errs.append(f"{where}: {key}={got}, expected {want}")
+    stop = seconds(last(svc, "TimeoutStopSec", "90"))
+    if stop is None or stop < 30:
+        errs.append(f"{where}: TimeoutStopSec={last(svc, 'TimeoutStopSec')}: at least 30 s, to finish writing a frame")
+    if last(svc, "User") in (None, "root", "0") or last(svc, "DynamicUser") in ("yes", "true"):
+        errs.append(f"{where}: User={last(svc, 'User')}: run as a dedicated user with a fixed uid (the share sees it)")
+    if not any(e.startswith("-") for e in svc.get("EnvironmentFile", [])):
+        errs.append(f"{where}: no optional EnvironmentFile=- (TESSERA_COORDINATOR, the token file)")
+    after = " ".join(u.get("After", []))
+    for target in ("network-online.target", "remote-fs.target"):
+        if target not in after.split():
+            errs.append(f"{where}: not After={target}")
+    if "multi-user.target" not in " ".join(unit.get("Install", {}).get("WantedBy", [])).split():
+        errs.append(f"{where}: not WantedBy=multi-user.target (systemctl enable)")
     return errs
 
 
@@ -498,12 +667,13 @@ def check_compose(compose, root_compose, stages):
     return errs
 
 
-def check_all(k8s, compose, root_compose, stages):
-    return (check_k8s(k8s) + check_top(k8s) + check_keda(k8s) + check_batch(k8s) + check_dockerfile(stages)
+def check_all(k8s, compose, root_compose, stages, unit):
+    return (check_k8s(k8s) + check_top(k8s) + check_keda(k8s) + check_batch(k8s) + check_collect(k8s)
+            + check_unit(unit) + check_dockerfile(stages)
             + check_compose(compose, root_compose, stages))
 
 
-def self_test(k8s, compose, root_compose, stages):
+def self_test(k8s, compose, root_compose, stages, unit):
     """Each breakage below must be reported; the unbroken files must pass."""
     def find(files, kind, name_part):
         for docs in files.values():
@@ -541,8 +711,36 @@ def self_test(k8s, compose, root_compose, stages):
         "batch Job never exits when idle": lambda k, c, r, s: container(find(k, "Job", "worker"))["args"].pop(),
         "batch Job not Indexed": lambda k, c, r, s: find(k, "Job", "worker")["spec"].pop("completionMode"),
         "batch Job points elsewhere": lambda k, c, r, s: container(find(k, "Job", "worker"))["env"][0].update(value="localhost:7878"),
+        "collect overlay includes the farm": lambda k, c, r, s: k["collect/kustomization.yaml"][0]["resources"].append("../base"),
+        "collector does not run tessera collect": lambda k, c, r, s: container(find(k, "Deployment", "collector")).update(command=["tessera", "watch"]),
+        "collector image without the CLI": lambda k, c, r, s: container(find(k, "Deployment", "collector")).update(image="busybox:latest"),
+        "collector points elsewhere": lambda k, c, r, s: container(find(k, "Deployment", "collector"))["env"][0].update(value="localhost:7878"),
+        "collector token in the manifest": lambda k, c, r, s: container(find(k, "Deployment", "collector"))["env"][1].update(value="s3cret", valueFrom=None),
+        "collector without --under": lambda k, c, r, s: container(find(k, "Deployment", "collector")).update(args=[]),
+        "collector --under off the share": lambda k, c, r, s: container(find(k, "Deployment", "collector")).update(args=["--under", "/home/"]),
+        "collector share not a PVC": lambda k, c, r, s: get(find(k, "Deployment", "collector"), "spec.template.spec.volumes.0").update(persistentVolumeClaim=None, emptyDir={}),
+        "collector share read-only": lambda k, c, r, s: container(find(k, "Deployment", "collector"))["volumeMounts"][0].update(readOnly=True),
+        "collector root file system writable": lambda k, c, r, s: container(find(k, "Deployment", "collector"))["securityContext"].pop("readOnlyRootFilesystem"),
+        "collector with fsGroup on the share": lambda k, c, r, s: get(find(k, "Deployment", "collector"), "spec.template.spec.securityContext").update(fsGroup=10001),
+        "collector killed at once": lambda k, c, r, s: get(find(k, "Deployment", "collector"), "spec.template.spec").update(terminationGracePeriodSeconds=0),
     }
-    base = check_all(k8s, compose, root_compose, stages)
+    # The systemd unit's, on its {section: {key: [values]}}.
+    def exec_start(u, f):
+        u["Service"]["ExecStart"] = [f(u["Service"]["ExecStart"][-1])]
+    unit_breakages = {
+        "unit without --under": lambda u: exec_start(u, lambda x: re.sub(r"--under[= ]\S+", "", x)),
+        "unit not running tessera collect": lambda u: exec_start(u, lambda x: x.replace(" collect", " watch")),
+        "unit writes beside the share": lambda u: u["Service"].update(ReadWritePaths=["/srv/frames"]),
+        "unit not bound to the share's mount": lambda u: u["Unit"].pop("RequiresMountsFor"),
+        "unit without the mount check": lambda u: u["Service"].pop("ExecStartPre"),
+        "unit file system writable": lambda u: u["Service"].update(ProtectSystem=["full"]),
+        "unit killed before a frame is written": lambda u: u["Service"].update(TimeoutStopSec=["5s"]),
+        "unit runs as root": lambda u: u["Service"].update(User=["root"]),
+        "unit not restarted": lambda u: u["Service"].update(Restart=["on-failure"]),
+        "unit needs its environment file": lambda u: u["Service"].update(EnvironmentFile=["/etc/tessera/collect.env"]),
+        "unit before the network": lambda u: u["Unit"].update(After=["remote-fs.target"]),
+    }
+    base = check_all(k8s, compose, root_compose, stages, unit)
     if base:
         print("self-test: the real files already have problems:\n  " + "\n  ".join(base))
         return 1
@@ -550,7 +748,13 @@ def self_test(k8s, compose, root_compose, stages):
     for what, breakage in breakages.items():
         k, c, r, s = copy.deepcopy(k8s), copy.deepcopy(compose), copy.deepcopy(root_compose), copy.deepcopy(stages)
         breakage(k, c, r, s)
-        errs = check_all(k, c, r, s)
+        errs = check_all(k, c, r, s, unit)
+        print(f"self-test: {what}: {'caught: ' + errs[0] if errs else 'NOT CAUGHT'}")
+        failed += not errs
+    for what, breakage in unit_breakages.items():
+        u = copy.deepcopy(unit)
+        breakage(u)
+        errs = check_all(k8s, compose, root_compose, stages, u)
         print(f"self-test: {what}: {'caught: ' + errs[0] if errs else 'NOT CAUGHT'}")
         failed += not errs
     return 1 if failed else 0
@@ -565,17 +769,18 @@ def main(argv):
         compose = load_yaml_docs(os.path.join(root, "docker", "compose.yaml"))[0]
         root_compose = load_yaml_docs(os.path.join(root, "compose.yaml"))[0]
         stages = dockerfile_stages(root)
+        unit = load_unit(os.path.join(root, "docker", "systemd", "tessera-collect.service"))
     except (OSError, yaml.YAMLError) as e:
         print(f"validate_manifests: {e}", file=sys.stderr)
         return 1
     if "--self-test" in argv:
-        return self_test(k8s, compose, root_compose, stages)
-    errs = check_all(k8s, compose, root_compose, stages)
+        return self_test(k8s, compose, root_compose, stages, unit)
+    errs = check_all(k8s, compose, root_compose, stages, unit)
     for e in errs:
         print(e, file=sys.stderr)
     ndocs = sum(len(d) for d in k8s.values())
     print(f"validate_manifests: {ndocs} Kubernetes documents in {len(k8s)} files, docker/compose.yaml, "
-          f"compose.yaml, docker/Dockerfile ({len(stages)} stages): "
+          f"compose.yaml, docker/Dockerfile ({len(stages)} stages), docker/systemd/tessera-collect.service: "
           + ("ok" if not errs else f"{len(errs)} problem(s)"))
     return 1 if errs else 0
 
