@@ -227,7 +227,8 @@ class Farm:
                priority: int = 0, camera: Optional[str] = None, name: Optional[str] = None, *,
                block_rmse: Optional[float] = None, min_spp: Optional[int] = None, max_spp: Optional[int] = None,
                max_depth: Optional[int] = None, seed: Optional[int] = None, sampler: Optional[str] = None,
-               scene_index: Optional[int] = None, fps: Optional[float] = None, tile_size: int = 32) -> "Job":
+               scene_index: Optional[int] = None, fps: Optional[float] = None, tile_size: int = 32,
+               output: Optional[PathLike] = None) -> "Job":
         """Submits a scene to the farm, as `tessera submit SCENE --detach` does.
 
         ``scene`` is a scene file: JSON (docs/scene-format.md), .gltf or .glb. ``frames``: None for
@@ -236,7 +237,11 @@ class Farm:
         frame's estimated RMSE; conflicts with ``spp``), ``block_rmse``, ``min_spp``,
         ``max_spp``, ``max_depth``, ``seed``, ``sampler``; ``camera``, ``scene_index`` and
         ``fps`` for glTF scenes only. ``name`` defaults to the scene's file name; ``tile_size``
-        (4-256 pixels) does not change the image.
+        (4-256 pixels) does not change the image. ``output``: a frame path pattern recorded with
+        the job, as `tessera submit -o` records it (made absolute; each run of '#' becomes the frame
+        number; the extension picks the format, float EXR for .exr): `tessera collect` and `tessera
+        watch JOB` write the frames there, whoever submitted them and whether or not this process
+        still runs.
 
         The bundle (the scene file and every file it reads) is built exactly as the CLI builds
         it, so it has the same SHA-256; it is uploaded only if the coordinator does not have it.
@@ -255,6 +260,8 @@ class Farm:
         if name is not None and not isinstance(name, str):
             raise ValueError(f"name: expected a str, got {name!r}")
         req.name = name if name else os.path.basename(path)
+        if output is not None:
+            req.output.pattern = os.path.normpath(os.path.abspath(os.fspath(output)))
         if is_gltf:
             dependencies = bundles.scene_dependencies(path)
             frame_count = None  # the glTF's animation decides it: the coordinator checks

@@ -137,3 +137,21 @@ def test_the_readme_example_runs_against_a_real_farm(worker_farm, scratch):
                        timeout=120)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "frame 0: (180, 320, 3)" in r.stdout, r.stdout
+
+
+def test_an_output_given_to_submit_is_where_tessera_collect_writes_the_frames(worker_farm, scratch):
+    anim = scenes.animated_json(os.path.join(scratch, "anim", "anim.json"), frames=2)
+    pattern = os.path.join(scratch, "share", "..", "share", "f_####.exr")
+    with tessera.Farm(worker_farm.address) as farm:
+        job = farm.submit(anim, width=64, height=48, spp=4, tile_size=16, output=pattern)
+        assert job.submitted.output == os.path.join(scratch, "share", "f_####.exr")  # absolute, normalized
+        for _ in job.progress(interval=0.05):
+            pass  # to its end, nobody taking the frames
+    # The submitting process has let go of the job: a collector writes its frames where it said.
+    r = worker_farm.cli("collect", "--once", "--poll", "0.2")
+    assert "job " + job.id in r.stdout
+    for f in (0, 1):
+        got = harness.read_exr(os.path.join(scratch, "share", f"f_{f:04d}.exr"), scratch)
+        want = harness.render(anim, f, scratch, *SIZE)
+        for c in "RGB":
+            np.testing.assert_array_equal(harness.bits(got[c]), harness.bits(want[c]), err_msg=f"frame {f} {c}")
