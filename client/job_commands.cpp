@@ -25,6 +25,7 @@ struct JobArgs {
   SecurityFlags security;
   bool json = false;
   int priority = 0;  // `tessera priority`
+  bool discard = false;  // `tessera cancel --discard`
 };
 
 nlohmann::json job_json(const v1::JobStatus& j) {
@@ -122,14 +123,16 @@ int run_cancel(const JobArgs& a) {
   FarmClient client = connect(a.coordinator, a.security);
   v1::CancelJobRequest req;
   req.set_job_id(a.job);
+  req.set_discard_undelivered(a.discard);
   v1::JobStatus st;
   auto ctx = client.context();
   grpc::Status s = client.stub().CancelJob(ctx.get(), req, &st);
   if (!s.ok()) {
     throw job_error(client, s, "cancelling job " + a.job);
   }
-  std::printf("job %s: %s (%lld/%lld tiles were done)\n", st.job_id().c_str(), state_name(st.state()),
-              (long long)st.tiles_done(), (long long)st.tiles_total());
+  std::printf("job %s: %s (%lld/%lld tiles were done)%s\n", st.job_id().c_str(), state_name(st.state()),
+              (long long)st.tiles_done(), (long long)st.tiles_total(),
+              a.discard ? "; its finished frames not yet delivered are discarded" : "");
   return 0;
 }
 
@@ -163,6 +166,9 @@ void register_job_commands(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand("cancel", "Cancel a job: no more of its tiles are handed out");
     cmd->add_option("job", a->job, "Job id")->required();
     add_coordinator_option(cmd, &a->coordinator, &a->security);
+    cmd->add_flag("--discard", a->discard,
+                  "Also drop its finished frames that no client has delivered (also of a job that ended): they "
+                  "are deleted from the coordinator, never written");
     cmd->callback([a] { guarded("cancel", [&] { return run_cancel(*a); }); });
   }
   {

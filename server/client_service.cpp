@@ -280,7 +280,7 @@ grpc::ServerUnaryReactor* ClientServiceImpl::CancelJob(grpc::CallbackServerConte
   Caller caller;
   if (Status s = authenticate(*ctx, &caller); !s.ok()) return reply(ctx, std::move(s));
   if (Status s = authorize(req->job_id(), caller, "cancel"); !s.ok()) return reply(ctx, std::move(s));
-  return reply(ctx, coord_.cancel(req->job_id(), resp));
+  return reply(ctx, coord_.cancel(req->job_id(), resp, req->discard_undelivered()));
 }
 
 grpc::ServerUnaryReactor* ClientServiceImpl::SetJobPriority(grpc::CallbackServerContext* ctx,

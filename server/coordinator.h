@@ -119,7 +119,7 @@ class Coordinator : private SchedulerListener, public FarmControl {
   std::optional<std::string> job_owner(const std::string& id) override;
   // Every job in memory, and the delivery backlog.
   void list_jobs(tessera::v1::ListJobsResponse* out);
-  grpc::Status cancel(const std::string& id, tessera::v1::JobStatus* out) override;
+  grpc::Status cancel(const std::string& id, tessera::v1::JobStatus* out, bool discard_undelivered = false) override;
   grpc::Status ack_frame(const std::string& id, int frame);
   void list_workers(tessera::v1::ListWorkersResponse* out);
   // NOT_FOUND for an unknown job (also one evicted from memory), FAILED_PRECONDITION for an

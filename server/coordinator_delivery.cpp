@@ -142,7 +142,8 @@ Status Coordinator::undelivered_limit_locked() const {
   return Status(StatusCode::RESOURCE_EXHAUSTED,
                 fmt::format("the coordinator holds {} finished frames ({:.1f} GB) that no client has delivered yet, "
                             "at its limit tessera-server --max-undelivered-gb {:.1f}: no new job is accepted until "
-                            "they are delivered (`tessera collect`, or `tessera watch JOB` for jobs {})",
+                            "they are delivered (`tessera collect`, or `tessera watch JOB` for jobs {}; `tessera cancel JOB --discard` "
+                            "drops a job's frames)",
                             undelivered_.frames(), double(undelivered_.bytes()) / 1e9, double(limit) / 1e9, jobs));
 }
 

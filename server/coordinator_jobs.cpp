@@ -259,7 +259,7 @@ Status Coordinator::durable(Status s, const std::string& what) {
   return s;
 }
 
-Status Coordinator::cancel(const std::string& id, v1::JobStatus* out) {
+Status Coordinator::cancel(const std::string& id, v1::JobStatus* out, bool discard_undelivered) {
   return durable(locked([&] {
     switch (scheduler_.cancel(id)) {
       case Scheduler::CancelResult::kUnknownJob:
@@ -271,7 +271,11 @@ Status Coordinator::cancel(const std::string& id, v1::JobStatus* out) {
     job_status_proto(*scheduler_.job(id), out);
     // Its unfinished frames were released with the cancel; with no final frame left to deliver,
     // the job leaves memory now rather than after --retention-hours (`tessera status` answers).
-    if (scheduler_.all_acknowledged(id)) evict_locked(id, "cancelled, no frame left to deliver");
+    if (scheduler_.all_acknowledged(id)) {
+      evict_locked(id, "cancelled, no frame left to deliver");
+    } else if (discard_undelivered) {
+      evict_locked(id, "cancelled, its undelivered frames discarded by request");
+    }
     return Status::OK;
   }), "job " + id + " is cancelled");
 }

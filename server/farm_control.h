@@ -14,7 +14,8 @@ class FarmControl : public FarmView {
  public:
   // NOT_FOUND for an unknown job (also one evicted from memory); cancelling an ended job
   // answers its status.
-  virtual grpc::Status cancel(const std::string& id, tessera::v1::JobStatus* out) = 0;
+  // `discard_undelivered`: its finished frames no client has delivered go too (the job leaves memory).
+  virtual grpc::Status cancel(const std::string& id, tessera::v1::JobStatus* out, bool discard_undelivered = false) = 0;
   // NOT_FOUND for an unknown job (also one evicted from memory), FAILED_PRECONDITION for an
   // ended one. The new priority is stored with the job.
   virtual grpc::Status set_priority(const std::string& id, int priority, tessera::v1::JobStatus* out) = 0;

@@ -2,6 +2,7 @@
 """Finished frames as Blender images and float32 OpenEXR files (main thread only)."""
 
 import os
+import re
 
 import bpy
 import numpy as np
@@ -91,6 +92,22 @@ def output_path(scene, frame):
     with _ExrScene(scene) as s:
         path = s.render.frame_path(frame=frame)
     return os.path.abspath(bpy.path.abspath(path))
+
+
+# A frame number no real frame has: Blender writes it unpadded (it is wider than any padding), so
+# where it stands in a frame path is where the frame number goes.
+_SENTINEL_FRAME = 987654321
+
+
+def output_pattern(scene):
+    """The scene's output path as a Tessera frame pattern (`tessera submit -o`: a run of '#' is the
+    frame number, zero-padded to its length): where `tessera collect` writes the frames of a job
+    submitted from here, as write_exr() would. Blender pads the frame to its path's last run of
+    '#', else to 4 digits; frame_path() with a sentinel frame shows where the number goes."""
+    with _ExrScene(scene) as s:
+        path = os.path.abspath(bpy.path.abspath(s.render.frame_path(frame=_SENTINEL_FRAME)))
+        runs = re.findall("#+", s.render.filepath)
+    return path.replace(str(_SENTINEL_FRAME), "#" * (len(runs[-1]) if runs else 4))
 
 
 def write_exr(scene, image, frame):

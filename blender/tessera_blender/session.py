@@ -13,6 +13,7 @@ job.cancel() on a short-lived thread (a gRPC call must not freeze the UI); the f
 ends with tessera.JobCancelled.
 """
 
+import inspect
 import os
 import queue
 import shutil
@@ -109,6 +110,11 @@ class RenderSession:
         except Exception as e:  # the exporter's own failures: a report, not a traceback
             self._remove_export()
             raise UserError(f"Tessera: glTF export failed: {type(e).__name__}: {e}") from None
+        # Recorded with the job (Farm.submit(output=...)): `tessera collect` writes the frames
+        # there too, so they land in Blender's output folder even after Blender has closed.
+        self.output_pattern = None
+        if self.settings["write_files"] and "output" in inspect.signature(self.tessera.Farm.submit).parameters:
+            self.output_pattern = images.output_pattern(scene)
         blend = os.path.splitext(os.path.basename(bpy.data.filepath))[0] if bpy.data.filepath else "untitled"
         self.job_name = f"{blend} / {scene.name}"
 
@@ -212,9 +218,15 @@ class RenderSession:
         return self._cancel_requested
 
     def shutdown(self):
-        """Stops waiting on the farm (Blender quits, the add-on is disabled): cancels the job."""
+        """Stops waiting on the farm (Blender quits, the add-on is disabled, another file loads).
+        A job whose output was recorded keeps rendering: `tessera collect` writes its frames to
+        the output folder. Any other job is cancelled (nobody would take its frames)."""
         if not self.finished:
-            self.cancel()
+            if self.output_pattern and self.job_id and not self._cancel_requested:
+                print(f"Tessera: job {self.job_id} keeps rendering on the farm; `tessera collect` writes its "
+                      f"frames to {self.output_pattern} (`tessera cancel {self.job_id}` stops it)")
+            else:
+                self.cancel()
         self._stop.set()
         _sessions.discard(self)
 
@@ -264,6 +276,8 @@ class RenderSession:
         try:
             kwargs = dict(frames=frames.submit_frames(ex.first, ex.last), width=ex.width, height=ex.height,
                           priority=s["priority"], camera=ex.camera, name=self.job_name, fps=ex.fps)
+            if self.output_pattern:
+                kwargs["output"] = self.output_pattern
             if s["quality"] == "TARGET":
                 kwargs["target_rmse"] = s["target_rmse"]
             else:

@@ -4,7 +4,10 @@ writes are `tessera render`'s of the glTF it exported, bit for bit, and each Tes
 the Blender frame it claims."""
 
 import os
+import re
+import subprocess
 import sys
+import time
 
 sys.path.insert(0, os.environ["TESSERA_TEST_LIB"])
 import bpy  # noqa: E402
@@ -52,6 +55,11 @@ def test_still_frame_is_tessera_render_bit_for_bit():
     assert st["state"] == "done" and (st["first_frame"], st["last_frame"]) == (3, 3), st
     assert (st["width"], st["height"], st["spp"]) == (64, 48, 4), st
     assert st["frames_acknowledged"] == [3], st  # acknowledged once written
+    # The job records Blender's output path as a pattern: Tessera's substitution of frame 3 into it
+    # (each run of '#' zero-padded to its length) is the file Blender's frame_path() named.
+    pattern = st["output"]["pattern"]
+    assert pattern == addon.images.output_pattern(scene), pattern
+    assert re.sub("#+", lambda m: f"{3:0{len(m.group())}d}", pattern) == addon.images.output_path(scene, 3), pattern
 
 
 def test_target_error():
@@ -100,6 +108,36 @@ def test_animation_frames_are_the_blender_frames():
     assert sorted(st["frames_acknowledged"]) == [5, 6], st
 
 
+def test_quitting_blender_leaves_the_job_to_tessera_collect():
+    """Blender closing (the session's shutdown) leaves a job with a recorded output rendering, and
+    `tessera collect` writes its frames to Blender's output folder, bit-identical to tessera render."""
+    scene = T.build_scene(animated=True, fps=24, frame_start=1, frame_end=3)
+    T.configure(scene, ADDR, spp=4, frames="RANGE", out=os.path.join(T.TMP, "quit", "shot_###"))
+    glb = os.path.join(T.TMP, "quit.glb")
+    sess = addon.session.RenderSession(bpy.context, export_path=glb)
+    sess.start()
+    deadline = time.time() + 60
+    while sess.job_id is None and not sess.finished and time.time() < deadline:
+        sess.poll(bpy.context)
+        time.sleep(0.02)
+    job_id = sess.job_id
+    assert job_id, sess.end_message
+    sess.shutdown()  # what quitting Blender does
+    while time.time() < deadline and T.tessera_status(ADDR, job_id)["state"] not in ("done", "cancelled", "failed"):
+        time.sleep(0.1)
+    st = T.tessera_status(ADDR, job_id)
+    assert st["state"] == "done", st
+    subprocess.run([T.CLI, "collect", "--once", "--poll", "0.2", "--coordinator", ADDR,
+                    "--under", os.path.join(T.TMP, "quit")], check=True, timeout=120)
+    for b in (1, 2, 3):
+        out = addon.images.output_path(scene, b)
+        assert out.endswith(f"shot_{b:03d}.exr"), out
+        ref = T.tessera_render(glb, os.path.join(T.TMP, f"quit_ref_{b}.exr"), frame=b, spp=4, camera="shot_cam",
+                               fps=scene.render.fps)
+        same, report = T.idiff_identical(out, ref)
+        assert same, f"frame {b}: {out} != {ref}:\n{report}"
+
+
 def test_unwritable_output_is_an_error():
     """A frame that cannot be written: an error report, and the frame stays unacknowledged on the
     coordinator (`tessera watch` can still fetch it)."""
@@ -119,4 +157,5 @@ T.run_tests([
     ("target_error", test_target_error),
     ("unwritable_output_is_an_error", test_unwritable_output_is_an_error),
     ("animation_frames_are_the_blender_frames", test_animation_frames_are_the_blender_frames),
+    ("quitting_blender_leaves_the_job_to_tessera_collect", test_quitting_blender_leaves_the_job_to_tessera_collect),
 ])

@@ -192,8 +192,18 @@ TEST(FarmDelivery, FramesNobodyCollectedOutliveRetentionAndAtTheLimitRefuseNewJo
   CliResult collect = farm.cli({"collect", "--coordinator", farm.address(), "--once", "--poll", "0.2"});
   ASSERT_EQ(collect.code, 0) << collect.output << farm.server_logs();
   expect_frames_match_render(share);
-  // Delivered: nothing is held, and the next job is accepted; one without an output is not kept
-  // past retention.
+  // A job whose frames nobody wants: `tessera cancel --discard` drops them, and frees the room.
+  std::string unwanted;
+  ASSERT_NO_FATAL_FAILURE(submit_detached_until_done(farm, farm.dir() / "unwanted", &unwanted));
+  refused = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--detach"});
+  EXPECT_NE(refused.output.find(unwanted), std::string::npos) << refused.output;
+  CliResult discard = farm.cli({"cancel", unwanted, "--discard", "--coordinator", farm.address()});
+  ASSERT_EQ(discard.code, 0) << discard.output;
+  st = farm.cli({"status", "--coordinator", farm.address()});
+  EXPECT_EQ(st.output.find("undelivered"), std::string::npos) << st.output;
+  EXPECT_FALSE(fs::exists(farm.dir() / "unwanted")) << "discarded frames are never written";
+  // Delivered or discarded: nothing is held, and the next job is accepted; one without an output
+  // is not kept past retention.
   CliResult plain = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--detach", "--frames", "0"});
   ASSERT_EQ(plain.code, 0) << plain.output;
   const std::string plain_job = job_id_from(plain.output);
