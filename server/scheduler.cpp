@@ -244,12 +244,19 @@ std::vector<Assignment> Scheduler::dispatch() {
     const int64_t per = int64_t(options_.factoring) * threads_total_;
     share = std::max<int64_t>(2, (queued + per - 1) / per);
   }
-  bool progress = true;
-  while (progress && !wanting_.empty()) {
-    progress = false;
-    const std::vector<WorkerId> ids(wanting_.begin(), wanting_.end());
+  // Round robin, a lease a worker a round. A worker that got nothing in a round gets nothing in
+  // the next either (within one dispatch its share is fixed, what it holds only grows and the
+  // queue only shrinks), so each round looks only at the workers served in the one before: with
+  // a thousand workers waiting over their share, a dispatch costs one pass over them, not one a
+  // round.
+  std::vector<WorkerId> ids(wanting_.begin(), wanting_.end());
+  std::vector<WorkerId> served;
+  while (!ids.empty()) {
+    served.clear();
     for (WorkerId id : ids) {
-      Worker& w = workers_.at(id);  // in wanting_: only its own turn below changes that
+      auto it = workers_.find(id);
+      if (it == workers_.end() || !wanting_.count(id)) continue;  // satisfied in an earlier round
+      Worker& w = it->second;
       // Over its share: it stays wanting and is served by a later dispatch, when what it holds
       // has gone down (its results) or the queue has grown (a new job).
       if (int64_t(w.leases.size()) >= share * credit_threads(w)) continue;
@@ -259,8 +266,9 @@ std::vector<Assignment> Scheduler::dispatch() {
       --w.stats.wanted;
       update_wanting(w);
       out.push_back(std::move(*a));
-      progress = true;
+      served.push_back(id);
     }
+    ids.swap(served);
   }
   return out;
 }
