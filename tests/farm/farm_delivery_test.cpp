@@ -82,7 +82,7 @@ void submit_detached_until_done(Farm& farm, const fs::path& share, std::string* 
   })) << farm.server_logs();
 }
 
-TEST(FarmDelivery, ACollectorStartedAfterADetachedJobEndedWritesEveryFrame) {
+TEST(FarmDelivery, ACollectorStartedAfterADetachedJobEndedWritesEveryFrameInTheRecordedFormats) {
   Farm farm;
   farm.start_server();
   farm.start_worker("w", 2);
@@ -92,12 +92,27 @@ TEST(FarmDelivery, ACollectorStartedAfterADetachedJobEndedWritesEveryFrame) {
   EXPECT_FALSE(fs::exists(share / frame_name(0))) << "nobody was attached: nothing written yet";
   CliResult st = farm.cli({"status", "--coordinator", farm.address()});
   EXPECT_NE(st.output.find("undelivered: 20 finished frames"), std::string::npos) << st.output;
+  // A second job recorded in another format: tone-mapped PNGs.
+  CliResult png = farm.cli({"submit", kScene.string(), "--coordinator", farm.address(), "--detach", "--frames", "0-2",
+                            "-o", (share / "png" / "p_####.png").string(), "--tonemap", "aces", "--exposure", "0.5"});
+  ASSERT_EQ(png.code, 0) << png.output;
 
   CliResult collect = farm.cli({"collect", "--coordinator", farm.address(), "--once", "--poll", "0.2"});
   ASSERT_EQ(collect.code, 0) << collect.output << farm.server_logs();
-  const auto written = frames_written(collect.output);
-  EXPECT_EQ(written.size(), size_t(kFrames)) << collect.output;
+  int written = 0;
+  for (const auto& [f, n] : frames_written(collect.output)) written += n;
+  EXPECT_EQ(written, kFrames + 3) << collect.output;
   expect_frames_match_render(share);
+  for (int f = 0; f < 3; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "p_%04d.png", f);
+    const fs::path ref = farm.dir() / (std::string("ref_") + name);
+    ASSERT_EQ(farm.cli({"render", kScene.string(), "-o", ref.string(), "--frame", std::to_string(f), "-q", "--tonemap",
+                        "aces", "--exposure", "0.5"})
+                  .code,
+              0);
+    EXPECT_EQ(read_text(share / "png" / name), read_text(ref)) << name << " differs from tessera render's PNG";
+  }
   // Delivered: the job left memory, the backlog is empty, and a second collector finds nothing.
   st = farm.cli({"status", "--coordinator", farm.address()});
   EXPECT_EQ(st.output.find("undelivered"), std::string::npos) << st.output;
