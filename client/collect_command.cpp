@@ -64,6 +64,7 @@ struct Delivery {
   std::atomic<bool> finished{false};
   int exit_code = 0;
   std::string error;
+  grpc::StatusCode refused = grpc::StatusCode::OK;
 };
 
 class Collector {
@@ -113,7 +114,7 @@ class Collector {
     Delivery* dp = d.get();
     // The options live in the thread: watch_job keeps references to them.
     dp->thread = std::thread([this, dp, id = j.job_id(), name = j.name(), first = j.first_frame(), r] {
-      const WatchOptions o{r.pattern, name, true, r.color, r.error_channels, 0, false};
+      const WatchOptions o{r.pattern, name, true, r.color, r.error_channels, 0, false, &dp->refused};
       try {
         check_output_writable(o.output, first);
         dp->exit_code = watch_job(client_, id, o);
@@ -139,6 +140,12 @@ class Collector {
       d.thread.join();
       if (d.error.empty()) {
         ++delivered_;
+      } else if (d.refused == grpc::StatusCode::PERMISSION_DENIED || d.refused == grpc::StatusCode::NOT_FOUND) {
+        // Another identity's job (this collector's token has no rights over it), or one gone:
+        // not this collector's to deliver, now or later. Said once; --owner avoids it.
+        std::printf("collect: job %s is not collected here: %s\n", it->first.c_str(), d.error.c_str());
+        std::fflush(stdout);
+        retry_at_[it->first] = Clock::time_point::max();
       } else {
         // The frames stay on the coordinator: try again later (a share that was full or not
         // mounted may be back), saying why each time.

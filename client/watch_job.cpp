@@ -90,6 +90,7 @@ int JobWatch::run() {
       case StreamEnd::kFinished:
         return finish();
       case StreamEnd::kBadInput:
+        if (o_.refused) *o_.refused = s.error_code();
         throw CommandError{kExitBadInput, s.error_message()};
       case StreamEnd::kReattach:
         // Lost the coordinator mid-job: re-attach (finished tiles are kept for us).
@@ -99,6 +100,7 @@ int JobWatch::run() {
         client_.wait_for_coordinator(reattach_.wait());
         break;
       case StreamEnd::kGiveUp:
+        if (o_.refused) *o_.refused = s.error_code();
         throw CommandError{kExitFailure, client_.describe(s, "watching job " + job_id_)};
     }
   }

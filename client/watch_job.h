@@ -24,6 +24,9 @@ struct WatchOptions {
   // What an interrupt says: how to come back to this job (false: the caller says something else,
   // as `tessera collect` does for its many jobs).
   bool interrupt_notice = true;
+  // When the watch gives up on a refusal, the refusal's code (e.g. PERMISSION_DENIED: another
+  // identity's job) is stored here if set, for callers that act on it (`tessera collect`).
+  grpc::StatusCode* refused = nullptr;
 };
 
 // Adds --error-channels and --preview-every, the frame output flags of `submit` and `watch`.

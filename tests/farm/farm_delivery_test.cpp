@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <csignal>
+#include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <regex>
@@ -180,6 +181,51 @@ TEST(FarmDelivery, AKilledCollectorsFramesGoToTheOtherThroughACoordinatorRestart
     const std::string name = e.path().filename().string();
     EXPECT_TRUE(std::regex_match(name, frame) || std::regex_match(name, temporary)) << "a stray file: " << name;
   }
+}
+
+// With named client tokens a collector delivers the jobs its identity may: another identity's job
+// is named once and left alone (not retried, not an error), --owner picks jobs by owner, and an
+// administrator's collector delivers anyone's.
+TEST(FarmDelivery, ACollectorDeliversTheJobsItsTokenMayAndNamesTheOthersOnce) {
+  Farm farm;
+  std::ofstream(farm.dir() / "clients") << "alice: alice-secret\nbob: bob-secret\nops: ops-secret\n";
+  for (const char* who : {"alice", "bob", "ops"})
+    std::ofstream(farm.dir() / (std::string(who) + ".token")) << who << "-secret";
+  const auto as = [&](const char* who) {
+    return std::vector<std::string>{"--coordinator", farm.address(), "--token-file",
+                                    (farm.dir() / (std::string(who) + ".token")).string()};
+  };
+  const auto cli_as = [&](const char* who, std::vector<std::string> args) {
+    const auto id = as(who);
+    args.insert(args.end(), id.begin(), id.end());
+    return farm.cli(args);
+  };
+  farm.start_server({"--client-tokens", (farm.dir() / "clients").string(), "--admin", "token:ops"});
+  farm.start_worker("w", 2);
+  const fs::path share = farm.dir() / "share";
+  CliResult sub = cli_as(
+      "alice", {"submit", kScene.string(), "--detach", "--frames", "0-2", "-o", (share / "f_####.exr").string()});
+  ASSERT_EQ(sub.code, 0) << sub.output;
+  const std::string job = job_id_from(sub.output);
+  ASSERT_TRUE(poll_until(std::chrono::seconds(120), [&] {
+    CliResult st = cli_as("alice", {"status", job, "--json"});
+    return st.code == 0 && nlohmann::json::parse(st.output).at("state") == "done";
+  })) << farm.server_logs();
+  EXPECT_EQ(nlohmann::json::parse(cli_as("alice", {"status", job, "--json"}).output).at("owner"), "token:alice");
+
+  CliResult bob = cli_as("bob", {"collect", "--once", "--poll", "0.2"});
+  EXPECT_EQ(bob.code, 0) << bob.output;
+  EXPECT_NE(bob.output.find("job " + job + " is not collected here"), std::string::npos) << bob.output;
+  EXPECT_TRUE(frames_written(bob.output).empty()) << bob.output;
+  CliResult bob_own = cli_as("bob", {"collect", "--once", "--poll", "0.2", "--owner", "token:bob"});
+  EXPECT_EQ(bob_own.code, 0) << bob_own.output;
+  EXPECT_EQ(bob_own.output.find(job), std::string::npos) << "--owner token:bob leaves alice's job alone";
+  EXPECT_FALSE(fs::exists(share / frame_name(0)));
+
+  CliResult ops = cli_as("ops", {"collect", "--once", "--poll", "0.2", "--owner", "token:alice"});
+  ASSERT_EQ(ops.code, 0) << ops.output << farm.server_logs();
+  EXPECT_EQ(frames_written(ops.output).size(), 3u) << ops.output;
+  for (int f = 0; f < 3; ++f) EXPECT_EQ(compare_exr(share / frame_name(f), reference_frame(kScene, f, {})), "") << f;
 }
 
 TEST(FarmDelivery, FramesNobodyCollectedOutliveRetentionAndAtTheLimitRefuseNewJobsByName) {
