@@ -2,6 +2,7 @@
 #include "delivery_leases.h"
 
 #include <algorithm>
+#include <utility>
 
 namespace tessera::server {
 
@@ -26,6 +27,7 @@ std::vector<int> DeliveryLeases::remove(const JobId& job, Deliverer d) {
   auto it = jobs_.find(job);
   if (it == jobs_.end()) return freed;
   std::erase(it->second.deliverers, d);
+  it->second.last_given.erase(d);
   auto& frames = it->second.frames;
   for (auto f = frames.begin(); f != frames.end();) {
     if (f->second.holder == d) {
@@ -49,14 +51,16 @@ DeliveryLeases::Deliverer DeliveryLeases::holder(const JobId& job, int frame) co
 DeliveryLeases::Deliverer DeliveryLeases::least_loaded(const Job& job, Deliverer except) const {
   // A handful of deliverers and the frames they hold at once: counting is cheaper than an index.
   Deliverer best = nullptr;
-  size_t best_count = 0;
+  std::pair<size_t, uint64_t> best_key{0, 0};  // (frames held, when last given one)
   for (Deliverer d : job.deliverers) {
     if (d == except) continue;
     const size_t n = size_t(
         std::count_if(job.frames.begin(), job.frames.end(), [&](const auto& f) { return f.second.holder == d; }));
-    if (!best || n < best_count) {
+    const auto given = job.last_given.find(d);
+    const std::pair<size_t, uint64_t> key{n, given == job.last_given.end() ? 0 : given->second};
+    if (!best || key < best_key) {
       best = d;
-      best_count = n;
+      best_key = key;
     }
   }
   return best;
@@ -67,7 +71,10 @@ DeliveryLeases::Deliverer DeliveryLeases::assign(const JobId& job, int frame, De
   if (it == jobs_.end()) return nullptr;
   if (auto f = it->second.frames.find(frame); f != it->second.frames.end()) return f->second.holder;
   Deliverer d = least_loaded(it->second, except);
-  if (d) it->second.frames[frame] = Held{d, std::nullopt};
+  if (d) {
+    it->second.frames[frame] = Held{d, std::nullopt};
+    it->second.last_given[d] = ++it->second.given;
+  }
   return d;
 }
 
@@ -92,6 +99,7 @@ std::vector<DeliveryLeases::Moved> DeliveryLeases::expire(TimePoint now) {
       Moved m{id, frame, held.holder, least_loaded(job, held.holder)};
       if (m.to) {
         held = Held{m.to, std::nullopt};
+        job.last_given[m.to] = ++job.given;
       } else {
         held.sent = now;
       }

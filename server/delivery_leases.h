@@ -9,6 +9,7 @@
 #pragma once
 
 #include <chrono>
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <vector>
@@ -31,8 +32,9 @@ class DeliveryLeases {
   std::vector<int> remove(const JobId& job, Deliverer d);
   // The deliverer holding the frame; nullptr when none does.
   Deliverer holder(const JobId& job, int frame) const;
-  // Gives a frame held by nobody to the job's deliverer holding the fewest frames, other than
-  // `except`; returns it, or nullptr when the job has no such deliverer.
+  // Gives a frame held by nobody to the job's deliverer holding the fewest frames (of those, the
+  // one given a frame longest ago: deliverers that each finish a frame before the next one starts
+  // take turns), other than `except`; returns it, or nullptr when the job has no such deliverer.
   Deliverer assign(const JobId& job, int frame, Deliverer except = nullptr);
   // The frame's last tile and its frame_done went to its holder: its lease runs from `now`.
   void sent_whole(const JobId& job, int frame, TimePoint now);
@@ -56,8 +58,10 @@ class DeliveryLeases {
     std::optional<TimePoint> sent;  // when it was sent whole
   };
   struct Job {
-    std::vector<Deliverer> deliverers;  // in attach order
-    std::map<int, Held> frames;         // frames held, by absolute number
+    std::vector<Deliverer> deliverers;         // in attach order
+    std::map<int, Held> frames;                // frames held, by absolute number
+    std::map<Deliverer, uint64_t> last_given;  // when each was last given a frame (0: never)
+    uint64_t given = 0;                        // frames given so far
   };
   Deliverer least_loaded(const Job& job, Deliverer except) const;
 

@@ -28,7 +28,23 @@ TEST(DeliveryLeasesTest, AFrameHasOneHolderAndFramesGoToTheLeastLoadedDeliverer)
   EXPECT_EQ(d.holder("j", 9), nullptr);
   d.acknowledged("j", 1);
   EXPECT_EQ(d.holder("j", 1), nullptr);
-  EXPECT_EQ(d.assign("j", 4), A) << "A holds one frame (3), B one (2): the first attached wins the tie";
+  EXPECT_EQ(d.assign("j", 4), B) << "A holds one frame (3), B one (2): the one given a frame longest ago, B";
+}
+
+TEST(DeliveryLeasesTest, DeliverersThatFinishEachFrameBeforeTheNextTakeTurns) {
+  // A slow job: each frame is written and acknowledged before the next one starts, so every
+  // deliverer holds nothing when a frame is given out. They take turns instead of the first one
+  // taking everything.
+  DeliveryLeases d(60s);
+  d.add("j", A);
+  d.add("j", B);
+  d.add("j", C);
+  std::vector<DeliveryLeases::Deliverer> got;
+  for (int f = 0; f < 6; ++f) {
+    got.push_back(d.assign("j", f));
+    d.acknowledged("j", f);
+  }
+  EXPECT_EQ(got, (std::vector<DeliveryLeases::Deliverer>{A, B, C, A, B, C}));
 }
 
 TEST(DeliveryLeasesTest, ADeliverersFramesAreFreedWhenItGoesAndTakenByTheOthers) {
