@@ -22,6 +22,7 @@
 #include "farm_command.h"
 #include "interrupt.h"
 #include "job_output.h"
+#include "job_text.h"
 #include "watch_job.h"
 
 namespace tessera::cli {
@@ -40,13 +41,9 @@ struct CollectArgs {
   bool once = false;
 };
 
-bool ended(const v1::JobStatus& j) {
-  return j.state() == v1::JOB_STATE_DONE || j.state() == v1::JOB_STATE_CANCELLED || j.state() == v1::JOB_STATE_FAILED;
-}
-
 // Has the job frames to deliver, now or later?
 bool undelivered(const v1::JobStatus& j) {
-  if (!ended(j)) return true;
+  if (!is_final(j.state())) return true;
   return j.frames_acknowledged_size() < j.frames_done_size();
 }
 
@@ -62,8 +59,7 @@ bool wanted(const v1::JobStatus& j, const CollectArgs& a) {
 struct Delivery {
   std::thread thread;
   std::atomic<bool> finished{false};
-  int exit_code = 0;
-  std::string error;
+  std::string error;  // why it stopped short of delivering the job; empty when it did
   grpc::StatusCode refused = grpc::StatusCode::OK;
 };
 
@@ -117,12 +113,10 @@ class Collector {
       const WatchOptions o{r.pattern, name, true, r.color, r.error_channels, 0, false, &dp->refused};
       try {
         check_output_writable(o.output, first);
-        dp->exit_code = watch_job(client_, id, o);
+        watch_job(client_, id, o);
       } catch (const CommandError& e) {
-        dp->exit_code = e.code;
         dp->error = e.message;
       } catch (const std::exception& e) {
-        dp->exit_code = kExitFailure;
         dp->error = e.what();
       }
       dp->finished = true;

@@ -9,6 +9,10 @@ namespace tessera::cli {
 
 namespace v1 = tessera::v1;
 
+bool is_final(v1::JobState s) {
+  return s == v1::JOB_STATE_DONE || s == v1::JOB_STATE_CANCELLED || s == v1::JOB_STATE_FAILED;
+}
+
 const char* state_name(v1::JobState s) {
   switch (s) {
     case v1::JOB_STATE_QUEUED: return "queued";

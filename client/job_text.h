@@ -12,6 +12,9 @@ namespace tessera::cli {
 // not know).
 const char* state_name(tessera::v1::JobState s);
 
+// Done, cancelled or failed: the job will not change again.
+bool is_final(tessera::v1::JobState s);
+
 // "64 spp" for a uniform job, "target RMSE 0.002 (spp 16-1024)" for a target-error one.
 std::string describe_sampling(const tessera::v1::JobStatus& st);
 

@@ -34,10 +34,6 @@ double now_s() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-bool is_final(v1::JobState s) {
-  return s == v1::JOB_STATE_DONE || s == v1::JOB_STATE_CANCELLED || s == v1::JOB_STATE_FAILED;
-}
-
 // The progress display's error: the estimate over the pixels received so far, and the target.
 std::string progress_error(const FrameAssembler& frames) {
   if (frames.tiles_received() == 0) return {};

@@ -5,8 +5,6 @@
 
 #include <spdlog/spdlog.h>
 
-#include <algorithm>
-
 namespace tessera::server {
 
 namespace v1 = tessera::v1;
@@ -65,10 +63,9 @@ void Coordinator::restore_locked() {
     // restore() settles a job whose last tile was committed but not its state change.
     jobs_store_->job_updated(*s);
     // Its undelivered frames; when they finished is not stored: from the job's end, else now.
+    const std::set<int> acknowledged(s->frames_acknowledged.begin(), s->frames_acknowledged.end());
     for (int f : s->frames_done) {
-      if (std::find(s->frames_acknowledged.begin(), s->frames_acknowledged.end(), f) == s->frames_acknowledged.end()) {
-        frame_undelivered_locked(id, f, s->ended.value_or(Clock::now()));
-      }
+      if (!acknowledged.count(f)) frame_undelivered_locked(id, f, s->ended.value_or(Clock::now()));
     }
   }
   spdlog::info("restored {} jobs from {} ({} still to render, {} finished tiles); {} leases in flight at the last "

@@ -89,6 +89,7 @@ bool Coordinator::delivered_locked(const JobId& job) const {
 }
 
 void Coordinator::finish_watchers_locked(const JobId& job, bool all) {
+  if (watchers_.find(job) == watchers_.end()) return;  // no stream: no snapshot to build
   auto s = scheduler_.job(job);
   if (!s) return;
   all = all || delivered_locked(job);

@@ -313,9 +313,7 @@ Status Coordinator::ack_frame(const std::string& id, int frame) {
   Status s = locked([&] {
     switch (scheduler_.acknowledge_frame(id, frame)) {
       case Scheduler::AckResult::kAcknowledged:
-        if (auto h = scheduler_.header(id); h && job_ended(h->state) && scheduler_.all_acknowledged(id)) {
-          evict_locked(id, "every frame delivered");
-        }
+        if (delivered_locked(id)) evict_locked(id, "every frame delivered");
         return Status::OK;
       case Scheduler::AckResult::kUnknownJob:
         // Evicted: every frame was acknowledged already (or its retention time passed). Its row

@@ -435,6 +435,11 @@ class Scheduler {
   static bool deliverable(const Job& job, const Frame& frame, const Tile& tile) {
     return tile.state == TileState::kDone && (!job.spec.passes || frame.final);
   }
+  // The frame (absolute number) of the job, or null when the job has no such frame.
+  static const Frame* find_frame(const Job& job, int frame);
+  // Appends the frame's deliverable tiles, unless the frame is acknowledged.
+  static void append_finished(const JobId& id, const Job& job, int frame,
+                              std::vector<std::pair<TileKey, TileOutput>>& out);
   // A job that ended without being done frees the tile tables of its frames that are not final:
   // nothing will render or deliver them, and they must not count against the resident limit.
   void release_unfinished(Job& job);

@@ -109,8 +109,7 @@ void Coordinator::frame_acknowledged(const JobId& id, int frame) {
   }
   spdlog::info("job {} frame {} delivered to the client; its tiles are released", id, frame);
   deliveries_.acknowledged(id, frame);
-  undelivered_.remove(id, frame);
-  if (delivered_locked(id)) finish_watchers_locked(id, true);
+  undelivered_.remove(id, frame);  // the job's last one: ack_frame evicts the job, ending its streams
 }
 
 void Coordinator::worker_joined(const WorkerStats& w) {

@@ -65,40 +65,38 @@ std::optional<Lease> Scheduler::lease(LeaseId id) const {
   return it->second;
 }
 
+const Scheduler::Frame* Scheduler::find_frame(const Job& job, int frame) {
+  const int fi = frame - job.spec.first_frame;
+  return fi >= 0 && fi < int(job.frames.size()) ? &job.frames[size_t(fi)] : nullptr;
+}
+
+void Scheduler::append_finished(const JobId& id, const Job& job, int frame,
+                                std::vector<std::pair<TileKey, TileOutput>>& out) {
+  const Frame* fr = find_frame(job, frame);
+  if (!fr || fr->acknowledged) return;
+  for (size_t t = 0; t < fr->tiles.size(); ++t) {
+    if (deliverable(job, *fr, fr->tiles[t])) out.push_back({TileKey{id, frame, int(t)}, fr->tiles[t].output});
+  }
+}
+
 std::vector<std::pair<TileKey, TileOutput>> Scheduler::finished_tiles(const JobId& id) const {
   std::vector<std::pair<TileKey, TileOutput>> out;
   const Job* job = find_job(id);
   if (!job) return out;
-  for (size_t f = 0; f < job->frames.size(); ++f) {
-    const Frame& fr = job->frames[f];
-    if (fr.acknowledged) continue;
-    for (size_t t = 0; t < fr.tiles.size(); ++t) {
-      if (!deliverable(*job, fr, fr.tiles[t])) continue;
-      out.push_back({TileKey{id, job->spec.first_frame + int(f), int(t)}, fr.tiles[t].output});
-    }
-  }
+  for (int f = job->spec.first_frame; f <= job->spec.last_frame; ++f) append_finished(id, *job, f, out);
   return out;
 }
 
 std::vector<std::pair<TileKey, TileOutput>> Scheduler::finished_tiles(const JobId& id, int frame) const {
   std::vector<std::pair<TileKey, TileOutput>> out;
-  const Job* job = find_job(id);
-  if (!job) return out;
-  const int fi = frame - job->spec.first_frame;
-  if (fi < 0 || fi >= int(job->frames.size())) return out;
-  const Frame& fr = job->frames[size_t(fi)];
-  if (fr.acknowledged) return out;
-  for (size_t t = 0; t < fr.tiles.size(); ++t) {
-    if (deliverable(*job, fr, fr.tiles[t])) out.push_back({TileKey{id, frame, int(t)}, fr.tiles[t].output});
-  }
+  if (const Job* job = find_job(id)) append_finished(id, *job, frame, out);
   return out;
 }
 
 bool Scheduler::frame_final(const JobId& id, int frame) const {
   const Job* job = find_job(id);
-  if (!job) return false;
-  const int fi = frame - job->spec.first_frame;
-  return fi >= 0 && fi < int(job->frames.size()) && job->frames[size_t(fi)].final;
+  const Frame* fr = job ? find_frame(*job, frame) : nullptr;
+  return fr && fr->final;
 }
 
 std::optional<TileRect> Scheduler::tile_rect(const JobId& id, int frame, int tile) const {
