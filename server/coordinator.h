@@ -171,6 +171,7 @@ class Coordinator : private SchedulerListener, public FarmControl {
   void job_priority_changed(const JobId&, int priority) override;
   void tile_leased(const Assignment&) override;
   void lease_ended(const Lease&, LeaseEnd) override;
+  void span_tile_lost(const Lease&, int tile) override;
   void tile_finished(const TileKey&, const TileOutput&, WorkerId) override;
   void frame_finished(const JobId&, int frame) override;
   void frame_acknowledged(const JobId&, int frame) override;

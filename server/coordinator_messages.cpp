@@ -83,6 +83,12 @@ void assignment_proto(const Assignment& a, v1::Assignment* p) {
   p->set_tile_index(a.lease.tile.tile);
   farm::to_proto(a.rect, p->mutable_rect());
   if (!a.plan.empty()) p->set_sample_plan(a.plan);
+  if (a.lease.count > 1) {
+    p->set_tile_count(a.lease.count);
+    p->set_tile_size(a.grid.size());
+    p->set_frame_width(a.grid.width());
+    p->set_frame_height(a.grid.height());
+  }
 }
 
 v1::CoordinatorMessage assignment_message(const Assignment& a) {

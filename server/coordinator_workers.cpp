@@ -64,9 +64,13 @@ void Coordinator::worker_message(WorkerId id, v1::WorkerMessage& msg) {
         if (more > 0) scheduler_.request_tiles(id, int(std::min<int64_t>(more, 1 << 30)));
         break;
       }
-      case v1::WorkerMessage::kReturned:
+      case v1::WorkerMessage::kReturned: {
         scheduler_.return_leases(id, {msg.returned().lease_ids().begin(), msg.returned().lease_ids().end()});
+        std::vector<std::pair<LeaseId, int>> tiles;
+        for (const v1::LeaseTile& t : msg.returned().tiles()) tiles.emplace_back(t.lease_id(), t.tile_index());
+        if (!tiles.empty()) scheduler_.return_tiles(id, tiles);
         break;
+      }
       case v1::WorkerMessage::kFailed: {
         auto lease = scheduler_.lease(msg.failed().lease_id());
         if (!lease || lease->worker != id) break;  // revoked meanwhile: nothing to count
@@ -107,16 +111,24 @@ void Coordinator::tile_result_locked(WorkerId id, v1::TileResult& r) {
     return;
   }
   if (r.tile().job_id() != lease->tile.job || r.tile().frame() != lease->tile.frame ||
-      r.tile().tile_index() != lease->tile.tile) {
+      !lease->covers(r.tile().tile_index())) {
     // An honest worker echoes its assignment: a result that names another job, frame or tile
-    // than its lease is a fault, never relabelled (its pixels are of whatever it names).
+    // than its lease's is a fault, never relabelled (its pixels are of whatever it names).
     scheduler_.fault(id, lease->tile.job, lease->id,
                      fmt::format("frame {} tile {}: the result names job '{}' frame {} tile {}, not its lease's",
                                  lease->tile.frame, lease->tile.tile, farm::peer_text(r.tile().job_id(), 80),
                                  r.tile().frame(), r.tile().tile_index()));
     return;
   }
-  const auto rect = scheduler_.tile_rect(lease->tile.job, lease->tile.frame, lease->tile.tile);
+  const int tile_index = r.tile().tile_index();  // one of the lease's tiles (checked above)
+  if (!lease->is_pending(tile_index)) {
+    // A tile of its span that another copy finished first (the worker was told to drop it), or
+    // a second result for one tile: nothing to check or count.
+    spdlog::debug("worker {}: result for lease {} tile {} ignored (finished by another copy)", id, r.lease_id(),
+                  tile_index);
+    return;
+  }
+  const auto rect = scheduler_.tile_rect(lease->tile.job, lease->tile.frame, tile_index);
   const JobSpec& spec = scheduler_.header(lease->tile.job)->spec;
   std::string err = farm::validate_tile(r.tile(), *rect);
   if (err.empty()) {
@@ -137,7 +149,7 @@ void Coordinator::tile_result_locked(WorkerId id, v1::TileResult& r) {
   }
   if (!err.empty()) {
     scheduler_.fault(id, lease->tile.job, lease->id,
-                     fmt::format("frame {} tile {}: {}", lease->tile.frame, lease->tile.tile, err));
+                     fmt::format("frame {} tile {}: {}", lease->tile.frame, tile_index, err));
     return;
   }
   // What is stored and forwarded is rebuilt from the fields a tile has, the pixel bytes moved, not
@@ -147,16 +159,16 @@ void Coordinator::tile_result_locked(WorkerId id, v1::TileResult& r) {
   v1::TileData tile = farm::known_fields_only(std::move(*r.mutable_tile()));
   tile.set_job_id(lease->tile.job);
   tile.set_frame(lease->tile.frame);
-  tile.set_tile_index(lease->tile.tile);
+  tile.set_tile_index(tile_index);
   if (auto w = scheduler_.worker(id)) tile.set_worker(w->info.name);
   TileOutput out;
   out.rays = tile.rays().camera() + tile.rays().shadow() + tile.rays().secondary();
   out.seconds = tile.seconds();
   out.payload = std::make_shared<const std::string>(tile.SerializeAsString());
-  const auto outcome = scheduler_.complete(id, r.lease_id(), std::move(out));
+  const auto outcome = scheduler_.complete(id, r.lease_id(), tile_index, std::move(out));
   // One line per result received: tests count re-rendered tiles from these.
   spdlog::debug("result: lease {} job {} frame {} tile {} from worker {}: {}", r.lease_id(), lease->tile.job,
-                lease->tile.frame, lease->tile.tile, id,
+                lease->tile.frame, tile_index, id,
                 outcome == Scheduler::ResultOutcome::kAccepted ? "accepted" : "duplicate");
 }
 

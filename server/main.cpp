@@ -44,6 +44,8 @@ struct ServerFlags {
   int lease_timeout_ms = 10000;
   int stall_timeout_ms = int(tessera::server::SchedulerOptions{}.stall_timeout.count());
   bool no_speculation = false;
+  int max_span_tiles = tessera::server::SchedulerOptions{}.max_span_tiles;
+  int span_ms = int(tessera::server::SchedulerOptions{}.span_seconds * 1000);
   int max_faults = 3;
   double retention_hours = 24;
   double max_undelivered_gb = 100;
@@ -74,6 +76,11 @@ std::optional<int> parse_flags(int argc, char** argv, ServerFlags& f) {
                  "loses them, heartbeats or not")
       ->check(CLI::Range(200, 86400000))->capture_default_str();
   app.add_flag("--no-speculation", f.no_speculation, "Never hand out second copies of in-flight tiles");
+  app.add_option("--max-span-tiles", f.max_span_tiles,
+                 "Most tiles in one lease (consecutive tiles of a frame); 1: a lease a tile")
+      ->check(CLI::Range(1, tessera::server::Lease::kMaxTiles))->capture_default_str();
+  app.add_option("--span-ms", f.span_ms, "Render time a lease of several tiles aims at, at the worker's own rate")
+      ->check(CLI::Range(1, 60000))->capture_default_str();
   app.add_option("--max-faults", f.max_faults, "Bad results after which a worker gets no more tiles of that job")
       ->check(CLI::Range(1, 1000))->capture_default_str();
   app.add_option("--retention-hours", f.retention_hours,
@@ -131,6 +138,8 @@ CoordinatorOptions coordinator_options(const ServerFlags& f) {
   opts.heartbeat_interval = std::chrono::milliseconds(f.heartbeat_ms);
   opts.scheduler.lease_timeout = std::chrono::milliseconds(f.lease_timeout_ms);
   opts.scheduler.speculate = !f.no_speculation;
+  opts.scheduler.max_span_tiles = f.max_span_tiles;
+  opts.scheduler.span_seconds = f.span_ms / 1000.0;
   opts.scheduler.stall_timeout = std::chrono::milliseconds(f.stall_timeout_ms);
   opts.scheduler.max_faults = f.max_faults;
   opts.retention = std::chrono::seconds(int64_t(f.retention_hours * 3600));

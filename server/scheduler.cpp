@@ -151,7 +151,7 @@ void Scheduler::remove_worker(WorkerId id, std::string_view reason, LeaseEnd why
   auto it = workers_.find(id);
   if (it == workers_.end()) return;
   const std::vector<LeaseId> leases(it->second.leases.begin(), it->second.leases.end());
-  WorkerStats stats = it->second.stats;  // in_flight: the leases it held when it left
+  WorkerStats stats = it->second.stats;  // in_flight: the tiles it held when it left
   it->second.stats.wanted = 0;  // ending its leases below must not make it wanting again
   wanting_.erase(id);
   for (LeaseId lid : leases) end_lease(lid, why, true);
@@ -178,7 +178,7 @@ void Scheduler::request_tiles(WorkerId id, int count) {
 }
 
 void Scheduler::update_wanting(Worker& w) {
-  if (w.stats.wanted > 0 && int64_t(w.leases.size()) < credit(w)) {
+  if (w.stats.wanted > 0 && w.tiles_held < credit(w)) {
     wanting_.insert(w.stats.id);
   } else {
     wanting_.erase(w.stats.id);
@@ -196,7 +196,7 @@ int Scheduler::lease_credit(WorkerId id) const {
   auto it = workers_.find(id);
   if (it == workers_.end()) return 0;
   const int c = credit(it->second);
-  return c == INT_MAX ? c : std::max(0, c - int(it->second.leases.size()));
+  return c == INT_MAX ? c : int(std::max<int64_t>(0, c - it->second.tiles_held));
 }
 
 bool Scheduler::dispatchable() const {
@@ -224,14 +224,6 @@ bool Scheduler::held(const JobId& id) const {
   return job && job->held;
 }
 
-void Scheduler::set_single_copy(Job& job, LeaseId lease, bool single) {
-  if (single) {
-    if (job.single_copies.insert(lease).second && job.single_copies.size() == 1) speculable_.insert(job.id);
-  } else if (job.single_copies.erase(lease) && job.single_copies.empty()) {
-    speculable_.erase(job.id);
-  }
-}
-
 std::vector<Assignment> Scheduler::dispatch() {
   std::vector<Assignment> out;
   // Every worker message ends in a dispatch: with nothing to hand out, looking at each waiting
@@ -239,12 +231,12 @@ std::vector<Assignment> Scheduler::dispatch() {
   if (wanting_.empty() || !dispatchable()) return out;
   // Factoring's share, leases a thread, from the queue as this dispatch finds it.
   int64_t share = int64_t(1) << 40;  // no cap (and no overflow when multiplied by threads)
+  const int64_t queued = int64_t(queued_tiles());
   if (options_.factoring > 0 && threads_total_ > 0) {
-    const int64_t queued = int64_t(queued_tiles());
     const int64_t per = int64_t(options_.factoring) * threads_total_;
     share = std::max<int64_t>(2, (queued + per - 1) / per);
   }
-  // Round robin, a lease a worker a round. A worker that got nothing in a round gets nothing in
+  // Round robin, a lease (of one tile or a span) a worker a round. A worker that got nothing in a round gets nothing in
   // the next either (within one dispatch its share is fixed, what it holds only grows and the
   // queue only shrinks), so each round looks only at the workers served in the one before: with
   // a thousand workers waiting over their share, a dispatch costs one pass over them, not one a
@@ -259,11 +251,11 @@ std::vector<Assignment> Scheduler::dispatch() {
       Worker& w = it->second;
       // Over its share: it stays wanting and is served by a later dispatch, when what it holds
       // has gone down (its results) or the queue has grown (a new job).
-      if (int64_t(w.leases.size()) >= share * credit_threads(w)) continue;
-      std::optional<Assignment> a = next_for(w);
+      if (w.tiles_held >= share * credit_threads(w)) continue;
+      std::optional<Assignment> a = next_for(w, span_for(w, share, queued));
       if (!a && options_.speculate) a = speculate_for(w);
       if (!a) continue;
-      --w.stats.wanted;
+      w.stats.wanted = std::max(0, w.stats.wanted - a->lease.count);
       update_wanting(w);
       out.push_back(std::move(*a));
       served.push_back(id);
@@ -273,146 +265,40 @@ std::vector<Assignment> Scheduler::dispatch() {
   return out;
 }
 
-std::optional<Assignment> Scheduler::next_for(Worker& w) {
+int Scheduler::span_for(const Worker& w, int64_t share, int64_t queued) const {
+  if (!w.stats.info.reads_spans || options_.max_span_tiles <= 1) return 1;
+  // The worker's rate: one tile until it has returned one (its first tiles come as soon as a
+  // single tile's would), then about span_seconds of its render time over its threads.
+  if (w.stats.tiles_done <= 0) return 1;
+  int64_t n = std::min(options_.max_span_tiles, Lease::kMaxTiles);
+  const double per_tile = w.stats.seconds / double(w.stats.tiles_done);  // one thread's
+  if (per_tile > 0) {
+    n = std::min<int64_t>(n, int64_t(options_.span_seconds * credit_threads(w) / per_tile));
+  }
+  // Factoring: a span is at most one thread's share of the queue, so spans shrink toward one
+  // tile as the queue runs out and the last tiles spread over the farm.
+  if (options_.factoring > 0 && threads_total_ > 0) {
+    n = std::min(n, queued / (int64_t(options_.factoring) * threads_total_));
+  }
+  // What the worker asked for and may hold.
+  n = std::min<int64_t>(n, w.stats.wanted);
+  n = std::min<int64_t>(n, int64_t(credit(w)) - w.tiles_held);
+  n = std::min<int64_t>(n, share * credit_threads(w) - w.tiles_held);
+  return int(std::max<int64_t>(1, n));
+}
+
+std::optional<Assignment> Scheduler::next_for(Worker& w, int span) {
   // The first runnable job this worker is not blocklisted for (blocklists are short: almost
   // always the first job).
   for (auto it = runnable_.begin(); it != runnable_.end();) {
     Job& job = *find_job(std::get<2>(*it++));  // update_runnable below may erase this job's key
     if (job.held || blocked(job, w)) continue;
-    const auto next = take_queued(job);
+    // A passes job's tiles carry a plan each: one a lease.
+    const auto next = take_span(job, job.spec.passes ? 1 : span);
     update_runnable(job);
-    if (next) return issue(w, job, next->first, next->second, false);
+    if (next) return issue(w, job, *next, false);
   }
   return std::nullopt;
-}
-
-std::optional<Assignment> Scheduler::speculate_for(Worker& w) {
-  // The oldest lease whose tile has a single copy in flight, held by someone else: if its
-  // worker is slow or dying, the second copy finishes the job sooner. Each job keeps its
-  // candidates ordered by lease id (age), so this looks at the first few of each running job
-  // (skipping only this worker's own) instead of every lease.
-  const Lease* best = nullptr;
-  for (const JobId& id : speculable_) {
-    const Job& job = *find_job(id);
-    if (job.held || job.state != JobState::kRunning || blocked(job, w)) continue;
-    for (LeaseId lid : job.single_copies) {
-      if (best && lid > best->id) break;
-      const Lease& lease = leases_.at(lid);
-      if (lease.worker == w.stats.id) continue;
-      best = &lease;
-      break;
-    }
-  }
-  if (!best) return std::nullopt;
-  const TileKey key = best->tile;
-  Job& job = *find_job(key.job);
-  return issue(w, job, key.frame - job.spec.first_frame, key.tile, true);
-}
-
-Assignment Scheduler::issue(Worker& w, Job& job, int fi, int t, bool speculative) {
-  Tile& tile = job.frames[size_t(fi)].tiles[size_t(t)];
-  const TimePoint now = now_();
-  Assignment a;
-  a.lease.id = next_lease_++;
-  a.lease.worker = w.stats.id;
-  a.lease.tile = {job.id, job.spec.first_frame + fi, t};
-  a.lease.issued = now;
-  a.lease.deadline = now + options_.lease_timeout;
-  a.lease.speculative = speculative;
-  a.rect = job.grid.rect(t);
-  a.bundle_sha256 = job.spec.bundle_sha256;
-  a.overrides = job.spec.overrides;
-  a.plan = tile.plan;
-  tile.state = TileState::kLeased;
-  tile.leases.push_back(a.lease.id);
-  if (tile.leases.size() == 1) {
-    set_single_copy(job, a.lease.id, true);
-  } else {
-    for (LeaseId other : tile.leases) set_single_copy(job, other, false);
-  }
-  leases_[a.lease.id] = a.lease;
-  if (w.leases.empty()) w.last_progress = now;  // the stall clock runs while it holds work
-  w.leases.insert(a.lease.id);
-  w.stats.in_flight = int(w.leases.size());
-  if (job.state == JobState::kQueued) set_state(job, JobState::kRunning);
-  events().tile_leased(a);
-  return a;
-}
-
-void Scheduler::end_lease(LeaseId id, LeaseEnd why, bool requeue) {
-  auto it = leases_.find(id);
-  if (it == leases_.end()) return;
-  const Lease lease = it->second;
-  leases_.erase(it);
-  if (auto wit = workers_.find(lease.worker); wit != workers_.end()) {
-    wit->second.leases.erase(id);
-    wit->second.stats.in_flight = int(wit->second.leases.size());
-    update_wanting(wit->second);
-  }
-  Job& job = *find_job(lease.tile.job);
-  const int fi = lease.tile.frame - job.spec.first_frame;
-  Tile& tile = job.frames[size_t(fi)].tiles[size_t(lease.tile.tile)];
-  std::erase(tile.leases, id);
-  set_single_copy(job, id, false);
-  if (tile.state == TileState::kLeased && tile.leases.size() == 1) set_single_copy(job, tile.leases.front(), true);
-  events().lease_ended(lease, why);
-  const bool live = job.state == JobState::kQueued || job.state == JobState::kRunning;
-  if (requeue && live && tile.state == TileState::kLeased && tile.leases.empty()) {
-    tile.state = TileState::kQueued;
-    job.requeued.emplace_front(fi, lease.tile.tile);  // oldest work first
-    update_runnable(job);
-  }
-}
-
-Scheduler::ResultOutcome Scheduler::complete(WorkerId worker, LeaseId lease_id, TileOutput output) {
-  auto it = leases_.find(lease_id);
-  if (it == leases_.end() || it->second.worker != worker) {
-    // Revoked, expired or foreign. If the tile is done anyway, count the wasted render.
-    return ResultOutcome::kStaleLease;
-  }
-  const Lease lease = it->second;
-  Job& job = *find_job(lease.tile.job);
-  const int fi = lease.tile.frame - job.spec.first_frame;
-  Frame& frame = job.frames[size_t(fi)];
-  Tile& tile = frame.tiles[size_t(lease.tile.tile)];
-  if (auto wit = workers_.find(worker); wit != workers_.end()) {
-    wit->second.stats.rays += output.rays;
-    wit->second.stats.seconds += output.seconds;
-    ++wit->second.results;  // more credit: end_lease below re-evaluates its wanting
-    wit->second.last_progress = now_();
-  }
-  if (tile.state == TileState::kDone) {
-    ++job.duplicates_discarded;
-    end_lease(lease_id, LeaseEnd::kLostRace, false);
-    return ResultOutcome::kDuplicate;
-  }
-  if (auto wit = workers_.find(worker); wit != workers_.end()) ++wit->second.stats.tiles_done;
-  tile.state = TileState::kDone;
-  tile.output = std::move(output);
-  ++frame.done;
-  ++job.tiles_done;
-  job.rays += tile.output.rays;
-  job.tile_seconds += tile.output.seconds;
-  slowest_tile_ = std::max(slowest_tile_, tile.output.seconds);
-  end_lease(lease_id, LeaseEnd::kCompleted, false);
-  // First copy wins: the other copy's worker should stop wasting time on it.
-  const std::vector<LeaseId> others = tile.leases;
-  for (LeaseId other : others) end_lease(other, LeaseEnd::kLostRace, false);
-  if (job.spec.passes) {
-    tile.finished_by = worker;
-    if (frame.done == int(frame.tiles.size())) end_pass(job, fi);
-  } else {
-    events().tile_finished(lease.tile, tile.output, worker);
-    if (frame.done == int(frame.tiles.size())) {
-      frame.final = true;
-      events().frame_finished(job.id, lease.tile.frame);
-    }
-  }
-  if (job_ended(job.state)) return ResultOutcome::kAccepted;  // the planner failed it
-  if (job.tiles_done == int64_t(job.frames.size()) * int64_t(job.grid.count())) {
-    set_state(job, JobState::kDone);
-  }
-  return ResultOutcome::kAccepted;
 }
 
 void Scheduler::end_pass(Job& job, int fi) {
@@ -456,13 +342,6 @@ void Scheduler::end_pass(Job& job, int fi) {
     events().tile_finished({job.id, frame_number, int(t)}, frame.tiles[t].output, frame.tiles[t].finished_by);
   }
   events().frame_finished(job.id, frame_number);
-}
-
-void Scheduler::return_leases(WorkerId worker, const std::vector<LeaseId>& leases) {
-  for (LeaseId lid : leases) {
-    auto it = leases_.find(lid);
-    if (it != leases_.end() && it->second.worker == worker) end_lease(lid, LeaseEnd::kReturned, true);
-  }
 }
 
 int Scheduler::fault(WorkerId worker, const JobId& job_id, std::optional<LeaseId> lease, const std::string& reason) {

@@ -77,13 +77,25 @@ struct TileKey {
   int tile = 0;   // row-major index within the frame
 };
 
+// A lease covers a span: `count` consecutive tiles of one frame from `tile.tile` (row-major), all
+// handed to one worker in one message and written down once (docs/farm.md, "Leases"). Each tile's
+// result comes on its own; the lease ends when none of its tiles is pending any more.
 struct Lease {
+  static constexpr int kMaxTiles = 64;  // the width of `pending`
   LeaseId id = 0;
   WorkerId worker = 0;
-  TileKey tile;
+  TileKey tile;        // the span's first tile
+  int count = 1;       // tiles in the span
+  // Bit i: tile tile.tile + i still awaits this lease's result (no result yet, not given back,
+  // not finished by another copy first).
+  uint64_t pending = 1;
   TimePoint issued;
   TimePoint deadline;  // as issued: any message from the worker extends it (its worker's last_seen + lease_timeout)
   bool speculative = false;  // a second copy of a tile already leased to another worker
+
+  bool covers(int t) const { return t >= tile.tile && t < tile.tile + count; }
+  bool is_pending(int t) const { return covers(t) && (pending >> (t - tile.tile) & 1); }
+  int pending_tiles() const { return __builtin_popcountll(pending); }
 };
 
 // A tile handed to a worker: the lease plus everything the worker needs to render it.
@@ -93,6 +105,7 @@ struct Assignment {
   std::string bundle_sha256;
   std::string overrides;
   std::string plan;  // passes jobs: the tile's sample plan for this pass (opaque here; empty: the first pass)
+  TileGrid grid;     // the frame's tiles: a span's other tiles are cut from it
 };
 
 // Plans a passes job's next pass when one ends: given every tile's output of the frame (tile
@@ -125,6 +138,7 @@ struct WorkerInfo {
   std::string peer;
   int threads = 1;
   std::string embree_isa;
+  bool reads_spans = false;  // takes leases of several tiles (Register.reads_spans)
 };
 
 struct WorkerStats {
@@ -133,7 +147,8 @@ struct WorkerStats {
   TimePoint connected;
   TimePoint last_seen;
   int wanted = 0;          // tiles requested and not yet assigned
-  int in_flight = 0;       // active leases
+  int in_flight = 0;       // tiles of its active leases still to come
+  int leases = 0;          // its active leases
   int64_t tiles_done = 0;  // accepted results
   int64_t refused = 0;     // results refused as faults (bad, foreign, for unknown jobs)
   uint64_t rays = 0;
@@ -182,6 +197,9 @@ class SchedulerListener {
   virtual void job_priority_changed(const JobId&, int /*priority*/) {}
   virtual void tile_leased(const Assignment&) {}
   virtual void lease_ended(const Lease&, LeaseEnd) {}
+  // One tile of a span lease lost the race to another copy: its worker should drop that tile (the
+  // rest of the span stays its own).
+  virtual void span_tile_lost(const Lease&, int /*tile*/) {}
   virtual void tile_finished(const TileKey&, const TileOutput&, WorkerId) {}
   virtual void frame_finished(const JobId&, int frame) {}
   virtual void frame_acknowledged(const JobId&, int frame) {}
@@ -222,6 +240,14 @@ struct SchedulerOptions {
   // 0: no bound (unit tests of other rules).
   int initial_leases_per_thread = 2;
   static constexpr int kMaxCreditThreads = 64;
+  // Leases of spans (docs/farm.md, "Leases"): a worker that reads spans gets its tiles in leases
+  // of up to max_span_tiles consecutive tiles of a frame, as many as it renders in about
+  // `span_seconds` at the rate it has shown (one tile until it has shown one), and never more
+  // than its factoring share of what is queued over its threads, so spans shrink toward single
+  // tiles as the queue runs out. The tile stays the unit of results, credit and factoring.
+  // max_span_tiles 1: every lease one tile.
+  int max_span_tiles = Lease::kMaxTiles;
+  double span_seconds = 0.1;
   // A worker holding leases that returns no result for this long (or for 8x the slowest tile
   // accepted so far, if longer) loses them: they are requeued and its credit starts again. Heartbeats
   // alone do not keep work a session does not do. Five minutes: longer than any tile of the
@@ -267,7 +293,8 @@ class Scheduler {
   void remove_worker(WorkerId id, std::string_view reason, LeaseEnd why = LeaseEnd::kWorkerLeft);
   // Any sign of life: renews the worker's leases.
   void heartbeat(WorkerId id);
-  // Pull: the worker can take `count` more tiles. Assignments come from dispatch().
+  // Pull: the worker can take `count` more tiles (span leases count their tiles). Assignments
+  // come from dispatch().
   void request_tiles(WorkerId id, int count);
   // Hands out tiles to every worker with a standing request, one tile per worker per round so
   // that a worker asking for many cannot starve the others of the last tiles. Returns at once
@@ -287,9 +314,12 @@ class Scheduler {
     kDuplicate,     // another copy of the tile already finished (first copy wins)
     kStaleLease,    // the lease was revoked, expired, or is not this worker's
   };
-  ResultOutcome complete(WorkerId worker, LeaseId lease, TileOutput output);
-  // The worker gives leases back unrendered (shutdown): requeued at the front.
+  // The result for tile `tile` of the lease (a tile the lease covers: the caller checks that).
+  ResultOutcome complete(WorkerId worker, LeaseId lease, int tile, TileOutput output);
+  // The worker gives leases back unrendered (shutdown): their pending tiles are requeued at the front.
   void return_leases(WorkerId worker, const std::vector<LeaseId>& leases);
+  // ... or single tiles of its span leases (the rest of each span stays its own).
+  void return_tiles(WorkerId worker, const std::vector<std::pair<LeaseId, int>>& tiles);
   // A bad result or a render failure from `worker` for a tile of job `job`. Ends `lease` (requeued)
   // when it is the worker's live lease; counts a fault against (job, worker name); at
   // max_faults the worker is blocklisted for the job (its other leases of the job are revoked),
@@ -349,7 +379,7 @@ class Scheduler {
   enum class TileState { kQueued, kLeased, kDone };
   struct Tile {
     TileState state = TileState::kQueued;
-    std::vector<LeaseId> leases;  // active leases (at most 2: the original and a speculative copy)
+    std::vector<LeaseId> leases;  // active leases it is pending in (at most 2: the original and a speculative copy)
     TileOutput output;            // when done and not yet acknowledged
     std::string plan;             // passes jobs: the plan of its current pass
     WorkerId finished_by = 0;     // passes jobs: who rendered the output (reported at the frame's end)
@@ -381,14 +411,16 @@ class Scheduler {
     std::map<std::string, int> faults;   // worker name -> faults for this job
     std::set<std::string> blocklisted;   // worker names that get no more tiles of this job
     bool held = false;                   // see hold()
-    // Active leases whose tile has no other copy in flight, oldest first: the candidates for a
-    // speculative copy. Kept up to date by issue()/end_lease() so speculation never scans leases_.
+    // Active leases with a pending tile that has no other copy in flight, oldest first: the
+    // candidates for a speculative copy. Kept up to date through copies_changed() so speculation
+    // never scans leases_.
     std::set<LeaseId> single_copies;
     int64_t tiles_resident = 0;  // tiles of its laid-out frames (what tiles_held() counts)
   };
   struct Worker {
     WorkerStats stats;
     std::set<LeaseId> leases;
+    int64_t tiles_held = 0;   // pending tiles of its leases: what credit and factoring count
     int64_t results = 0;      // results returned (accepted, duplicate, or faults up to the blocklist): its credit
     int64_t credit_base = 0;  // `results` when its credit last started again (a stall)
     TimePoint last_progress;  // its last result, or when it last went from no lease to one
@@ -410,9 +442,13 @@ class Scheduler {
   void settle_cursor(Job& job);
   // Can the frame at the cursor be laid out under the memory limits (true when it already is)?
   bool fits(const Job& job) const;
-  // The next tile to hand out, (frame index, tile), or nullopt (nothing queued, or the next
-  // frame does not fit in memory).
-  std::optional<std::pair<int, int>> take_queued(Job& job);
+  // The next tiles to hand out, up to `max` consecutive queued tiles of one frame (frame index,
+  // first tile, count), or nullopt (nothing queued, or the next frame does not fit in memory).
+  // Tiles given back come first (a run of them that is consecutive in one frame), then the cursor's.
+  struct Span {
+    int frame = 0, tile = 0, count = 1;
+  };
+  std::optional<Span> take_span(Job& job, int max);
   bool has_queued(const Job& job) const { return !job.requeued.empty() || job.fresh > 0; }
   void lay_out_frame(Job& job, Frame& frame);
   // Frees a frame's tile table. The caller calls memory_freed() once it has dropped what it drops.
@@ -421,7 +457,10 @@ class Scheduler {
   void memory_freed();
   // Nothing of the job is queued any more (cancelled, failed, or ended unfinished).
   void clear_queue(Job& job);
-  std::optional<Assignment> next_for(Worker& w);
+  std::optional<Assignment> next_for(Worker& w, int span);
+  // The tiles the worker's next lease should cover (see SchedulerOptions::max_span_tiles), given
+  // factoring's share a thread and the queue's length, as dispatch() computed them.
+  int span_for(const Worker& w, int64_t share, int64_t queued) const;
   bool blocked(const Job& job, const Worker& w) const { return job.blocklisted.count(w.stats.info.name) > 0; }
   int credit(const Worker& w) const;
   static int credit_threads(const Worker& w) { return std::clamp(w.stats.info.threads, 1, SchedulerOptions::kMaxCreditThreads); }
@@ -449,8 +488,18 @@ class Scheduler {
   std::optional<Assignment> speculate_for(Worker& w);
   // Adds or removes `lease` in job.single_copies (and the job in speculable_).
   void set_single_copy(Job& job, LeaseId lease, bool single);
-  Assignment issue(Worker& w, Job& job, int frame_index, int tile, bool speculative);
-  // Ends a lease; requeues its tile (at the front) when `requeue` and no other copy is active.
+  // Runs `change` (which may change the tile's state and its list of leases) and keeps the
+  // count of single-copy tiles of the leases involved, and job.single_copies, exact.
+  template <typename F>
+  void copies_changed(Job& job, Tile& tile, F&& change);
+  void count_single(Job& job, LeaseId lease, int delta);
+  Assignment issue(Worker& w, Job& job, const Span& span, bool speculative);
+  // Takes tile `t` out of the lease (it no longer awaits the tile's result from it): requeued at
+  // the front when `requeue`, the job is live and no other copy of it is active. Does not end the
+  // lease when it was its last pending tile: the caller does.
+  void drop_pending(Lease& lease, int t, bool requeue);
+  // Ends a lease; requeues its pending tiles (at the front, in order) when `requeue` and no
+  // other copy of them is active.
   void end_lease(LeaseId id, LeaseEnd why, bool requeue);
   void set_state(Job& job, JobState s);
   // A passes job's frame whose every tile is done: plans the next pass (requeues its tiles) or
@@ -475,6 +524,7 @@ class Scheduler {
   int64_t threads_total_ = 0;         // threads of every connected worker (each clamped as credit() does)
   std::set<WorkerId> wanting_;        // workers with a standing request and credit left: dispatch() looks only here
   std::map<LeaseId, Lease> leases_;   // ids grow with time: begin() is the oldest lease
+  std::map<LeaseId, int> singles_;    // per lease: its pending tiles that have no other copy in flight
   uint64_t next_seq_ = 1;
   int64_t tiles_held_ = 0;            // tiles of every job in jobs_ (Job::tiles_resident summed)
   double slowest_tile_ = 0;           // the longest render time of an accepted tile (stall limit)

@@ -56,8 +56,9 @@ void Coordinator::tile_leased(const Assignment& a) {
   notify([&](SchedulerListener& o) { o.tile_leased(a); });
 
   if (jobs_store_) jobs_store_->lease_issued(a.lease, std::to_string(a.lease.worker));
-  spdlog::debug("lease {} job {} frame {} tile {} to worker {}{}", a.lease.id, a.lease.tile.job, a.lease.tile.frame,
-                a.lease.tile.tile, a.lease.worker, a.lease.speculative ? " (speculative copy)" : "");
+  spdlog::debug("lease {} job {} frame {} tile {}{} to worker {}{}", a.lease.id, a.lease.tile.job, a.lease.tile.frame,
+                a.lease.tile.tile, a.lease.count > 1 ? fmt::format("-{}", a.lease.tile.tile + a.lease.count - 1) : "",
+                a.lease.worker, a.lease.speculative ? " (speculative copy)" : "");
 }
 
 void Coordinator::lease_ended(const Lease& lease, LeaseEnd why) {
@@ -77,6 +78,19 @@ void Coordinator::lease_ended(const Lease& lease, LeaseEnd why) {
   if (it == workers_.end()) return;
   v1::CoordinatorMessage m;
   m.mutable_revoke()->add_lease_ids(lease.id);
+  it->second.sink->push(std::move(m));
+  touched_workers_.push_back(it->second.sink);
+}
+
+void Coordinator::span_tile_lost(const Lease& lease, int tile) {
+  notify([&](SchedulerListener& o) { o.span_tile_lost(lease, tile); });
+
+  auto it = workers_.find(lease.worker);
+  if (it == workers_.end()) return;
+  v1::CoordinatorMessage m;
+  v1::LeaseTile* t = m.mutable_revoke()->add_tiles();
+  t->set_lease_id(lease.id);
+  t->set_tile_index(tile);
   it->second.sink->push(std::move(m));
   touched_workers_.push_back(it->second.sink);
 }
@@ -127,7 +141,7 @@ void Coordinator::worker_joined(const WorkerStats& w) {
 void Coordinator::worker_left(const WorkerStats& w, std::string_view reason) {
   notify([&](SchedulerListener& o) { o.worker_left(w, reason); });
 
-  spdlog::info("worker {} '{}' left ({}): {} tiles rendered, {} leases requeued", w.id, w.info.name, reason,
+  spdlog::info("worker {} '{}' left ({}): {} tiles rendered, {} tiles requeued", w.id, w.info.name, reason,
                w.tiles_done, w.in_flight);
   peer_warnings_.forget(w.id);
   auto it = workers_.find(w.id);

@@ -58,18 +58,36 @@ void Scheduler::settle_cursor(Job& job) {
   }
 }
 
-std::optional<std::pair<int, int>> Scheduler::take_queued(Job& job) {
+std::optional<Scheduler::Span> Scheduler::take_span(Job& job, int max) {
+  max = std::max(1, max);
   if (!job.requeued.empty()) {
-    const auto next = job.requeued.front();
+    // Given back in tile order (end_lease requeues a span's tiles so), so a span given back is
+    // handed out again as one.
+    const auto [fi, t] = job.requeued.front();
     job.requeued.pop_front();
-    return next;
+    Span span{fi, t, 1};
+    while (span.count < max && !job.requeued.empty() && job.requeued.front() == std::pair{fi, t + span.count}) {
+      job.requeued.pop_front();
+      ++span.count;
+    }
+    return span;
   }
   if (job.fresh <= 0) return std::nullopt;
   settle_cursor(job);
   if (job.next_frame >= int(job.frames.size()) || !fits(job)) return std::nullopt;
-  lay_out_frame(job, job.frames[size_t(job.next_frame)]);
-  --job.fresh;
-  return std::pair{job.next_frame, job.next_tile++};
+  Frame& frame = job.frames[size_t(job.next_frame)];
+  lay_out_frame(job, frame);
+  // settle_cursor left the cursor on a queued tile; the span runs on while tiles are queued (a
+  // restored frame has done tiles among them) and stays within the frame.
+  Span span{job.next_frame, job.next_tile, 0};
+  const int per_frame = job.grid.count();
+  while (span.count < max && job.next_tile < per_frame &&
+         frame.tiles[size_t(job.next_tile)].state == TileState::kQueued) {
+    ++span.count;
+    ++job.next_tile;
+    --job.fresh;
+  }
+  return span;
 }
 
 void Scheduler::clear_queue(Job& job) {

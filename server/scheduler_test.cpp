@@ -82,7 +82,7 @@ TEST_F(SchedulerTest, PullAssignsInOrderAndCompletesJob) {
   EXPECT_EQ(as[0].lease.tile.tile, 0);
   EXPECT_EQ(as[3].lease.tile.frame, 1);
   EXPECT_EQ(s.job(id)->state, JobState::kRunning);
-  for (const auto& a : as) EXPECT_EQ(s.complete(w, a.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  for (const auto& a : as) EXPECT_EQ(s.complete(w, a.lease.id, a.lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
   auto j = s.job(id);
   EXPECT_EQ(j->state, JobState::kDone);
   EXPECT_EQ(j->tiles_done, 4);
@@ -103,7 +103,7 @@ TEST_F(SchedulerTest, FastWorkersGetMoreBecauseTheyPull) {
   while (true) {
     auto a = pull(fast, 1);
     if (a.empty() || a[0].lease.speculative) break;
-    s.complete(fast, a[0].lease.id, out());
+    s.complete(fast, a[0].lease.id, a[0].lease.tile.tile, out());
     ++fast_done;
   }
   EXPECT_EQ(fast_done, 15);
@@ -135,8 +135,8 @@ TEST_F(SchedulerTest, WorkerLeavingRequeuesItsTilesAtTheFront) {
   for (auto& x : again) tiles.insert(x.lease.tile.tile);
   EXPECT_EQ(tiles, (std::set<int>{0, 1, 2}));
   // A late result of the dead worker's lease is ignored.
-  EXPECT_EQ(s.complete(a, got[0].lease.id, out()), Scheduler::ResultOutcome::kStaleLease);
-  for (auto& x : again) s.complete(b, x.lease.id, out());
+  EXPECT_EQ(s.complete(a, got[0].lease.id, got[0].lease.tile.tile, out()), Scheduler::ResultOutcome::kStaleLease);
+  for (auto& x : again) s.complete(b, x.lease.id, x.lease.tile.tile, out());
   EXPECT_EQ(s.job(id)->state, JobState::kDone);
   EXPECT_EQ(s.job(id)->tiles_done, 3);
 }
@@ -189,12 +189,12 @@ TEST_F(SchedulerTest, FactoringGivesEachWorkerItsShareOfWhatIsQueued) {
   auto got_b = pull_from(b, 100);
   EXPECT_EQ(got_b.size(), 12u) << "48 / 8 = 6 a thread";
   // a renders its 16: its next share is 36 / 8, rounded up, = 5 a thread.
-  for (const auto& x : got_a) ASSERT_EQ(sc.complete(a, x.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  for (const auto& x : got_a) ASSERT_EQ(sc.complete(a, x.lease.id, x.lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
   got_a = sc.dispatch();
   EXPECT_EQ(got_a.size(), 10u);
   // Near the end the share is the floor, two a thread: what is left goes to b too.
-  for (const auto& x : got_a) sc.complete(a, x.lease.id, out());
-  for (const auto& x : got_b) sc.complete(b, x.lease.id, out());
+  for (const auto& x : got_a) sc.complete(a, x.lease.id, x.lease.tile.tile, out());
+  for (const auto& x : got_b) sc.complete(b, x.lease.id, x.lease.tile.tile, out());
   EXPECT_EQ(sc.queued_tiles(), 26u);
   int rounds = 0;
   while (sc.queued_tiles() > 0 && rounds++ < 20) {
@@ -205,7 +205,7 @@ TEST_F(SchedulerTest, FactoringGivesEachWorkerItsShareOfWhatIsQueued) {
     EXPECT_LE(held_a, floor_or_share);
     EXPECT_LE(held_b, floor_or_share);
     EXPECT_GT(held_b, 0) << "b gets its share of every round";
-    for (const auto& x : as) sc.complete(x.lease.worker, x.lease.id, out());
+    for (const auto& x : as) sc.complete(x.lease.worker, x.lease.id, x.lease.tile.tile, out());
   }
   EXPECT_EQ(sc.queued_tiles(), 0u);
 }
@@ -224,11 +224,11 @@ TEST_F(SchedulerTest, IdleWorkerDuplicatesOldestInFlightTileFirstCopyWins) {
   EXPECT_TRUE(pull(b, 1).empty());
   EXPECT_TRUE(pull(a, 1).empty());
   // b finishes tile 0 first: a's copy is revoked, its late result is stale.
-  EXPECT_EQ(s.complete(b, tb[0].lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  EXPECT_EQ(s.complete(b, tb[0].lease.id, tb[0].lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
   bool revoked = false;
   for (auto& [l, why] : rec.ended) revoked |= l.id == ta[0].lease.id && why == LeaseEnd::kLostRace;
   EXPECT_TRUE(revoked);
-  EXPECT_EQ(s.complete(a, ta[0].lease.id, out()), Scheduler::ResultOutcome::kStaleLease);
+  EXPECT_EQ(s.complete(a, ta[0].lease.id, ta[0].lease.tile.tile, out()), Scheduler::ResultOutcome::kStaleLease);
   EXPECT_EQ(s.job(id)->tiles_done, 1);
   EXPECT_EQ(rec.finished.size(), 1u);
 }
@@ -253,7 +253,7 @@ TEST_F(SchedulerTest, CancelStopsHandingOutAndRevokesLeases) {
   EXPECT_EQ(s.cancel(id), Scheduler::CancelResult::kCancelled);
   EXPECT_EQ(s.job(id)->state, JobState::kCancelled);
   EXPECT_TRUE(pull(a, 4).empty());
-  EXPECT_EQ(s.complete(a, got[0].lease.id, out()), Scheduler::ResultOutcome::kStaleLease);
+  EXPECT_EQ(s.complete(a, got[0].lease.id, got[0].lease.tile.tile, out()), Scheduler::ResultOutcome::kStaleLease);
   int cancelled = 0;
   for (auto& [l, why] : rec.ended) cancelled += why == LeaseEnd::kCancelled;
   EXPECT_EQ(cancelled, 2);
@@ -265,7 +265,7 @@ TEST_F(SchedulerTest, FinishedTilesKeptUntilFrameAcknowledged) {
   const JobId id = s.submit(spec(32, 16, 16, 2));
   const WorkerId a = worker("a");
   auto got = pull(a, 3);
-  for (auto& x : got) s.complete(a, x.lease.id, out());
+  for (auto& x : got) s.complete(a, x.lease.id, x.lease.tile.tile, out());
   EXPECT_EQ(s.finished_tiles(id).size(), 3u);
   EXPECT_EQ(s.acknowledge_frame(id, 1), Scheduler::AckResult::kNotFinished);
   EXPECT_EQ(s.acknowledge_frame(id, 0), Scheduler::AckResult::kAcknowledged);
@@ -291,8 +291,8 @@ TEST_F(SchedulerTest, ForeignLeaseIsStale) {
   s.submit(spec(16, 16, 16));
   const WorkerId a = worker("a"), b = worker("b");
   auto got = pull(a, 1);
-  EXPECT_EQ(s.complete(b, got[0].lease.id, out()), Scheduler::ResultOutcome::kStaleLease);
-  EXPECT_EQ(s.complete(a, got[0].lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  EXPECT_EQ(s.complete(b, got[0].lease.id, got[0].lease.tile.tile, out()), Scheduler::ResultOutcome::kStaleLease);
+  EXPECT_EQ(s.complete(a, got[0].lease.id, got[0].lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
 }
 
 TEST_F(SchedulerTest, FrameRangeUsesAbsoluteFrameNumbers) {
@@ -305,7 +305,7 @@ TEST_F(SchedulerTest, FrameRangeUsesAbsoluteFrameNumbers) {
   ASSERT_EQ(got.size(), 2u);
   EXPECT_EQ(got[0].lease.tile.frame, 5);
   EXPECT_EQ(got[1].lease.tile.frame, 6);
-  for (auto& x : got) s.complete(a, x.lease.id, out());
+  for (auto& x : got) s.complete(a, x.lease.id, x.lease.tile.tile, out());
   EXPECT_EQ(s.job(id)->frames_done, (std::vector<int>{5, 6}));
 }
 
@@ -417,7 +417,7 @@ TEST_F(SchedulerTest, RestoredDoneJobWithALostTileRunsAgain) {
   auto got = pull(a, 2);
   ASSERT_EQ(got.size(), 1u);
   EXPECT_EQ(got[0].lease.tile.tile, 0);
-  EXPECT_EQ(s.complete(a, got[0].lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  EXPECT_EQ(s.complete(a, got[0].lease.id, got[0].lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
   EXPECT_EQ(s.job("old")->state, JobState::kDone);
 }
 
@@ -426,7 +426,7 @@ TEST_F(SchedulerTest, ForgetDropsOnlyEndedJobs) {
   EXPECT_FALSE(s.forget(id));  // still queued
   const WorkerId a = worker("a");
   auto got = pull(a, 1);
-  s.complete(a, got[0].lease.id, out());
+  s.complete(a, got[0].lease.id, got[0].lease.tile.tile, out());
   EXPECT_FALSE(s.all_acknowledged(id));
   EXPECT_EQ(s.acknowledge_frame(id, 0), Scheduler::AckResult::kAcknowledged);
   EXPECT_TRUE(s.all_acknowledged(id));
@@ -451,13 +451,13 @@ TEST_F(SchedulerTest, HeldJobGetsNoLeasesButItsResultsCountAndOtherJobsRun) {
   ASSERT_EQ(tb.size(), 2u);
   for (const auto& x : tb) {
     EXPECT_EQ(x.lease.tile.job, other);
-    EXPECT_EQ(s.complete(b, x.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+    EXPECT_EQ(s.complete(b, x.lease.id, x.lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
   }
   EXPECT_EQ(s.job(other)->state, JobState::kDone);
   EXPECT_FALSE(s.dispatchable());
   EXPECT_TRUE(pull(a, 1).empty());
   // A lease issued before the hold still completes.
-  EXPECT_EQ(s.complete(a, ta[0].lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  EXPECT_EQ(s.complete(a, ta[0].lease.id, ta[0].lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
   EXPECT_EQ(s.job(slow)->tiles_done, 1);
   // Released: the standing requests (a: 1, b: 1) get the held job's next tiles, in order.
   EXPECT_TRUE(s.hold(slow, false));
@@ -537,7 +537,7 @@ TEST_F(SchedulerTest, APassesJobReportsItsFramesOnlyAfterTheirLastPass) {
   auto as = pull(w, 10);
   ASSERT_EQ(as.size(), 4u);
   for (const auto& a : as) EXPECT_EQ(a.plan, "");  // the first pass
-  for (const auto& a : as) ASSERT_EQ(s.complete(w, a.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  for (const auto& a : as) ASSERT_EQ(s.complete(w, a.lease.id, a.lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
   EXPECT_TRUE(rec.finished.empty()) << "a tile was reported before its frame's last pass";
   EXPECT_TRUE(rec.frames.empty());
   ASSERT_EQ(calls.size(), 2u);
@@ -553,13 +553,13 @@ TEST_F(SchedulerTest, APassesJobReportsItsFramesOnlyAfterTheirLastPass) {
   // Requeued at the front (older work than later frames' pilots): frame 1's pass went in last.
   EXPECT_EQ(again[0].lease.tile.frame, 1);
   std::swap(again[0], again[1]);
-  ASSERT_EQ(s.complete(w, again[0].lease.id, out(20)), Scheduler::ResultOutcome::kAccepted);
+  ASSERT_EQ(s.complete(w, again[0].lease.id, again[0].lease.tile.tile, out(20)), Scheduler::ResultOutcome::kAccepted);
   ASSERT_EQ(rec.finished.size(), 2u);  // frame 0, both tiles, in order, then the frame
   EXPECT_EQ(rec.finished[0].tile, 0);
   EXPECT_EQ(rec.finished[1].tile, 1);
   EXPECT_EQ(rec.frames, std::vector<int>{0});
   EXPECT_NE(s.job(id)->state, JobState::kDone);
-  ASSERT_EQ(s.complete(w, again[1].lease.id, out(20)), Scheduler::ResultOutcome::kAccepted);
+  ASSERT_EQ(s.complete(w, again[1].lease.id, again[1].lease.tile.tile, out(20)), Scheduler::ResultOutcome::kAccepted);
   EXPECT_EQ(s.job(id)->state, JobState::kDone);
   EXPECT_EQ(s.job(id)->rays, 4 * 10u + 2 * 20u);  // every pass's work counts
 }
@@ -579,7 +579,7 @@ TEST_F(SchedulerTest, AFramesNextPassGoesBeforeLaterFramesPilots) {
   const WorkerId w = worker("a");
   auto first = pull(w, 2);  // frame 0's pilot
   ASSERT_EQ(first.size(), 2u);
-  for (const auto& a : first) ASSERT_EQ(s.complete(w, a.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  for (const auto& a : first) ASSERT_EQ(s.complete(w, a.lease.id, a.lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
   auto next = pull(w, 2);
   ASSERT_EQ(next.size(), 2u);
   EXPECT_EQ(next[0].lease.tile.frame, 0);  // frame 0's second pass, not frame 1's pilot
@@ -601,7 +601,7 @@ TEST_F(SchedulerTest, APlannerErrorFailsTheJobSayingWhy) {
   const WorkerId w = worker("a");
   auto as = pull(w, 1);
   ASSERT_EQ(as.size(), 1u);
-  s.complete(w, as[0].lease.id, out());
+  s.complete(w, as[0].lease.id, as[0].lease.tile.tile, out());
   EXPECT_EQ(s.job(id)->state, JobState::kFailed);
   EXPECT_EQ(s.job(id)->error, "frame 0: tile 0 carries no block statistics");
   EXPECT_TRUE(rec.finished.empty());
@@ -639,12 +639,12 @@ TEST_F(SchedulerTest, AnAttachingClientGetsNoTileOfAFrameBetweenPasses) {
   });
   const JobId id = s.submit(j);
   const WorkerId w = worker("a");
-  for (const auto& a : pull(w, 2)) ASSERT_EQ(s.complete(w, a.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  for (const auto& a : pull(w, 2)) ASSERT_EQ(s.complete(w, a.lease.id, a.lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
   EXPECT_TRUE(s.finished_tiles(id).empty()) << "tile 0 is done but its frame is between passes";
   EXPECT_TRUE(s.job(id)->frames_done.empty());
   auto second = pull(w, 1);
   ASSERT_EQ(second.size(), 1u);
-  ASSERT_EQ(s.complete(w, second[0].lease.id, out(20)), Scheduler::ResultOutcome::kAccepted);
+  ASSERT_EQ(s.complete(w, second[0].lease.id, second[0].lease.tile.tile, out(20)), Scheduler::ResultOutcome::kAccepted);
   const auto tiles = s.finished_tiles(id);
   ASSERT_EQ(tiles.size(), 2u);
   EXPECT_EQ(tiles[1].second.rays, 20u) << "the last pass's output";
@@ -669,7 +669,7 @@ TEST_F(SchedulerTest, LeaseCreditBoundsWhatASessionHoldsBeforeItRenders) {
   sc.request_tiles(honest, 10);
   auto mine = sc.dispatch();
   ASSERT_EQ(mine.size(), 2u);
-  ASSERT_EQ(sc.complete(honest, mine[0].lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+  ASSERT_EQ(sc.complete(honest, mine[0].lease.id, mine[0].lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
   EXPECT_EQ(sc.lease_credit(honest), 3) << "credit 2 + 2 earned, 1 still held";
   EXPECT_EQ(sc.dispatch().size(), 3u);
 }
@@ -697,7 +697,7 @@ TEST_F(SchedulerTest, DispatchLooksOnlyAtWorkersItCanServeWhateverHappens) {
       case 0: sc.request_tiles(w, 1 + int(rng() % 5)); break;
       case 1: case 2:
         if (!held[w].empty()) {
-          sc.complete(w, held[w].back(), out());
+          if (auto l = sc.lease(held[w].back())) sc.complete(w, l->id, l->tile.tile, out());
           held[w].pop_back();
         }
         break;
@@ -760,7 +760,7 @@ TEST_F(SchedulerTest, ASessionThatReturnsNothingLosesItsLeasesWhateverItsHeartbe
     sc.heartbeat(idle);
     sc.heartbeat(busy);
     if (i == 1) {  // at 20 s busy returns its tile and takes the next
-      ASSERT_EQ(sc.complete(busy, b[0].lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+      ASSERT_EQ(sc.complete(busy, b[0].lease.id, b[0].lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
       sc.request_tiles(busy, 1);
       ASSERT_EQ(sc.dispatch().size(), 1u);
     }
@@ -782,7 +782,7 @@ TEST_F(SchedulerTest, ACancelledJobReleasesItsUnfinishedFramesAtOnce) {
   EXPECT_EQ(s.tiles_held(), 0) << "no frame has started";
   const WorkerId w = worker("a");
   auto as = pull(w, 3);  // frame 0 both tiles, frame 1 tile 0
-  for (const auto& a : as) s.complete(w, a.lease.id, out());
+  for (const auto& a : as) s.complete(w, a.lease.id, a.lease.tile.tile, out());
   EXPECT_EQ(s.tiles_held(), 4) << "frames 0 and 1 have started";
   ASSERT_EQ(s.cancel(id), Scheduler::CancelResult::kCancelled);
   EXPECT_EQ(s.tiles_held(), 2) << "frame 0 is final and not yet delivered; frames 1 and 2 are released";
@@ -831,7 +831,7 @@ TEST_F(SchedulerTest, AFrameCostsMemoryOnlyFromItsFirstTileToItsAcknowledgement)
     for (const auto& a : as) {
       EXPECT_EQ(a.lease.tile.job, small);
       EXPECT_EQ(a.lease.tile.frame, frame);
-      ASSERT_EQ(s.complete(v, a.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+      ASSERT_EQ(s.complete(v, a.lease.id, a.lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
     }
     EXPECT_EQ(s.job(small)->tiles_resident, 2);
     EXPECT_EQ(s.acknowledge_frame(small, frame), Scheduler::AckResult::kAcknowledged);
@@ -855,7 +855,7 @@ TEST_F(SchedulerTest, AJobWaitsForMemoryAndStartsItsNextFrameWhenAFrameIsAcknowl
   const auto render = [&](int n) {
     sc.request_tiles(w, n);
     auto as = sc.dispatch();
-    for (const auto& x : as) EXPECT_EQ(sc.complete(w, x.lease.id, out()), Scheduler::ResultOutcome::kAccepted);
+    for (const auto& x : as) EXPECT_EQ(sc.complete(w, x.lease.id, x.lease.tile.tile, out()), Scheduler::ResultOutcome::kAccepted);
     return as;
   };
   EXPECT_EQ(render(10).size(), 4u) << "frames 0 and 1; frame 2 would hold 6 tiles of the job";
@@ -875,7 +875,7 @@ TEST_F(SchedulerTest, AJobWaitsForMemoryAndStartsItsNextFrameWhenAFrameIsAcknowl
   auto bs = sc.dispatch();
   ASSERT_EQ(bs.size(), 2u) << "frame 0 of b; its frame 1 would take the farm to 8";
   EXPECT_TRUE(sc.job(b)->waiting_for_memory);
-  for (const auto& x : next) sc.complete(w, x.lease.id, out());
+  for (const auto& x : next) sc.complete(w, x.lease.id, x.lease.tile.tile, out());
   ASSERT_EQ(sc.cancel(a), Scheduler::CancelResult::kCancelled);  // frame 3 never started
   EXPECT_TRUE(sc.job(b)->waiting_for_memory) << "a's final frames 1 and 2 are not yet delivered";
   ASSERT_TRUE(sc.acknowledge_frame(a, 1) == Scheduler::AckResult::kAcknowledged);
@@ -971,7 +971,7 @@ TEST(SchedulerModel, EveryTileAClientReceivesIsFinalInEveryInterleaving) {
         auto it = std::next(held.begin(), long(rng() % held.size()));
         const Assignment a = it->second;
         held.erase(it);
-        sched->complete(a.lease.worker, a.lease.id, output(a.lease.tile.frame, a.lease.tile.tile, a.plan));
+        sched->complete(a.lease.worker, a.lease.id, a.lease.tile.tile, output(a.lease.tile.frame, a.lease.tile.tile, a.plan));
       } else if (action == 6) {
         check("attach");
       } else if (action == 7) {

@@ -70,7 +70,8 @@ class WorkerSession : public grpc::ServerBidiReactor<v1::WorkerMessage, v1::Coor
         finish(Status(StatusCode::INVALID_ARGUMENT, e));
         return;
       }
-      WorkerInfo info{r.name().empty() ? peer_ : r.name(), peer_, std::max(1, r.threads()), r.embree_isa()};
+      WorkerInfo info{r.name().empty() ? peer_ : r.name(), peer_, std::max(1, r.threads()), r.embree_isa(),
+                      r.reads_spans()};
       id_ = coord_.register_worker(info, sink_, r.reads_assignment_batches());
     } else if (in_.msg_case() == v1::WorkerMessage::kRegister) {
       finish(Status(StatusCode::FAILED_PRECONDITION, "worker already registered on this stream"));

@@ -44,6 +44,10 @@ FarmMetrics::FarmMetrics(FarmView& coordinator)
                     "Rays traced for accepted tiles (camera, shadow and secondary)")),
       tile_seconds_(histogram(registry_, "tessera_tile_render_seconds",
                               "Wall time a worker spent rendering an accepted tile", powers_of_two(0.001, 17))),
+      leases_issued_(counter(registry_, "tessera_leases_issued_total",
+                             "Leases handed to workers (a lease is a span of one or more tiles of a frame)")),
+      tiles_leased_(counter(registry_, "tessera_tiles_leased_total",
+                            "Tiles handed to workers in leases (over tessera_leases_issued_total: tiles a lease)")),
       lease_expiries_(counter(registry_, "tessera_lease_expiries_total",
                               "Leases whose worker went silent past the lease timeout (tile requeued)")),
       speculative_copies_(counter(registry_, "tessera_speculative_copies_total",
@@ -105,6 +109,8 @@ FarmMetrics::~FarmMetrics() {
 }
 
 void FarmMetrics::tile_leased(const Assignment& a) {
+  leases_issued_.Increment();
+  tiles_leased_.Increment(a.lease.count);
   if (a.lease.speculative) speculative_copies_.Increment();
 }
 

@@ -70,6 +70,8 @@ class FarmMetrics : public SchedulerListener {
   prometheus::Counter& tiles_completed_;
   prometheus::Counter& rays_;
   prometheus::Histogram& tile_seconds_;
+  prometheus::Counter& leases_issued_;
+  prometheus::Counter& tiles_leased_;
   prometheus::Counter& lease_expiries_;
   prometheus::Counter& speculative_copies_;
   prometheus::Counter& lost_races_;

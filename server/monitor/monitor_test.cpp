@@ -104,7 +104,9 @@ TEST_F(FarmMetricsTest, CountsEventsAndExportsLevelsInTheTextFormat) {
   Assignment copy;
   copy.lease.speculative = true;
   events.tile_leased(copy);
-  events.tile_leased(Assignment{});
+  Assignment span;
+  span.lease.count = 20;
+  events.tile_leased(span);
   WorkerStats w;
   events.worker_faulted("j", w, "bad", 1, false);
   events.worker_faulted("j", w, "bad", 3, true);
@@ -112,6 +114,7 @@ TEST_F(FarmMetricsTest, CountsEventsAndExportsLevelsInTheTextFormat) {
   for (const char* line :
        {"tessera_tiles_completed_total 2\n", "tessera_rays_traced_total 2000\n", "tessera_lease_expiries_total 1\n",
         "tessera_speculative_lost_races_total 1\n", "tessera_speculative_copies_total 1\n",
+        "tessera_leases_issued_total 2\n", "tessera_tiles_leased_total 21\n",
         "tessera_worker_faults_total 2\n", "tessera_worker_blocklistings_total 1\n",
         "tessera_tile_render_seconds_count 2\n", "tessera_tile_render_seconds_bucket{le=\"0.512\"} 2\n",
         "tessera_tile_render_seconds_bucket{le=\"0.256\"} 0\n", "tessera_jobs{state=\"running\"} 0\n",
