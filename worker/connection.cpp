@@ -3,6 +3,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <limits>
 #include <random>
 #include <thread>
@@ -10,8 +11,10 @@
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
 #include "farm/tile_codec.h"
+#include "lease_book.h"
 #include "reconnect_policy.h"
 #include "result_batcher.h"
+#include "span_lease.h"
 #include "render/embree_device.h"
 #include "render/frame_target.h"
 #include "render/tile_renderer.h"
@@ -29,7 +32,7 @@ struct WorkerConnection::Session {
   std::mutex write_mu;
   bool alive = true;
   bool draining = false;                // stop requested: take no new work
-  std::set<uint64_t> revoked;           // leases revoked while their tile was rendering
+  LeaseBook leases;                     // tiles of each lease in flight, and which were revoked
   int depth = 0;                        // tiles to keep requested or assigned and unfinished
   double tile_seconds = 0;              // a tile's wall time on one thread (moving average)
   std::chrono::milliseconds heartbeat{1000};
@@ -84,18 +87,22 @@ void WorkerConnection::request_stop() {
   cv_.notify_all();
   if (!s) return;
   // Give back what has not started, let the running tiles finish (their results are sent by
-  // the render threads), then close our side: the coordinator ends the stream.
-  std::vector<uint64_t> unstarted;
+  // the render threads), then close our side: the coordinator ends the stream. Withdrawn under
+  // the write lock, with the draining flag set: no assignment is posted after it, and no render
+  // thread settles a lease in the book between the withdrawal and its account. A span with tiles
+  // running or sent goes back tile by tile (LeaseBook::give_back).
+  v1::WorkerMessage m;
+  size_t unstarted = 0;
   {
     std::lock_guard lock(s->write_mu);
     s->draining = true;
+    const std::vector<TaskKey> keys = pool_.remove_all();
+    unstarted = keys.size();
+    if (unstarted > 0) *m.mutable_returned() = s->leases.give_back(keys);
   }
-  unstarted = pool_.remove_all();
-  if (!unstarted.empty()) {
-    v1::WorkerMessage m;
-    for (uint64_t id : unstarted) m.mutable_returned()->add_lease_ids(id);
+  if (unstarted > 0) {
     s->write(m);
-    spdlog::info("returned {} unstarted tiles", unstarted.size());
+    spdlog::info("returned {} unstarted tiles", unstarted);
   }
   pool_.wait_idle();
   ResultBatcher* batcher;
@@ -178,6 +185,7 @@ bool WorkerConnection::run_session() {
   reg.mutable_register_()->set_embree_isa(embree_isa());
   reg.mutable_register_()->set_version("tessera-worker 0.1.0");
   reg.mutable_register_()->set_reads_assignment_batches(true);
+  reg.mutable_register_()->set_reads_spans(true);
   bool accepted = false;
   std::thread heartbeat;
   std::mutex hb_mu;
@@ -224,24 +232,31 @@ bool WorkerConnection::run_session() {
           for (const v1::Assignment& a : msg.assignments().assignments()) handle_assignment(s, a);
           break;
         case v1::CoordinatorMessage::kRevoke: {
-          int freed = 0;
-          for (uint64_t id : msg.revoke().lease_ids()) {
-            if (pool_.remove(id)) {
-              ++freed;
-            } else {
-              std::lock_guard lock(s->write_mu);
-              s->revoked.insert(id);
+          // Unstarted tiles leave the pool now; running ones' results are dropped as they finish.
+          // The pool and the book change under one lock, so no tile finishes in between.
+          size_t freed = 0;
+          v1::WorkerMessage req;
+          {
+            std::lock_guard lock(s->write_mu);
+            for (uint64_t id : msg.revoke().lease_ids()) {
+              const size_t n = pool_.remove(id);
+              freed += n;
+              s->leases.withdrawn(id, n);
+              s->leases.revoke(id);
             }
-          }
-          if (freed > 0) {
-            v1::WorkerMessage req;
-            {
-              std::lock_guard lock(s->write_mu);
-              if (s->draining) break;
-              req.mutable_request()->set_count(freed);
+            for (const v1::LeaseTile& t : msg.revoke().tiles()) {
+              if (pool_.remove(t.lease_id(), t.tile_index())) {
+                ++freed;
+                s->leases.withdrawn(t.lease_id(), 1);
+              } else {
+                s->leases.revoke(t.lease_id(), t.tile_index());
+              }
             }
-            s->write(req);
+            if (freed == 0 || s->draining) break;
+            // Tiles, not leases: the pull counts tiles, and a span's took as many as it has.
+            req.mutable_request()->set_count(int(freed));
           }
+          s->write(req);
           break;
         }
         default:
@@ -278,19 +293,55 @@ bool WorkerConnection::run_session() {
 }
 
 void WorkerConnection::handle_assignment(const std::shared_ptr<Session>& s, const v1::Assignment& a) {
+  // A span lease becomes one task per tile, each rendered and reported as a single-tile lease.
+  std::vector<v1::Assignment> tiles;
+  const std::string problem = split_span(a, &tiles);
+  const bool hold = options_.test_fault == "idle";  // holds the lease, heartbeats, never renders
   bool draining;
   {
+    // Checked and posted under the lock request_stop withdraws under: nothing is posted after
+    // the worker gave back its unstarted tiles.
     std::lock_guard lock(s->write_mu);
     draining = s->draining;
+    if (!draining && !hold && problem.empty()) {
+      s->leases.posted(a.lease_id(), tiles.front().tile_index(), int(tiles.size()));
+      const bool span = is_span(a);
+      for (v1::Assignment& t : tiles) {
+        const TaskKey key{t.lease_id(), t.tile_index()};
+        pool_.post(key, [this, s, t = std::move(t), span] { render(s, t, span); });
+      }
+    }
   }
-  if (draining) {  // arrived after we returned our tiles: give it back too
+  if (draining) {  // arrived after we returned our tiles: give it back too (whole: none of it started)
     v1::WorkerMessage m;
     m.mutable_returned()->add_lease_ids(a.lease_id());
     s->write(m);
     return;
   }
-  if (options_.test_fault == "idle") return;  // holds the lease, heartbeats, never renders
-  pool_.post(a.lease_id(), [this, s, a] { render(s, a); });
+  if (!hold && !problem.empty()) refuse_span(s, a, problem);
+}
+
+void WorkerConnection::refuse_span(const std::shared_ptr<Session>& s, const v1::Assignment& a,
+                                   const std::string& problem) {
+  // Answered as a render failure: the coordinator requeues the lease's tiles and counts a fault,
+  // so a coordinator that keeps sending such spans ends up sending this worker none of the job.
+  spdlog::error("job {} frame {}: malformed span lease {}: {}", a.job_id(), a.frame(), a.lease_id(), problem);
+  v1::WorkerMessage out;
+  out.mutable_failed()->set_lease_id(a.lease_id());
+  out.mutable_failed()->set_reason("malformed span lease: " + problem);
+  int ask = 0;
+  {
+    // Replace the tiles the lease took of our requests, as a failed tile is replaced; a tile
+    // count that is itself the problem can have taken no more than all of them.
+    std::lock_guard lock(s->write_mu);
+    if (!s->draining) ask = std::clamp(a.tile_count(), 1, std::max(1, s->depth));
+  }
+  s->write(out);
+  if (ask > 0) {
+    v1::WorkerMessage req;
+    req.mutable_request()->set_count(ask);
+    s->write(req);
+  }
 }
 
 void WorkerConnection::inject_test_fault(v1::TileResult* r) const {
@@ -334,7 +385,7 @@ void WorkerConnection::inject_test_fault(v1::TileResult* r) const {
   }
 }
 
-void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assignment& a) {
+void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assignment& a, bool span) {
   const auto started = std::chrono::steady_clock::now();
   v1::WorkerMessage out;
   try {
@@ -367,17 +418,27 @@ void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assig
     // The coordinator validated the scene; failing here means this machine cannot render it
     // (bundle download failed, mesh unreadable...). Say so: the coordinator requeues the tile for
     // someone else and, after a few such faults, stops sending us this job.
-    spdlog::error("job {} frame {}: cannot render: {}", a.job_id(), a.frame(), e.what());
+    spdlog::error("job {} frame {} tile {}: cannot render: {}", a.job_id(), a.frame(), a.tile_index(), e.what());
     out.Clear();
     out.mutable_failed()->set_lease_id(a.lease_id());
     out.mutable_failed()->set_reason(options_.test_fault == "long-reason" ? std::string(20 << 20, 'r') : e.what());
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   int ask = 0;
+  size_t withdrawn = 0;
   ResultBatcher* batcher;
   {
     std::lock_guard lock(s->write_mu);
-    if (s->revoked.erase(a.lease_id())) out.Clear();  // another copy won, or the job was cancelled
+    if (s->leases.finished(a.lease_id(), a.tile_index())) {
+      out.Clear();  // another copy won, or the job was cancelled
+    } else if (span && out.has_failed()) {
+      // The failure ends the whole lease at the coordinator: the span's other tiles are not
+      // rendered (the unstarted are withdrawn, and replaced below), and results of the running
+      // ones are dropped as a revoked lease's are (one failure reported, not one a tile).
+      withdrawn = pool_.remove(a.lease_id());
+      s->leases.withdrawn(a.lease_id(), withdrawn);
+      s->leases.revoke(a.lease_id());
+    }
     batcher = s->batcher.get();
     if (!s->draining) {
       // Replace this tile, and move the depth toward what covers the linger at the tile times
@@ -392,6 +453,7 @@ void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assig
         ask = 0;
         --s->depth;
       }
+      ask += int(withdrawn);
     }
   }
   if (out.has_result() && batcher) {
@@ -403,6 +465,8 @@ void WorkerConnection::render(const std::shared_ptr<Session>& s, const v1::Assig
     out.mutable_result()->set_request_more(ask);
     ask = 0;
   }
+  // The span's results still waiting for company go before the failure that ends its lease.
+  if (out.has_failed() && span && batcher) batcher->flush();
   if (out.msg_case() != v1::WorkerMessage::MSG_NOT_SET) s->write(out);
   if (ask > 0) {
     v1::WorkerMessage req;

@@ -59,7 +59,10 @@ class WorkerConnection {
   // One connected session; returns true if the coordinator accepted us (resets the backoff).
   bool run_session();
   void handle_assignment(const std::shared_ptr<Session>& s, const tessera::v1::Assignment& a);
-  void render(const std::shared_ptr<Session>& s, const tessera::v1::Assignment& a);
+  // Renders one tile of a lease (`span`: of a span lease) and hands on its result.
+  void render(const std::shared_ptr<Session>& s, const tessera::v1::Assignment& a, bool span);
+  // Answers a span lease split_span refuses with a RenderFailed for it.
+  void refuse_span(const std::shared_ptr<Session>& s, const tessera::v1::Assignment& a, const std::string& problem);
   void inject_test_fault(tessera::v1::TileResult* r) const;  // --test-fault
   std::string fetch_bundle(const std::string& sha256);
   void sleep_backoff(std::chrono::milliseconds d);

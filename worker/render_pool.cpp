@@ -19,7 +19,7 @@ RenderPool::~RenderPool() {
   for (auto& t : threads_) t.join();
 }
 
-void RenderPool::post(uint64_t key, std::function<void()> task) {
+void RenderPool::post(TaskKey key, std::function<void()> task) {
   {
     std::lock_guard lock(mu_);
     queue_.emplace_back(key, std::move(task));
@@ -27,21 +27,34 @@ void RenderPool::post(uint64_t key, std::function<void()> task) {
   cv_.notify_one();
 }
 
-bool RenderPool::remove(uint64_t key) {
+void RenderPool::notify_if_idle_locked() {
+  if (queue_.empty() && running_ == 0) idle_cv_.notify_all();
+}
+
+size_t RenderPool::remove(uint64_t lease) {
   std::lock_guard lock(mu_);
+  const size_t n = std::erase_if(queue_, [&](const auto& t) { return t.first.lease == lease; });
+  if (n > 0) notify_if_idle_locked();
+  return n;
+}
+
+bool RenderPool::remove(uint64_t lease, int tile) {
+  std::lock_guard lock(mu_);
+  const TaskKey key{lease, tile};
   auto it = std::find_if(queue_.begin(), queue_.end(), [&](const auto& t) { return t.first == key; });
   if (it == queue_.end()) return false;
   queue_.erase(it);
-  if (queue_.empty() && running_ == 0) idle_cv_.notify_all();
+  notify_if_idle_locked();
   return true;
 }
 
-std::vector<uint64_t> RenderPool::remove_all() {
+std::vector<TaskKey> RenderPool::remove_all() {
   std::lock_guard lock(mu_);
-  std::vector<uint64_t> keys;
+  std::vector<TaskKey> keys;
+  keys.reserve(queue_.size());
   for (const auto& t : queue_) keys.push_back(t.first);
   queue_.clear();
-  if (running_ == 0) idle_cv_.notify_all();
+  notify_if_idle_locked();
   return keys;
 }
 
@@ -72,7 +85,7 @@ void RenderPool::run() {
     task();
     lock.lock();
     --running_;
-    if (queue_.empty() && running_ == 0) idle_cv_.notify_all();
+    notify_if_idle_locked();
   }
 }
 

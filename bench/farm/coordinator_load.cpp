@@ -53,6 +53,7 @@ struct Config {
   int threads = 1;
   int connections = 0;  // 0: one TCP connection per worker, as real workers have
   bool no_batches = false;  // the protocol before batches: one result and one assignment a message
+  bool no_spans = false;    // the protocol before spans: a lease is one tile
   int linger_ms = int(tessera::farm::ResultBatching{}.linger.count());
   int timeout_s = 300;
   std::string log_level = "info";
@@ -304,6 +305,7 @@ json run_one(const Config& cfg, int n_workers, int run_index) {
   sim.threads = cfg.threads;
   sim.delay = std::chrono::microseconds(cfg.delay_us);
   sim.batches = !cfg.no_batches;
+  sim.spans = !cfg.no_spans;
   sim.batching.linger = std::chrono::milliseconds(cfg.linger_ms);
   const int n_conn = cfg.connections > 0 ? std::min(cfg.connections, n_workers) : n_workers;
   const double t_connect0 = now_s();
@@ -449,12 +451,15 @@ json run_one(const Config& cfg, int n_workers, int run_index) {
   r["kib_per_worker"] = double(connected.rss_kb - idle.rss_kb) / n_workers;
   r["bytes_per_queued_tile"] = double(queued.rss_kb - connected.rss_kb) * 1024.0 / double(total);
   r["sim_assignments"] = counters.assignments.load();
+  r["sim_assigned_tiles"] = counters.assigned_tiles.load();
+  r["sim_refused_spans"] = counters.refused.load();
   r["sim_results"] = counters.results.load();
   r["sim_result_messages"] = counters.result_messages.load();
   r["results_per_message"] = counters.result_messages.load() > 0
                                  ? double(counters.results.load()) / double(counters.result_messages.load())
                                  : 0.0;
   r["batches"] = !cfg.no_batches;
+  r["spans"] = !cfg.no_spans;
   r["sim_revoked_while_pending"] = counters.revoked.load();
   r["sim_heartbeats"] = counters.heartbeats.load();
   r["worker_wire_bytes_per_tile"] =
@@ -512,6 +517,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--no-batches", cfg.no_batches,
                "Workers as before batches: one result and one assignment a message, 2 x threads tiles pulled");
+  app.add_flag("--no-spans", cfg.no_spans, "Workers as before span leases: every lease one tile");
   app.add_option("--linger-ms", cfg.linger_ms, "How long a simulated worker's result waits for others")
       ->check(CLI::Range(0, 1000))
       ->capture_default_str();

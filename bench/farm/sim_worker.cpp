@@ -2,8 +2,11 @@
 #include "sim_worker.h"
 
 #include "farm/tile_codec.h"
+#include "tile/tile_grid.h"
 
 #include <cstring>
+#include <limits>
+#include <utility>
 
 namespace tessera::bench {
 
@@ -71,6 +74,7 @@ void SimWorker::start() {
   reg.mutable_register_()->set_embree_isa("simulated");
   reg.mutable_register_()->set_version("coordinator_load (simulated worker)");
   reg.mutable_register_()->set_reads_assignment_batches(options_.batches);
+  reg.mutable_register_()->set_reads_spans(options_.spans);
   // The hold keeps OnDone away while the timer thread may still start writes (see stop()).
   AddHold();
   send(std::move(reg));
@@ -176,13 +180,19 @@ void SimWorker::OnReadDone(bool ok) {
       break;
     }
     case v1::CoordinatorMessage::kRevoke: {
+      // Every tile of a revoked lease still "rendering", or the one tile named; the results are
+      // dropped when the timer ends them (the tiles are not withdrawn: the sim has no queue).
       std::lock_guard lock(mu_);
+      const auto revoke = [this](std::pair<uint64_t, int> key) {
+        if (pending_.count(key) && revoked_.insert(key).second) counters_.revoked++;
+      };
       for (uint64_t id : in_.revoke().lease_ids()) {
-        if (pending_.count(id)) {
-          revoked_.insert(id);
-          counters_.revoked++;
+        for (auto it = pending_.lower_bound({id, std::numeric_limits<int>::min()});
+             it != pending_.end() && it->first == id; ++it) {
+          revoke(*it);
         }
       }
+      for (const v1::LeaseTile& t : in_.revoke().tiles()) revoke({t.lease_id(), t.tile_index()});
       break;
     }
     default:
@@ -193,23 +203,56 @@ void SimWorker::OnReadDone(bool ok) {
 
 void SimWorker::assigned(const v1::Assignment& a, bool more_in_message) {
   counters_.assignments++;
+  // A span lease's tiles (Assignment.tile_count), cut from the frame's grid as tessera-worker
+  // cuts them (worker/span_lease.cpp), with its checks in short.
+  const int count = std::max(1, a.tile_count());
+  const int64_t first = a.tile_index();
+  TileGrid grid;
+  if (count > 1) {
+    bool valid = count <= 4096 && a.tile_size() > 0 && a.frame_width() > 0 && a.frame_height() > 0 &&
+                 a.frame_width() <= (1 << 24) && a.frame_height() <= (1 << 24);  // no int overflow in the grid
+    if (valid) {
+      grid = TileGrid(a.frame_width(), a.frame_height(), a.tile_size());
+      valid = first >= 0 && first + count <= int64_t(grid.columns()) * grid.rows() &&
+              first + count - 1 <= std::numeric_limits<int>::max();
+    }
+    if (!valid) {
+      counters_.refused++;
+      v1::WorkerMessage m;
+      m.mutable_failed()->set_lease_id(a.lease_id());
+      m.mutable_failed()->set_reason("malformed span lease (simulated worker)");
+      send(std::move(m));
+      request(std::min(count, 4096));
+      return;
+    }
+  }
+  counters_.assigned_tiles += count;
+  const auto rect_of = [&](int i) { return count > 1 ? grid.rect(int(first) + i) : farm::from_proto(a.rect()); };
   if (options_.delay.count() == 0) {
-    finish_tile(a, more_in_message);  // the results of one message of assignments go together
+    // The results of one message of assignments go together.
+    for (int i = 0; i < count; ++i) finish_tile(a, int(first) + i, rect_of(i), more_in_message || i + 1 < count);
     return;
   }
   {
     std::lock_guard lock(mu_);
-    pending_.insert(a.lease_id());
+    for (int i = 0; i < count; ++i) pending_.emplace(a.lease_id(), int(first) + i);
   }
-  timer_.at(SteadyClock::now() + options_.delay, [this, a] { finish_tile(a, false); });
+  // Every tile of a span "renders" at once, as every lease does here: the sim has no threads.
+  auto lease = std::make_shared<const v1::Assignment>(a);
+  const auto when = SteadyClock::now() + options_.delay;
+  for (int i = 0; i < count; ++i) {
+    timer_.at(when, [this, lease, tile = int(first) + i, rect = rect_of(i)] {
+      finish_tile(*lease, tile, rect, false);
+    });
+  }
 }
 
-void SimWorker::finish_tile(const v1::Assignment& a, bool more_coming) {
+void SimWorker::finish_tile(const v1::Assignment& a, int tile_index, TileRect rect, bool more_coming) {
   bool revoked;
   {
     std::lock_guard lock(mu_);
-    pending_.erase(a.lease_id());
-    revoked = revoked_.erase(a.lease_id()) > 0;
+    pending_.erase({a.lease_id(), tile_index});
+    revoked = revoked_.erase({a.lease_id(), tile_index}) > 0;
   }
   if (revoked) {  // like tessera-worker: a revoked tile's result is discarded, the slot refilled
     request(1);
@@ -219,7 +262,7 @@ void SimWorker::finish_tile(const v1::Assignment& a, bool more_coming) {
   // The values do not matter to the coordinator (it checks only sizes, position and that they
   // are finite), so they are constant.
   TileResult tile;
-  tile.rect = farm::from_proto(a.rect());
+  tile.rect = rect;
   const size_t pixels = size_t(std::max(0, tile.rect.width)) * size_t(std::max(0, tile.rect.height));
   tile.rgb.assign(3 * pixels, 0.5f);
   tile.variance.assign(pixels, 0.0f);
@@ -231,7 +274,7 @@ void SimWorker::finish_tile(const v1::Assignment& a, bool more_coming) {
   auto* t = r.mutable_tile();
   t->set_job_id(a.job_id());
   t->set_frame(a.frame());
-  t->set_tile_index(a.tile_index());
+  t->set_tile_index(tile_index);
   t->set_worker(name_);
   farm::encode_tile(tile, t);
   counters_.results++;

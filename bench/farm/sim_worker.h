@@ -3,8 +3,9 @@
 // as worker/connection.cpp does (register; pull as many tiles as farm::ResultBatching::depth says
 // for its tile time, then one more per finished tile, asked for with the results; results
 // gathered into batches as farm/result_batching.h says; a heartbeat every interval the welcome
-// names; revoked leases are not returned) but, instead of rendering, returns a constant tile of
-// the leased size after a fixed delay. It runs on the gRPC callback API, so a thousand of them share gRPC's few
+// names; revoked leases are not returned; a span lease's tiles each come back as a result of
+// their own) but, instead of rendering, returns a constant tile of the leased size after a fixed
+// delay. It runs on the gRPC callback API, so a thousand of them share gRPC's few
 // threads and one timer thread instead of a thousand OS threads.
 #pragma once
 
@@ -21,10 +22,12 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "farm/result_batching.h"
 #include "tessera/v1/worker_service.grpc.pb.h"
+#include "tile/tile_rect.h"
 
 namespace tessera::bench {
 
@@ -64,14 +67,19 @@ struct SimOptions {
   // pull depth from the tile time. Off: one result a message, one assignment a message, a pull
   // depth of 2 x threads (the protocol before batches).
   bool batches = true;
+  // As tessera-worker: span leases (Register.reads_spans), one result a tile. Off: single-tile
+  // leases only (the protocol before spans).
+  bool spans = true;
   farm::ResultBatching batching;
 };
 
 struct SimCounters {
-  std::atomic<int64_t> assignments{0};
+  std::atomic<int64_t> assignments{0};      // leases
+  std::atomic<int64_t> assigned_tiles{0};   // their tiles (more than the leases where spans come)
+  std::atomic<int64_t> refused{0};          // span leases refused as malformed (a RenderFailed each)
   std::atomic<int64_t> results{0};
   std::atomic<int64_t> result_messages{0};  // messages that carried results
-  std::atomic<int64_t> revoked{0};       // revocations of a lease still "rendering" here
+  std::atomic<int64_t> revoked{0};       // revocations of a tile still "rendering" here
   std::atomic<int64_t> heartbeats{0};
   std::atomic<int64_t> bytes_out{0};     // serialized WorkerMessage bytes sent
   std::atomic<int64_t> bytes_in{0};      // serialized CoordinatorMessage bytes received
@@ -101,7 +109,8 @@ class SimWorker : public grpc::ClientBidiReactor<tessera::v1::WorkerMessage, tes
   void send(tessera::v1::WorkerMessage m);
   void request(int count);
   void assigned(const tessera::v1::Assignment& a, bool more_in_message);
-  void finish_tile(const tessera::v1::Assignment& a, bool more_coming);
+  // Tile `tile` (its rectangle `rect`) of lease `a` is "rendered".
+  void finish_tile(const tessera::v1::Assignment& a, int tile, TileRect rect, bool more_coming);
   // Sends the waiting batch if it is still generation `gen` (the linger timer's call).
   void flush_batch(uint64_t gen);
   // Sends the waiting batch; `lock` holds mu_ and is released.
@@ -125,8 +134,9 @@ class SimWorker : public grpc::ClientBidiReactor<tessera::v1::WorkerMessage, tes
   SteadyClock::time_point last_send_ = SteadyClock::now();  // a heartbeat goes only after an interval without one
   bool stopped_ = false;        // no more writes
   bool hold_released_ = false;
-  std::set<uint64_t> pending_;  // leases "rendering" (waiting on the timer)
-  std::set<uint64_t> revoked_;
+  // Tiles (lease id, tile index) "rendering" (waiting on the timer), and those of them revoked.
+  std::set<std::pair<uint64_t, int>> pending_;
+  std::set<std::pair<uint64_t, int>> revoked_;
   tessera::v1::WorkerMessage batch_;  // results waiting for company
   uint64_t batch_gen_ = 0;            // bumped each time a batch is sent
 
