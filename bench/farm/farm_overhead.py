@@ -109,14 +109,14 @@ def maybe_enter_netns(argv):
 
 
 class Farm:
-    def __init__(self, build, tmp, name, workers, threads, layout=None):
+    def __init__(self, build, tmp, name, workers, threads, layout=None, server_args=()):
         self.build, self.tmp, self.name = build, tmp, name
         layout = layout or {}
         self.procs = []
         log = open(os.path.join(tmp, f"server-{name}.log"), "w")
         self.server = subprocess.Popen(
             [f"{build}/server/tessera-server", "--listen", "127.0.0.1:0", "--data-dir",
-             os.path.join(tmp, f"data-{name}"), "--log-level", "info"], stdout=log, stderr=subprocess.STDOUT,
+             os.path.join(tmp, f"data-{name}"), "--log-level", "info", *server_args], stdout=log, stderr=subprocess.STDOUT,
             preexec_fn=pinned(layout.get("coordinator")))
         self.procs.append(self.server)
         self.address = None
@@ -179,7 +179,7 @@ def cpu_layout(workers, threads):
 
 def run_farm(args, tmp, name, workers, threads):
     layout = cpu_layout(workers, threads) if args.pin else {}
-    farm = Farm(args.build, tmp, name, workers, threads, layout)
+    farm = Farm(args.build, tmp, name, workers, threads, layout, args.server_arg)
     try:
         probe = subprocess.Popen([args.probe or f"{args.build}/bench/farm/first_tile_probe", "--coordinator",
                                   farm.address],
@@ -249,6 +249,8 @@ def main():
     ap.add_argument("--markdown", help="write the markdown table here too")
     ap.add_argument("--probe", help="first_tile_probe binary (default: BUILD/bench/farm/first_tile_probe)")
     ap.add_argument("--no-netns", action="store_true", help="do not use a private network namespace")
+    ap.add_argument("--server-arg", action="append", default=[],
+                    help="extra tessera-server argument (repeatable), e.g. --server-arg=--max-span-tiles=1")
     ap.add_argument("--pin", action="store_true",
                     help="coordinator, client and each worker thread on CPUs of their own; in-process with as many "
                          "threads as the config's workers on their CPUs")
@@ -303,7 +305,8 @@ def main():
                      "first_tile_exact": all(x["first_tile"].get("exact", False) for x in runs), "runs": runs})
     in_netns = bool(os.environ.get(NETNS_ENV))
     result = {"benchmark": "farm_overhead", "scene": args.scene, "width": args.width, "height": args.height,
-              "spp": args.spp, "tile": args.tile, "cores": ncores, "repeat": args.repeat, "pinned": args.pin,
+              "spp": args.spp, "server_args": args.server_arg, "tile": args.tile, "cores": ncores,
+              "repeat": args.repeat, "pinned": args.pin,
               "cpu": cpu_model(), "embree_isa": next((x["embree_isa"] for r in rows for x in r["runs"]), None),
               "load_average_after": float(open("/proc/loadavg").read().split()[0]),
               "bytes_source": "private network namespace: /proc/net/dev lo" if in_netns

@@ -40,9 +40,12 @@ struct RenderCounts {
 RenderCounts count_lines(const std::string& logs, const std::string& what, const std::string& job) {
   std::map<std::pair<int, int>, int> n;
   const std::string suffix = what == "result" ? "from worker" : "to worker";
-  const std::regex re("lease [0-9]+ job " + job + " frame ([0-9]+) tile ([0-9]+) " + suffix);
+  // A lease of a span reads "tile A-B": each of its tiles counts.
+  const std::regex re("lease [0-9]+ job " + job + " frame ([0-9]+) tile ([0-9]+)(?:-([0-9]+))? " + suffix);
   for (auto it = std::sregex_iterator(logs.begin(), logs.end(), re); it != std::sregex_iterator(); ++it) {
-    ++n[{std::stoi((*it)[1]), std::stoi((*it)[2])}];
+    const int first = std::stoi((*it)[2]);
+    const int last = (*it)[3].matched ? std::stoi((*it)[3]) : first;
+    for (int t = first; t <= last; ++t) ++n[{std::stoi((*it)[1]), t}];
   }
   RenderCounts c;
   for (const auto& [k, v] : n) {
