@@ -78,7 +78,7 @@ struct TileKey {
 };
 
 // A lease covers a span: `count` consecutive tiles of one frame from `tile.tile` (row-major), all
-// handed to one worker in one message and written down once (docs/farm.md, "Leases"). Each tile's
+// handed to one worker in one message and written down once (docs/farm.md, "Lease rules"). Each tile's
 // result comes on its own; the lease ends when none of its tiles is pending any more.
 struct Lease {
   static constexpr int kMaxTiles = 64;  // the width of `pending`
@@ -229,19 +229,19 @@ struct SchedulerOptions {
   bool speculate = true;
   // Factoring (guided self-scheduling): a worker holds at most its share of what is queued, 1 /
   // `factoring` of it, by threads: max(2, ceil(queued / (factoring x threads of every worker)))
-  // leases a thread. Early in a job that is no limit; as the queue runs out, what each worker may
+  // tiles a thread. Early in a job that is no limit; as the queue runs out, what each worker may
   // hold shrinks to two a thread, so the last tiles are spread over the farm instead of waiting
   // deep in a few workers' queues while others idle and copy them. 0: no cap.
   int factoring = 2;
   int max_wanted_per_worker = 1024;  // caps a worker's standing request
-  // Leases a worker may hold before it has returned anything, per thread it declares (at most
-  // kMaxCreditThreads of them); each result it returns earns it two more, up to
-  // max_wanted_per_worker (a slow start). A session that never renders holds no more than this.
+  // Tiles a worker may hold (in leases of any size) before it has returned anything, per thread
+  // it declares (at most kMaxCreditThreads of them); each result it returns earns it two more, up
+  // to max_wanted_per_worker (a slow start). A session that never renders holds no more than this.
   // 0: no bound (unit tests of other rules).
   int initial_leases_per_thread = 2;
   static constexpr int kMaxCreditThreads = 64;
-  // Leases of spans (docs/farm.md, "Leases"): a worker that reads spans gets its tiles in leases
-  // of up to max_span_tiles consecutive tiles of a frame, as many as it renders in about
+  // Leases of spans (docs/farm.md, "Lease rules"): a worker that reads spans gets its tiles in
+  // leases of up to max_span_tiles consecutive tiles of a frame, as many as it renders in about
   // `span_seconds` at the rate it has shown (one tile until it has shown one), and never more
   // than its factoring share of what is queued over its threads, so spans shrink toward single
   // tiles as the queue runs out. The tile stays the unit of results, credit and factoring.
@@ -357,7 +357,7 @@ class Scheduler {
   // released or forgotten): what the scheduler's memory grows with.
   int64_t tiles_held() const { return tiles_held_; }
   std::vector<JobSnapshot> jobs() const;  // in submit order
-  // Leases the worker may still take now: what it has earned (SchedulerOptions::
+  // Tiles the worker may still take now: what it has earned (SchedulerOptions::
   // initial_leases_per_thread) less what it holds. INT_MAX when unbounded; 0 for an unknown id.
   int lease_credit(WorkerId id) const;
   // The workers dispatch() looks at: those that want tiles and have credit left, in id order.

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Span leases (docs/farm.md, "Leases"): a lease of several consecutive tiles of a frame, whose
+// Span leases (docs/farm.md, "Lease rules"): a lease of several consecutive tiles of a frame, whose
 // tiles each finish, go back or lose a race on their own. Deterministic time, no network.
 #include <gtest/gtest.h>
 

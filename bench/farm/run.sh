@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Farm benchmarks: overhead and scaling of a real farm (farm_overhead.py), and the coordinator
-# against hundreds of simulated workers (coordinator_load). Results (JSON and markdown) go to
+# Farm benchmarks: overhead and scaling of a real farm (farm_overhead.py), the coordinator
+# against hundreds of simulated workers (coordinator_load), and the floor of a coordinator in the
+# pixel path (relay_floor: receive, durable append, send). Results (JSON and markdown) go to
 # OUT (default BUILD/bench-results/farm); docs/performance.md records them with the machine.
 #
 #   bench/farm/run.sh [--build DIR] [--out DIR] [--smoke] [--configs 1x0,2x1,2x0] [--workers 10,100,1000]
@@ -36,16 +37,18 @@ OUT=${OUT:-$BUILD/bench-results/farm}
 mkdir -p "$OUT"
 cd "$ROOT"
 for exe in client/tessera server/tessera-server worker/tessera-worker bench/farm/coordinator_load \
-           bench/farm/first_tile_probe; do
+           bench/farm/first_tile_probe bench/farm/relay_floor; do
   [ -x "$BUILD/$exe" ] || { echo "run.sh: $BUILD/$exe is missing: build it first" >&2; exit 1; }
 done
 
 if [ "$SMOKE" = 1 ]; then
   overhead=(--width 64 --height 36 --spp 1 --tile 16 --configs 1x1,2x1)
   load=(--workers 10 --tiles 2000 --tile 8)
+  floor=(--tiles 320 --repeat 1)
 else
   overhead=(--configs "$CONFIGS" --repeat "$REPEAT")
   load=(--workers "$WORKERS" --tiles "${TILES:-200000}" --tile 8 --repeat "$REPEAT")
+  floor=(--repeat "$REPEAT")
 fi
 
 echo "## Farm overhead and scaling"
@@ -60,5 +63,13 @@ echo "## The same, workers of the protocol before batches (one result, one assig
 "$BUILD/bench/farm/coordinator_load" --server "$BUILD/server/tessera-server" --scene "$HERE/load_scene.json" \
   "${load[@]}" --no-batches --json "$OUT/coordinator_load_unbatched.json" \
   --markdown "$OUT/coordinator_load_unbatched.md"
+echo
+echo "## The same, workers that take leases of one tile"
+"$BUILD/bench/farm/coordinator_load" --server "$BUILD/server/tessera-server" --scene "$HERE/load_scene.json" \
+  "${load[@]}" --no-spans --json "$OUT/coordinator_load_unspanned.json" \
+  --markdown "$OUT/coordinator_load_unspanned.md"
+echo
+echo "## The floor: receive, durable append and send of each tile, nothing else"
+"$BUILD/bench/farm/relay_floor" --dir "$OUT" "${floor[@]}" --json "$OUT/relay_floor.json"
 echo
 echo "results in $OUT"
