@@ -10,11 +10,11 @@
 
 #include "farm/bundle_fetch.h"
 #include "farm/channel.h"
+#include "farm/span_lease.h"
 #include "farm/tile_codec.h"
 #include "lease_book.h"
 #include "reconnect_policy.h"
 #include "result_batcher.h"
-#include "span_lease.h"
 #include "render/embree_device.h"
 #include "render/frame_target.h"
 #include "render/tile_renderer.h"
@@ -295,7 +295,7 @@ bool WorkerConnection::run_session() {
 void WorkerConnection::handle_assignment(const std::shared_ptr<Session>& s, const v1::Assignment& a) {
   // A span lease becomes one task per tile, each rendered and reported as a single-tile lease.
   std::vector<v1::Assignment> tiles;
-  const std::string problem = split_span(a, &tiles);
+  const std::string problem = farm::split_span(a, &tiles);
   const bool hold = options_.test_fault == "idle";  // holds the lease, heartbeats, never renders
   bool draining;
   {
@@ -305,7 +305,7 @@ void WorkerConnection::handle_assignment(const std::shared_ptr<Session>& s, cons
     draining = s->draining;
     if (!draining && !hold && problem.empty()) {
       s->leases.posted(a.lease_id(), tiles.front().tile_index(), int(tiles.size()));
-      const bool span = is_span(a);
+      const bool span = farm::is_span(a);
       for (v1::Assignment& t : tiles) {
         const TaskKey key{t.lease_id(), t.tile_index()};
         pool_.post(key, [this, s, t = std::move(t), span] { render(s, t, span); });

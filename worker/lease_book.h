@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // What one session holds of each lease it was given: how many of the lease's tiles are posted to
 // the render pool and not finished, and which of them were revoked while rendering. A span lease
-// (span_lease.h) has several tiles in flight at once, so "revoked" is no longer one flag a lease's
+// (farm/span_lease.h) has several tiles in flight at once, so "revoked" is no longer one flag a lease's
 // one result clears: a whole-lease revoke drops every result the lease still has coming, a tile
 // revoke (Revoke.tiles) only that tile's, and a lease is forgotten once its last tile is done.
 // Returning tiles at shutdown needs the same book: a lease none of whose tiles started goes back

@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "sim_worker.h"
 
+#include "farm/span_lease.h"
 #include "farm/tile_codec.h"
-#include "tile/tile_grid.h"
 
+#include <algorithm>
 #include <cstring>
 #include <limits>
 #include <utility>
@@ -203,56 +204,38 @@ void SimWorker::OnReadDone(bool ok) {
 
 void SimWorker::assigned(const v1::Assignment& a, bool more_in_message) {
   counters_.assignments++;
-  // A span lease's tiles (Assignment.tile_count), cut from the frame's grid as tessera-worker
-  // cuts them (worker/span_lease.cpp), with its checks in short.
-  const int count = std::max(1, a.tile_count());
-  const int64_t first = a.tile_index();
-  TileGrid grid;
-  if (count > 1) {
-    bool valid = count <= 4096 && a.tile_size() > 0 && a.frame_width() > 0 && a.frame_height() > 0 &&
-                 a.frame_width() <= (1 << 24) && a.frame_height() <= (1 << 24);  // no int overflow in the grid
-    if (valid) {
-      grid = TileGrid(a.frame_width(), a.frame_height(), a.tile_size());
-      valid = first >= 0 && first + count <= int64_t(grid.columns()) * grid.rows() &&
-              first + count - 1 <= std::numeric_limits<int>::max();
-    }
-    if (!valid) {
-      counters_.refused++;
-      v1::WorkerMessage m;
-      m.mutable_failed()->set_lease_id(a.lease_id());
-      m.mutable_failed()->set_reason("malformed span lease (simulated worker)");
-      send(std::move(m));
-      request(std::min(count, 4096));
-      return;
-    }
+  // A span lease's tiles (Assignment.tile_count), cut and checked as tessera-worker does.
+  std::vector<v1::Assignment> tiles;
+  if (const std::string problem = farm::split_span(a, &tiles); !problem.empty()) {
+    counters_.refused++;
+    v1::WorkerMessage m;
+    m.mutable_failed()->set_lease_id(a.lease_id());
+    m.mutable_failed()->set_reason("malformed span lease (simulated worker): " + problem);
+    send(std::move(m));
+    request(std::clamp(a.tile_count(), 1, farm::kMaxSpanTiles));
+    return;
   }
-  counters_.assigned_tiles += count;
-  const auto rect_of = [&](int i) { return count > 1 ? grid.rect(int(first) + i) : farm::from_proto(a.rect()); };
+  counters_.assigned_tiles += int64_t(tiles.size());
   if (options_.delay.count() == 0) {
     // The results of one message of assignments go together.
-    for (int i = 0; i < count; ++i) finish_tile(a, int(first) + i, rect_of(i), more_in_message || i + 1 < count);
+    for (size_t i = 0; i < tiles.size(); ++i) finish_tile(tiles[i], more_in_message || i + 1 < tiles.size());
     return;
   }
   {
     std::lock_guard lock(mu_);
-    for (int i = 0; i < count; ++i) pending_.emplace(a.lease_id(), int(first) + i);
+    for (const v1::Assignment& t : tiles) pending_.emplace(t.lease_id(), t.tile_index());
   }
   // Every tile of a span "renders" at once, as every lease does here: the sim has no threads.
-  auto lease = std::make_shared<const v1::Assignment>(a);
   const auto when = SteadyClock::now() + options_.delay;
-  for (int i = 0; i < count; ++i) {
-    timer_.at(when, [this, lease, tile = int(first) + i, rect = rect_of(i)] {
-      finish_tile(*lease, tile, rect, false);
-    });
-  }
+  for (v1::Assignment& t : tiles) timer_.at(when, [this, t = std::move(t)] { finish_tile(t, false); });
 }
 
-void SimWorker::finish_tile(const v1::Assignment& a, int tile_index, TileRect rect, bool more_coming) {
+void SimWorker::finish_tile(const v1::Assignment& a, bool more_coming) {
   bool revoked;
   {
     std::lock_guard lock(mu_);
-    pending_.erase({a.lease_id(), tile_index});
-    revoked = revoked_.erase({a.lease_id(), tile_index}) > 0;
+    pending_.erase({a.lease_id(), a.tile_index()});
+    revoked = revoked_.erase({a.lease_id(), a.tile_index()}) > 0;
   }
   if (revoked) {  // like tessera-worker: a revoked tile's result is discarded, the slot refilled
     request(1);
@@ -262,7 +245,7 @@ void SimWorker::finish_tile(const v1::Assignment& a, int tile_index, TileRect re
   // The values do not matter to the coordinator (it checks only sizes, position and that they
   // are finite), so they are constant.
   TileResult tile;
-  tile.rect = rect;
+  tile.rect = farm::from_proto(a.rect());
   const size_t pixels = size_t(std::max(0, tile.rect.width)) * size_t(std::max(0, tile.rect.height));
   tile.rgb.assign(3 * pixels, 0.5f);
   tile.variance.assign(pixels, 0.0f);
@@ -274,7 +257,7 @@ void SimWorker::finish_tile(const v1::Assignment& a, int tile_index, TileRect re
   auto* t = r.mutable_tile();
   t->set_job_id(a.job_id());
   t->set_frame(a.frame());
-  t->set_tile_index(tile_index);
+  t->set_tile_index(a.tile_index());
   t->set_worker(name_);
   farm::encode_tile(tile, t);
   counters_.results++;

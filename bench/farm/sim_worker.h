@@ -27,7 +27,6 @@
 
 #include "farm/result_batching.h"
 #include "tessera/v1/worker_service.grpc.pb.h"
-#include "tile/tile_rect.h"
 
 namespace tessera::bench {
 
@@ -109,8 +108,8 @@ class SimWorker : public grpc::ClientBidiReactor<tessera::v1::WorkerMessage, tes
   void send(tessera::v1::WorkerMessage m);
   void request(int count);
   void assigned(const tessera::v1::Assignment& a, bool more_in_message);
-  // Tile `tile` (its rectangle `rect`) of lease `a` is "rendered".
-  void finish_tile(const tessera::v1::Assignment& a, int tile, TileRect rect, bool more_coming);
+  // The one tile of `a` (a single-tile lease, or one tile cut from a span) is "rendered".
+  void finish_tile(const tessera::v1::Assignment& a, bool more_coming);
   // Sends the waiting batch if it is still generation `gen` (the linger timer's call).
   void flush_batch(uint64_t gen);
   // Sends the waiting batch; `lock` holds mu_ and is released.

@@ -8,7 +8,7 @@
 #include "farm/tile_codec.h"
 #include "tile/tile_grid.h"
 
-namespace tessera::worker {
+namespace tessera::farm {
 
 namespace v1 = tessera::v1;
 
@@ -55,4 +55,4 @@ std::string split_span(const v1::Assignment& a, std::vector<v1::Assignment>* til
   return "";
 }
 
-}  // namespace tessera::worker
+}  // namespace tessera::farm

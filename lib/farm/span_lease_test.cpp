@@ -8,7 +8,7 @@
 #include "farm/tile_codec.h"
 #include "tile/tile_grid.h"
 
-namespace tessera::worker {
+namespace tessera::farm {
 namespace {
 
 namespace v1 = tessera::v1;
@@ -78,7 +78,9 @@ TEST(SpanLease, MalformedSpansAreRefused) {
   const auto refused = [](const v1::Assignment& a) {
     std::vector<v1::Assignment> tiles(3);
     const std::string problem = split_span(a, &tiles);
-    if (!problem.empty()) EXPECT_TRUE(tiles.empty()) << problem;  // nothing half cut is left to render
+    if (!problem.empty()) {
+      EXPECT_TRUE(tiles.empty()) << problem;  // nothing half cut is left to render
+    }
     return !problem.empty();
   };
   EXPECT_FALSE(refused(span_of(0, 2)));
@@ -133,4 +135,4 @@ TEST(SpanLease, HugeGridsNeitherOverflowNorPass) {
 }
 
 }  // namespace
-}  // namespace tessera::worker
+}  // namespace tessera::farm

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // Span leases (worker_service.proto, Assignment.tile_count): one lease covering several
-// consecutive tiles of one frame. The worker renders each tile as a task of its own, so it cuts
-// the span into one single-tile assignment per tile, each rendered and reported exactly as a
-// single-tile lease is.
+// consecutive tiles of one frame. A worker (tessera-worker, and the simulated one of
+// bench/farm) renders each tile as a task of its own, so it cuts the span into one single-tile
+// assignment per tile, each rendered and reported exactly as a single-tile lease is.
 #pragma once
 
 #include <string>
@@ -10,7 +10,7 @@
 
 #include "tessera/v1/worker_service.pb.h"
 
-namespace tessera::worker {
+namespace tessera::farm {
 
 // The most tiles one span lease may cover: a bound on what one message can make this worker
 // allocate, not a limit of the protocol's tile grids.
@@ -27,4 +27,4 @@ inline bool is_span(const tessera::v1::Assignment& a) { return a.tile_count() > 
 // single-tile leases carry one).
 std::string split_span(const tessera::v1::Assignment& a, std::vector<tessera::v1::Assignment>* tiles);
 
-}  // namespace tessera::worker
+}  // namespace tessera::farm
