@@ -229,15 +229,15 @@ std::vector<Assignment> Scheduler::dispatch() {
   // Every worker message ends in a dispatch: with nothing to hand out, looking at each waiting
   // worker would cost workers x jobs per message for nothing.
   if (wanting_.empty() || !dispatchable()) return out;
-  // Factoring's share, leases a thread, from the queue as this dispatch finds it.
+  // Factoring's share, tiles a thread, from the queue as this dispatch finds it.
   int64_t share = int64_t(1) << 40;  // no cap (and no overflow when multiplied by threads)
   const int64_t queued = int64_t(queued_tiles());
   if (options_.factoring > 0 && threads_total_ > 0) {
     const int64_t per = int64_t(options_.factoring) * threads_total_;
     share = std::max<int64_t>(2, (queued + per - 1) / per);
   }
-  // Round robin, a lease (of one tile or a span) a worker a round. A worker that got nothing in a round gets nothing in
-  // the next either (within one dispatch its share is fixed, what it holds only grows and the
+  // Round robin, a lease (of one tile or a span) a worker a round. A worker that got nothing in a
+  // round gets nothing in the next either (within one dispatch its share is fixed, what it holds only grows and the
   // queue only shrinks), so each round looks only at the workers served in the one before: with
   // a thousand workers waiting over their share, a dispatch costs one pass over them, not one a
   // round.

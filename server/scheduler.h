@@ -92,6 +92,9 @@ struct Lease {
   TimePoint issued;
   TimePoint deadline;  // as issued: any message from the worker extends it (its worker's last_seen + lease_timeout)
   bool speculative = false;  // a second copy of a tile already leased to another worker
+  // Its pending tiles that have no other copy in flight: the scheduler's count, kept by
+  // Scheduler::copies_changed; above 0, the lease is a candidate for a speculative copy.
+  int single_tiles = 0;
 
   bool covers(int t) const { return t >= tile.tile && t < tile.tile + count; }
   bool is_pending(int t) const { return covers(t) && (pending >> (t - tile.tile) & 1); }
@@ -489,7 +492,7 @@ class Scheduler {
   // Adds or removes `lease` in job.single_copies (and the job in speculable_).
   void set_single_copy(Job& job, LeaseId lease, bool single);
   // Runs `change` (which may change the tile's state and its list of leases) and keeps the
-  // count of single-copy tiles of the leases involved, and job.single_copies, exact.
+  // leases' Lease::single_tiles, and job.single_copies, exact.
   template <typename F>
   void copies_changed(Job& job, Tile& tile, F&& change);
   void count_single(Job& job, LeaseId lease, int delta);
@@ -524,7 +527,6 @@ class Scheduler {
   int64_t threads_total_ = 0;         // threads of every connected worker (each clamped as credit() does)
   std::set<WorkerId> wanting_;        // workers with a standing request and credit left: dispatch() looks only here
   std::map<LeaseId, Lease> leases_;   // ids grow with time: begin() is the oldest lease
-  std::map<LeaseId, int> singles_;    // per lease: its pending tiles that have no other copy in flight
   uint64_t next_seq_ = 1;
   int64_t tiles_held_ = 0;            // tiles of every job in jobs_ (Job::tiles_resident summed)
   double slowest_tile_ = 0;           // the longest render time of an accepted tile (stall limit)

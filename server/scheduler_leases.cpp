@@ -55,10 +55,10 @@ void Scheduler::copies_changed(Job& job, Tile& tile, F&& change) {
 }
 
 void Scheduler::count_single(Job& job, LeaseId lease, int delta) {
-  auto it = singles_.find(lease);
-  if (it == singles_.end()) return;
-  it->second += delta;
-  set_single_copy(job, lease, it->second > 0);
+  auto it = leases_.find(lease);
+  if (it == leases_.end()) return;
+  it->second.single_tiles += delta;
+  set_single_copy(job, lease, it->second.single_tiles > 0);
 }
 
 Assignment Scheduler::issue(Worker& w, Job& job, const Span& span, bool speculative) {
@@ -69,7 +69,7 @@ Assignment Scheduler::issue(Worker& w, Job& job, const Span& span, bool speculat
   a.lease.worker = w.stats.id;
   a.lease.tile = {job.id, job.spec.first_frame + span.frame, span.tile};
   a.lease.count = span.count;
-  a.lease.pending = span.count >= 64 ? ~uint64_t(0) : (uint64_t(1) << span.count) - 1;
+  a.lease.pending = span.count >= Lease::kMaxTiles ? ~uint64_t(0) : (uint64_t(1) << span.count) - 1;
   a.lease.issued = now;
   a.lease.deadline = now + options_.lease_timeout;
   a.lease.speculative = speculative;
@@ -79,7 +79,6 @@ Assignment Scheduler::issue(Worker& w, Job& job, const Span& span, bool speculat
   a.overrides = job.spec.overrides;
   if (span.count == 1) a.plan = frame.tiles[size_t(span.tile)].plan;
   leases_[a.lease.id] = a.lease;
-  singles_[a.lease.id] = 0;
   for (int t = span.tile; t < span.tile + span.count; ++t) {
     Tile& tile = frame.tiles[size_t(t)];
     copies_changed(job, tile, [&] {
@@ -128,7 +127,6 @@ void Scheduler::end_lease(LeaseId id, LeaseEnd why, bool requeue) {
   }
   const Lease lease = it->second;
   leases_.erase(it);
-  singles_.erase(id);
   if (Job* job = find_job(lease.tile.job)) set_single_copy(*job, id, false);
   if (auto wit = workers_.find(lease.worker); wit != workers_.end()) {
     wit->second.leases.erase(id);
