@@ -58,8 +58,9 @@ void expect_frames_like_render(const fs::path& out, const std::string& prefix, i
 TEST(FarmAdaptive, TargetErrorJobIsBitIdenticalToRenderThroughAWorkerDeath) {
   Farm farm;
   farm.start_server({"--lease-timeout-ms", "3000", "--heartbeat-ms", "300"});
-  Process& victim = farm.start_worker("victim", 1, 40);
-  farm.start_worker("survivor", 1, 40);
+  // The victim alone, slow enough (96 tiles at 100 ms) that it cannot finish the job before it is
+  // killed however loaded the machine; the survivor joins once it is dead.
+  Process& victim = farm.start_worker("victim", 1, 100);
   const fs::path out = farm.dir() / "out";
   fs::create_directories(out);
   // 12-pixel tiles: the 8x8 blocks the sampler decides on straddle tiles, and are rendered by
@@ -82,6 +83,7 @@ TEST(FarmAdaptive, TargetErrorJobIsBitIdenticalToRenderThroughAWorkerDeath) {
   std::string state;
   ASSERT_LT(farm.tiles_done(job, &state), 2 * 48) << "job finished before the worker could be killed";
   victim.signal(SIGKILL);
+  farm.start_worker("survivor", 1, 0);
   ASSERT_EQ(client->wait(120s), 0) << client->log() << farm.server().log();
 
   const std::string log = client->log();
@@ -148,8 +150,7 @@ TEST(FarmAdaptive, AFrameTargetJobIsBitIdenticalToRenderThroughAWorkerDeath) {
   // are the bits `tessera render --target-rmse` makes.
   Farm farm;
   farm.start_server({"--lease-timeout-ms", "3000", "--heartbeat-ms", "300"});
-  Process& victim = farm.start_worker("victim", 1, 40);
-  farm.start_worker("survivor", 1, 40);
+  Process& victim = farm.start_worker("victim", 1, 100);  // alone and slow: see above
   const fs::path out = farm.dir() / "out";
   fs::create_directories(out);
   const std::vector<std::string> target = {"--target-rmse", "0.006", "--min-spp", "8", "--max-spp", "256"};
@@ -161,7 +162,11 @@ TEST(FarmAdaptive, AFrameTargetJobIsBitIdenticalToRenderThroughAWorkerDeath) {
   const std::string job = wait_job_id(*client);
   ASSERT_FALSE(job.empty()) << client->log();
   ASSERT_TRUE(farm.wait_tiles_done(job, 20));
+  std::string state;
+  farm.tiles_done(job, &state);
+  ASSERT_NE(state, "done") << "job finished before the worker could be killed";
   victim.signal(SIGKILL);
+  farm.start_worker("survivor", 1, 0);
   ASSERT_EQ(client->wait(180s), 0) << client->log() << farm.server().log();
   const std::string log = client->log();
   EXPECT_NE(log.find("target RMSE 0.006 (spp 8-256)"), std::string::npos) << log;

@@ -84,8 +84,9 @@ TEST(FarmEndToEnd, PngFramesMatchRenderAndAreReportedUnderTheirNames) {
 TEST(FarmEndToEnd, WorkerKilledMidJobJobStillCompletesIdentical) {
   Farm farm;
   farm.start_server({"--lease-timeout-ms", "3000", "--heartbeat-ms", "300"});
-  Process& victim = farm.start_worker("victim", 1, 40);
-  farm.start_worker("survivor", 1, 40);
+  // The victim alone, slow enough that it cannot finish the job before it is killed however loaded
+  // the machine; the survivor joins once it is dead.
+  Process& victim = farm.start_worker("victim", 1, 100);
   const fs::path out = farm.dir() / "out";
   auto client = farm.cli_async({"submit", kScene.string(), "--coordinator", farm.address(), "-o",
                                 (out / "frame_####.exr").string(), "--tile", "16"},
@@ -96,6 +97,7 @@ TEST(FarmEndToEnd, WorkerKilledMidJobJobStillCompletesIdentical) {
   std::string state;
   ASSERT_LT(farm.tiles_done(job, &state), kFrames * 24) << "job finished before the worker could be killed";
   victim.signal(SIGKILL);
+  farm.start_worker("survivor", 1, 0);
   ASSERT_EQ(client->wait(120s), 0) << client->log() << farm.server().log();
   expect_frames_identical(out);
   EXPECT_EQ(farm.tiles_done(job, &state), kFrames * 24);
