@@ -64,6 +64,7 @@ FrameResult render_frame_lattice(const RenderScene& scene, int threads,
   tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
   LatticePilot pilot;
   arena.execute([&] { pilot = render_lattice_pilot(scene); });
+  const auto passes_start = std::chrono::steady_clock::now();
   EdgePixels edges(pilot, grid);
   std::vector<BlockStat> stats = std::move(pilot.stats);
   std::vector<uint32_t> want(size_t(grid.count()), uint32_t(img.first_spp()));
@@ -74,7 +75,8 @@ FrameResult render_frame_lattice(const RenderScene& scene, int threads,
   std::vector<RayCounts> row_rays(size_t(grid.rows));
   std::atomic<int64_t> samples_done{0};
   int64_t samples_planned = 0;
-  for (int passes = 0;;) {
+  int passes = 0;
+  for (;;) {
     for (int b = 0; b < grid.count(); ++b) {
       const int64_t n = int64_t(edges.first[size_t(b) + 1] - edges.first[size_t(b)]);
       samples_planned += int64_t(want[size_t(b)] - std::min(want[size_t(b)], stats[size_t(b)].spp)) * n;
@@ -127,7 +129,13 @@ FrameResult render_frame_lattice(const RenderScene& scene, int threads,
     out.spp[p] = e.est.samples();
   }
   out.rays = pilot.rays;
-  for (const RayCounts& r : row_rays) out.rays += r;
+  out.lattice = pilot.cost;
+  for (const RayCounts& r : row_rays) {
+    out.rays += r;
+    out.lattice.edge_rays += r.camera;
+  }
+  out.lattice.passes = passes;
+  out.lattice.pass_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - passes_start).count();
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   out.settings = img;
   return out;

@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 
@@ -265,29 +266,74 @@ BlockStat smooth_block_stat(const LatticePilot& pilot, int width, int b, int bx,
 
 namespace {
 
+}  // namespace
+
+// Each second difference of the lattice is computed once here; corner_curvature takes eight a
+// pixel, each shared with a neighbour, which was most of the classification's time.
+void corner_curvature_rows(const std::vector<Rgb>& corners, int W, int H, int y0, int y1, float* curvature) {
+  if (W < 2 || H < 2) {
+    std::fill(curvature + size_t(y0) * size_t(W), curvature + size_t(y1) * size_t(W),
+              std::numeric_limits<float>::infinity());
+    return;
+  }
+  const int cols = W + 1;
+  auto at = [&](int x, int y) -> const Rgb& { return corners[size_t(y) * size_t(cols) + size_t(x)]; };
+  // Along x and along y at corners (x, y) for corner rows y0 .. y1, moved one corner inwards on
+  // the lattice's border as corner_curvature does.
+  const size_t rows = size_t(y1 - y0 + 1);
+  std::vector<float> ax(rows * size_t(cols)), ay(rows * size_t(cols));
+  for (int y = y0; y <= y1; ++y) {
+    const int my = std::clamp(y, 1, H - 1);
+    float* rx = &ax[size_t(y - y0) * size_t(cols)];
+    float* ry = &ay[size_t(y - y0) * size_t(cols)];
+    for (int x = 0; x < cols; ++x) {
+      const int mx = std::clamp(x, 1, W - 1);
+      rx[x] = second_difference(at(mx - 1, y), at(mx, y), at(mx + 1, y));
+      ry[x] = second_difference(at(x, my - 1), at(x, my), at(x, my + 1));
+    }
+  }
+  for (int py = y0; py < y1; ++py) {
+    const float* top_x = &ax[size_t(py - y0) * size_t(cols)];
+    const float* bottom_x = top_x + cols;
+    const float* top_y = &ay[size_t(py - y0) * size_t(cols)];
+    const float* bottom_y = top_y + cols;
+    float* out = curvature + size_t(py) * size_t(W);
+    for (int px = 0; px < W; ++px) {
+      const float sides = std::max(std::max(std::min(top_x[px], top_x[px + 1]), std::min(bottom_x[px], bottom_x[px + 1])),
+                                   std::max(std::min(top_y[px], bottom_y[px]), std::min(top_y[px + 1], bottom_y[px + 1])));
+      out[px] = std::max(0.0f, sides);
+    }
+  }
+}
+
+namespace {
+
 // The classification (the curvature test, then kBusyNeighbours and kRegion, all from the lattice
 // alone, so no audit decides it) and every smooth pixel's audit probability, into pilot->smooth
 // and q.
 void classify(const std::vector<Rgb>& corners, int W, int H, float threshold, LatticePilot* pilot,
               std::vector<float>* q) {
   const size_t pixels = size_t(W) * size_t(H);
-  std::vector<float> curvature(pixels);
-  tbb::parallel_for(0, H, [&](int py) {
-    for (int px = 0; px < W; ++px) {
-      const size_t p = size_t(py) * size_t(W) + size_t(px);
-      curvature[p] = corner_curvature(corners, W, H, px, py);
-      pilot->smooth[p] = uint8_t(curvature[p] <= threshold);
-    }
+  q->resize(pixels);
+  float* curvature = q->data();  // q is made from it in place, pixel by pixel, at the end
+  constexpr int kBand = 8;
+  const int bands = (H + kBand - 1) / kBand;
+  tbb::parallel_for(0, bands, [&](int b) {
+    const int y0 = b * kBand, y1 = std::min(H, y0 + kBand);
+    corner_curvature_rows(corners, W, H, y0, y1, curvature);
+    for (size_t p = size_t(y0) * size_t(W); p < size_t(y1) * size_t(W); ++p) pilot->smooth[p] = uint8_t(curvature[p] <= threshold);
   });
+  // Edge pixels among each pixel's eight neighbours (and itself): column sums over three rows,
+  // then sums of three columns.
   std::vector<uint8_t> edge_neighbours(pixels, 0);
   tbb::parallel_for(0, H, [&](int py) {
-    for (int px = 0; px < W; ++px) {
-      int n = 0;
-      for (int y = std::max(0, py - 1); y <= std::min(H - 1, py + 1); ++y) {
-        for (int x = std::max(0, px - 1); x <= std::min(W - 1, px + 1); ++x) n += !pilot->smooth[size_t(y) * size_t(W) + size_t(x)];
-      }
-      edge_neighbours[size_t(py) * size_t(W) + size_t(px)] = uint8_t(n);
+    std::vector<uint8_t> column(size_t(W) + 2, 0);
+    for (int y = std::max(0, py - 1); y <= std::min(H - 1, py + 1); ++y) {
+      const uint8_t* row = &pilot->smooth[size_t(y) * size_t(W)];
+      for (int x = 0; x < W; ++x) column[size_t(x) + 1] += uint8_t(!row[x]);
     }
+    uint8_t* out = &edge_neighbours[size_t(py) * size_t(W)];
+    for (int x = 0; x < W; ++x) out[x] = uint8_t(column[size_t(x)] + column[size_t(x) + 1] + column[size_t(x) + 2]);
   });
   // Regions of kRegion x kRegion pixels (aligned to the image) where more than kRegionEdgeShare of
   // the pixels are edges are all edges.
@@ -303,7 +349,6 @@ void classify(const std::vector<Rgb>& corners, int W, int H, float threshold, La
       for (int y = ry; y < y1; ++y) std::fill_n(&busy_region[size_t(y) * size_t(W) + size_t(rx)], x1 - rx, uint8_t(1));
     }
   }
-  q->assign(pixels, 0.0f);
   for (size_t p = 0; p < pixels; ++p) {
     if (edge_neighbours[p] >= kBusyNeighbours || busy_region[p]) pilot->smooth[p] = 0;
     const float busy = std::max(std::min(1.0f, curvature[p] / threshold), float(edge_neighbours[p]) / 8.0f);
@@ -328,6 +373,9 @@ LatticePilot render_lattice_pilot(const RenderScene& scene) {
   out.frozen.frame_pixels = int64_t(pixels);
   out.stats.assign(size_t(grid.count()), BlockStat{});
 
+  using Clock = std::chrono::steady_clock;
+  auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
+  auto stage = Clock::now();
   // The lattice, in bands of corner rows (each corner traced once: it is its own pure function).
   std::vector<Rgb> corners(size_t(W + 1) * size_t(H + 1));
   constexpr int kBand = 8;
@@ -337,10 +385,15 @@ LatticePilot render_lattice_pilot(const RenderScene& scene) {
     trace_corner_rows(scene, b * kBand, std::min(H + 1, (b + 1) * kBand), &corners, &band_rays[size_t(b)]);
   });
   for (int b = 0; b < bands; ++b) out.rays += band_rays[size_t(b)];
+  out.cost.corner_rays = out.rays.camera;
+  out.cost.corner_seconds = since(stage);
+  stage = Clock::now();
 
   const float threshold = kSmoothCurvature * float(img.target_rmse);
   std::vector<float> q;
   classify(corners, W, H, threshold, &out, &q);
+  out.cost.classify_seconds = since(stage);
+  stage = Clock::now();
   std::vector<RayCounts> row_rays(size_t(grid.rows));
   // Per row of blocks: settle the smooth pixels, and give the blocks all of whose pixels are
   // smooth their statistics.
@@ -362,12 +415,15 @@ LatticePilot render_lattice_pilot(const RenderScene& scene) {
   });
   for (int row = 0; row < grid.rows; ++row) {
     out.rays += row_rays[size_t(row)];
-    out.smooth_pixels += row_smooth[size_t(row)];
-    out.audited_pixels += row_audited[size_t(row)];
+    out.cost.audit_rays += row_rays[size_t(row)].camera;
+    out.cost.smooth_pixels += row_smooth[size_t(row)];
+    out.cost.audited_pixels += row_audited[size_t(row)];
   }
+  out.cost.edge_pixels = int64_t(pixels) - out.cost.smooth_pixels;
   for (size_t p = 0; p < pixels; ++p) {
     if (out.smooth[p]) out.frozen.error += double(out.variance[p]);
   }
+  out.cost.audit_seconds = since(stage);
   return out;
 }
 

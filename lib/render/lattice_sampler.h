@@ -31,6 +31,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "render/lattice_cost.h"
 #include "render/render_scene.h"
 #include "sampling/pass_plan.h"
 #include "tile/block_stat.h"
@@ -59,7 +60,7 @@ struct LatticePilot {
   std::vector<float> rgb, variance;
   std::vector<uint32_t> spp;
   RayCounts rays;
-  int64_t smooth_pixels = 0, audited_pixels = 0;
+  LatticeCost cost;  // its corners', classification's and audits' part
 };
 
 // Traces the lattice and the audits (tbb::parallel_for: run it inside the caller's arena).
@@ -73,5 +74,9 @@ LatticePilot render_lattice_pilot(const RenderScene& scene);
 // difference centred on its shared corner, but not in the other; an edge through the pixel shows
 // in both, and so does curvature.
 float corner_curvature(const std::vector<Rgb>& corners, int width, int height, int px, int py);
+
+// corner_curvature of every pixel of rows [y0, y1), bit for bit, into out[py * width + px]: what
+// the classification calls.
+void corner_curvature_rows(const std::vector<Rgb>& corners, int width, int height, int y0, int y1, float* out);
 
 }  // namespace tessera

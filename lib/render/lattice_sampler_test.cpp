@@ -106,6 +106,30 @@ TEST(LatticeSampler, CurvatureIsTheLargestSecondDifference) {
   }
 }
 
+// The classification's row-at-a-time curvature is corner_curvature's, bit for bit, on a lattice of
+// random radiance (border pixels included) and on lattices too narrow for a second difference.
+TEST(LatticeSampler, CurvatureByRowsIsCornerCurvature) {
+  uint64_t state = 7;
+  for (auto [w, h] : {std::pair{13, 9}, std::pair{2, 5}, std::pair{1, 4}, std::pair{6, 1}}) {
+    std::vector<Rgb> c;
+    for (int i = 0; i < (w + 1) * (h + 1); ++i) {
+      Rgb v;
+      for (int k = 0; k < 3; ++k) v[k] = to_unit_float(uint32_t(state = mix64(state)));
+      c.push_back(v);
+    }
+    std::vector<float> rows(size_t(w) * size_t(h), -1.0f);
+    corner_curvature_rows(c, w, h, 0, (h + 1) / 2, rows.data());
+    corner_curvature_rows(c, w, h, (h + 1) / 2, h, rows.data());
+    for (int py = 0; py < h; ++py) {
+      for (int px = 0; px < w; ++px) {
+        const float want = corner_curvature(c, w, h, px, py);
+        const float got = rows[size_t(py) * size_t(w) + size_t(px)];
+        ASSERT_TRUE(got == want) << w << "x" << h << " pixel " << px << "," << py << ": " << got << " against " << want;
+      }
+    }
+  }
+}
+
 TEST(LatticeSampler, SmoothShadingFarBelowJitteredSamplesAtEqualSamples) {
   const int w = 64, h = 40;
   const ImageRGB ref = render_with(smooth_wall_scene(w, h, 256), SamplerKind::kSobol, 0).image;
@@ -163,6 +187,29 @@ TEST(LatticeSampler, EdgePixelsAreTheDefaultSamplersBitForBit) {
     ASSERT_EQ(a.variance[i], u.variance[i]) << i;
   }
   EXPECT_GT(edge_pixels, 50);
+}
+
+// The cost breakdown accounts for every camera ray and every pixel.
+TEST(LatticeSampler, CostAccountsForEveryCameraRayAndPixel) {
+  const int w = 75, h = 53;
+  const FrameResult r = render_with(test::whitted_like(w, h, 1), SamplerKind::kLattice, 0.008, 2, 32, 4);
+  const LatticeCost& c = r.lattice;
+  EXPECT_EQ(c.corner_rays, uint64_t((w + 1) * (h + 1)));
+  EXPECT_EQ(c.corner_rays + c.audit_rays + c.edge_rays, r.rays.camera);
+  EXPECT_EQ(c.audit_rays, uint64_t(2 * c.audited_pixels));
+  EXPECT_EQ(c.smooth_pixels + c.edge_pixels, int64_t(w * h));
+  EXPECT_GT(c.smooth_pixels, 0);
+  EXPECT_GT(c.edge_pixels, 0);
+  EXPECT_LE(c.audited_pixels, c.smooth_pixels);
+  int64_t smooth = 0, audited = 0;
+  for (uint32_t n : r.spp) smooth += n <= 3, audited += n == 3;  // edge pixels take at least 4 (min_spp)
+  EXPECT_EQ(c.smooth_pixels, smooth);
+  EXPECT_EQ(c.audited_pixels, audited);
+  EXPECT_GE(c.passes, 1);
+  EXPECT_GT(c.corner_seconds, 0.0);
+  EXPECT_GT(c.pass_seconds, 0.0);
+  // A render with another sampler leaves it zero.
+  EXPECT_EQ(render_with(test::whitted_like(w, h, 1), SamplerKind::kSobol, 0.008, 2, 32).lattice.corner_rays, 0u);
 }
 
 TEST(LatticeSampler, BitIdenticalForAnyThreadCountAndTileSize) {

@@ -6,6 +6,7 @@
 
 #include "image/image.h"
 #include "render/adaptive.h"
+#include "render/lattice_cost.h"
 #include "render/render_scene.h"
 #include "tile/tile_result.h"
 
@@ -22,6 +23,7 @@ struct FrameResult {
   RayCounts rays;
   double seconds = 0;
   ImageSettings settings;       // what it was rendered with (the target error, if any)
+  LatticeCost lattice;          // a --sampler lattice frame's rays and time by stage; zero otherwise
   // Estimated RMSE of the image against the converged one: sqrt(mean pixel variance).
   double estimated_rmse() const;
   // The estimate with the spp range and, for a target-error render, the blocks left above it.
