@@ -5,14 +5,16 @@
 // "The lattice sampler's error estimate").
 //
 // For each scene: a sobol reference at --ref-spp (cached as EXR in --cache, keyed by scene name,
-// size and spp; the file's hash of the scene and its meshes re-renders it when they change),
-// then for each target error T (by default the measured RMSE of uniform sobol renders at 4, 16
-// and 64 spp, rendered here) renders --target-rmse T with --sampler lattice and with the default
-// sobol frame target for seeds 1..--seeds, and reports per scene, target and sampler the
-// honesty ratios (the frame's estimated RMSE over the RMSE measured against the reference)
-// sorted, their min / median / max, camera rays a pixel, measured RMSE and CPU seconds; for the
-// lattice also the smooth pixels' share of both errors. Prints JSON on stdout; appends a
-// markdown table to --markdown. Asserts nothing about time.
+// size and spp; a hash of the scene file and its meshes, stored in the EXR, re-renders it when
+// they change), then for each target error T (by default the measured RMSE of uniform sobol
+// renders at 4, 16 and 64 spp, rendered here) renders --target-rmse T with --sampler lattice and
+// with the default sobol frame target for seeds 1..--seeds, and reports per scene, target and
+// sampler the honesty ratios (the frame's estimated RMSE over the RMSE measured against the
+// reference) sorted, their min / median / max, camera rays a pixel, measured RMSE and CPU
+// seconds (of render_frame alone); for the lattice also the smooth pixels' share of both errors
+// and, per seed, where the smooth pixels' error is and how much of it their audits saw. Prints
+// JSON on stdout; appends a markdown table to --markdown; --error-dir writes |lattice -
+// reference| images. Asserts nothing about time.
 //
 //   lattice_honesty --scene bench/lattice/scenes/wires.json [--scene ...] [--ref-spp 1024]
 //                   [--seeds 8] [--targets auto|0.01,0.005] [--target-spp 4,16,64]
@@ -21,9 +23,11 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <functional>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -33,10 +37,13 @@
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
+#include <tbb/task_arena.h>
 
 #include "../bench_host.h"
 #include "image/exr_io.h"
 #include "render/embree_device.h"
+#include "render/sampler.h"  // before lattice_sampler.h, which uses PixelSampler without it
+#include "render/lattice_sampler.h"
 #include "render/render_scene_internal.h"
 #include "render/tile_renderer.h"
 #include "scene/scene_parser.h"
@@ -53,13 +60,20 @@ struct Options {
   std::string cache = "bench-cache", markdown, targets = "auto", target_spp = "4,16,64", error_dir;
 };
 
-// One render measured against the reference. The smooth pixels (lattice renders: spp 1) and the
-// others split both errors: smooth_* + edge_* = the frame's mean squared error.
+// One render measured against the reference. A lattice render's smooth pixels (its pilot's) and
+// edge pixels split both errors: smooth_* + edge_* = the frame's mean squared error (all of it
+// edge_* for sobol).
 struct Run {
   double rmse = 0, estimated_rmse = 0, camera_rays = 0, cpu = 0, mean_spp = 0;
   bool reached = true;
-  double smooth_fraction = 0;
+  double smooth_fraction = 0, audited_fraction = 0;
   double smooth_mse = 0, smooth_est_mse = 0, edge_mse = 0, edge_est_mse = 0;
+  // Where the smooth pixels' error is: the fewest of them holding 90% of their squared error, how
+  // many of those were audited, and their estimate over their squared error (the audits' expected
+  // value: 1); the largest audit's share of the smooth pixels' estimate.
+  int64_t smooth_pixels_90 = 0, audited_90 = 0;
+  double estimated_share_90 = 0, top_audit_share = 0;
+  std::vector<std::array<double, 3>> worst_smooth;  // the 5 smooth pixels of largest error: x, y, RMSE
   double ratio() const { return rmse > 0 ? estimated_rmse / rmse : 0.0; }
 };
 
@@ -157,6 +171,44 @@ void write_error_image(const std::string& path, const FrameResult& r, const Imag
   write_exr(path, diff, {}, ExrPixelType::kFloat, {{"spp.Y", &spp}, {"error.Y", &err}});
 }
 
+// Splits the frame's measured and estimated squared errors between the smooth pixels (`smooth`:
+// the lattice pilot's; all 0 for sobol) and the others, and finds where the smooth ones' is.
+void split_errors(const FrameResult& r, const ImageRGB& ref, const std::vector<uint8_t>& smooth, Run* run) {
+  const double pixels = double(r.spp.size());
+  std::vector<std::pair<double, size_t>> smooth_err;  // (squared error, pixel)
+  double top_audit = 0;
+  for (size_t p = 0; p < r.spp.size(); ++p) {
+    double e = 0;
+    for (int c = 0; c < 3; ++c) {
+      const double d = double(r.image.rgb[3 * p + c]) - double(ref.rgb[3 * p + c]);
+      e += d * d / 3;
+    }
+    const bool is_smooth = smooth[p] != 0;
+    (is_smooth ? run->smooth_mse : run->edge_mse) += e / pixels;
+    (is_smooth ? run->smooth_est_mse : run->edge_est_mse) += double(r.variance[p]) / pixels;
+    if (!is_smooth) continue;
+    run->smooth_fraction += 1 / pixels;
+    run->audited_fraction += r.spp[p] == 3 ? 1 / pixels : 0;  // an audited smooth pixel: spp 3
+    smooth_err.emplace_back(e, p);
+    top_audit = std::max(top_audit, double(r.variance[p]));
+  }
+  std::sort(smooth_err.begin(), smooth_err.end(), std::greater<>());
+  double held = 0, estimated = 0;
+  while (size_t(run->smooth_pixels_90) < smooth_err.size() && held < 0.9 * run->smooth_mse * pixels) {
+    const auto [e, p] = smooth_err[size_t(run->smooth_pixels_90++)];
+    held += e;
+    estimated += double(r.variance[p]);
+    run->audited_90 += r.spp[p] == 3 ? 1 : 0;
+  }
+  run->estimated_share_90 = held > 0 ? estimated / held : 0.0;
+  for (size_t i = 0; i < std::min<size_t>(5, smooth_err.size()); ++i) {
+    const auto [e, p] = smooth_err[i];
+    const size_t w = size_t(r.image.width);
+    run->worst_smooth.push_back({double(p % w), double(p / w), std::sqrt(e)});
+  }
+  run->top_audit_share = run->smooth_est_mse > 0 ? top_audit / (run->smooth_est_mse * pixels) : 0.0;
+}
+
 // One render: a uniform one (target 0, `spp` samples) or to the frame target `target`.
 Run render(const Scene& base, SamplerKind sampler, int spp, double target, uint64_t seed_offset, const Options& o,
            const ImageRGB& ref, const std::string& error_path = {}) {
@@ -176,61 +228,80 @@ Run render(const Scene& base, SamplerKind sampler, int spp, double target, uint6
   run.estimated_rmse = sum.estimated_rmse;
   run.mean_spp = sum.mean_spp;
   run.reached = sum.target_reached;
-  const double pixels = double(s.image.width) * double(s.image.height);
-  run.camera_rays = double(r.rays.camera) / pixels;
-  const bool lattice = sampler == SamplerKind::kLattice;
-  for (size_t p = 0; p < r.spp.size(); ++p) {
-    double e = 0;
-    for (int c = 0; c < 3; ++c) {
-      const double d = double(r.image.rgb[3 * p + c]) - double(ref.rgb[3 * p + c]);
-      e += d * d / 3;
-    }
-    const bool smooth = lattice && r.spp[p] == 1;
-    (smooth ? run.smooth_mse : run.edge_mse) += e / pixels;
-    (smooth ? run.smooth_est_mse : run.edge_est_mse) += double(r.variance[p]) / pixels;
-    run.smooth_fraction += smooth ? 1 / pixels : 0;
+  run.camera_rays = double(r.rays.camera) / (double(s.image.width) * double(s.image.height));
+  // Which pixels the lattice called smooth: its pilot again (a pure function of the scene and
+  // settings, so the same pixels), untimed.
+  std::vector<uint8_t> smooth(r.spp.size(), 0);
+  if (sampler == SamplerKind::kLattice) {
+    tbb::task_arena arena(o.threads > 0 ? o.threads : tbb::task_arena::automatic);
+    arena.execute([&] { smooth = render_lattice_pilot(rs).smooth; });
   }
+  split_errors(r, ref, smooth, &run);
   if (!error_path.empty()) write_error_image(error_path, r, ref);
   return run;
 }
 
-// Per sampler over the seeds: the ratios sorted with their spread, the means of the rest; the
-// partial errors as root mean squares over the seeds.
-nlohmann::json sampler_json(const std::vector<Run>& runs, bool lattice) {
-  std::vector<double> ratios, rmses;
-  double rays = 0, cpu = 0, est = 0, spp = 0, smooth = 0, s_mse = 0, s_est = 0, e_mse = 0, e_est = 0;
+// Per sampler over the seeds: the ratios sorted with their spread, the means of the rest, each
+// seed's errors (smooth and edge pixels apart for the lattice). The partial errors over the seeds
+// are root mean squares. `ref_mse`: the reference's own estimated squared error, which every
+// measured error holds too; "ref_corrected" takes it out of the measured one (a check on how much
+// of a ratio under 1 is the reference's noise, not the estimate's).
+nlohmann::json sampler_json(const std::vector<Run>& runs, bool lattice, double ref_mse) {
+  std::vector<double> ratios, corrected;
+  double rays = 0, cpu = 0, est = 0, rmse = 0, spp = 0, smooth = 0, audited = 0;
+  double s_mse = 0, s_est = 0, e_mse = 0, e_est = 0;
   int reached = 0;
   const double n = double(runs.size());
-  for (const Run& r : runs) {
+  nlohmann::json seeds = nlohmann::json::array();
+  for (size_t i = 0; i < runs.size(); ++i) {
+    const Run& r = runs[i];
     ratios.push_back(r.ratio());
-    rmses.push_back(r.rmse);
+    corrected.push_back(r.estimated_rmse / std::sqrt(std::max(r.rmse * r.rmse - ref_mse, 1e-30)));
     rays += r.camera_rays / n;
     cpu += r.cpu / n;
     est += r.estimated_rmse / n;
+    rmse += r.rmse / n;
     spp += r.mean_spp / n;
     smooth += r.smooth_fraction / n;
+    audited += r.audited_fraction / n;
     s_mse += r.smooth_mse / n;
     s_est += r.smooth_est_mse / n;
     e_mse += r.edge_mse / n;
     e_est += r.edge_est_mse / n;
     reached += r.reached ? 1 : 0;
+    nlohmann::json seed = {
+        {"seed", i + 1}, {"ratio", r.ratio()}, {"rmse", r.rmse}, {"estimated_rmse", r.estimated_rmse}};
+    if (lattice) {
+      seed["smooth"] = {{"rmse", std::sqrt(r.smooth_mse)}, {"estimated_rmse", std::sqrt(r.smooth_est_mse)}};
+      seed["edge"] = {{"rmse", std::sqrt(r.edge_mse)}, {"estimated_rmse", std::sqrt(r.edge_est_mse)}};
+      seed["smooth_pixels_holding_90pct"] = r.smooth_pixels_90;
+      seed["of_those_audited"] = r.audited_90;
+      seed["of_those_estimate_over_error"] = r.estimated_share_90;
+      seed["worst_smooth_pixels"] = r.worst_smooth;
+      seed["top_audit_share"] = r.top_audit_share;
+    }
+    seeds.push_back(std::move(seed));
   }
   std::sort(ratios.begin(), ratios.end());
-  double mean_rmse = 0;
-  for (double e : rmses) mean_rmse += e / n;
-  nlohmann::json j = {{"honesty", ratios},
-                      {"min", ratios.empty() ? 0.0 : ratios.front()},
-                      {"median", median(ratios)},
-                      {"max", ratios.empty() ? 0.0 : ratios.back()},
-                      {"camera_rays_per_pixel", rays},
-                      {"mean_spp", spp},
-                      {"rmse", mean_rmse},
-                      {"rmse_per_seed", rmses},
-                      {"estimated_rmse", est},
-                      {"cpu_s", cpu},
-                      {"targets_reached", reached}};
+  std::sort(corrected.begin(), corrected.end());
+  const auto lo = [](const std::vector<double>& v) { return v.empty() ? 0.0 : v.front(); };
+  const auto hi = [](const std::vector<double>& v) { return v.empty() ? 0.0 : v.back(); };
+  nlohmann::json j = {
+      {"honesty", ratios},
+      {"min", lo(ratios)},
+      {"median", median(ratios)},
+      {"max", hi(ratios)},
+      {"ref_corrected", {{"min", lo(corrected)}, {"median", median(corrected)}, {"max", hi(corrected)}}},
+      {"camera_rays_per_pixel", rays},
+      {"mean_spp", spp},
+      {"rmse", rmse},
+      {"estimated_rmse", est},
+      {"cpu_s", cpu},
+      {"targets_reached", reached},
+      {"seeds", seeds}};
   if (lattice) {
     j["smooth_fraction"] = smooth;
+    j["audited_fraction"] = audited;
     j["smooth_pixels"] = {{"rmse", std::sqrt(s_mse)}, {"estimated_rmse", std::sqrt(s_est)}};
     j["edge_pixels"] = {{"rmse", std::sqrt(e_mse)}, {"estimated_rmse", std::sqrt(e_est)}};
   }
@@ -297,6 +368,7 @@ nlohmann::json run_scene(const Scene& scene, const std::string& name, const Opti
                           {"cpu_s", ref.cpu}}},
                         {"uniform", uniform},
                         {"targets", nlohmann::json::array()}};
+  const double ref_mse = ref.estimated_rmse * ref.estimated_rmse;
   for (size_t ti = 0; ti < ts.size(); ++ti) {
     const auto& [t, from] = ts[ti];
     std::vector<Run> lat, sob;
@@ -308,8 +380,10 @@ nlohmann::json run_scene(const Scene& scene, const std::string& name, const Opti
       lat.push_back(render(scene, SamplerKind::kLattice, 1, t, uint64_t(seed), o, ref.image, err_path));
       sob.push_back(render(scene, SamplerKind::kSobol, 1, t, uint64_t(seed), o, ref.image));
     }
-    nlohmann::json row = {
-        {"target_rmse", t}, {"from", from}, {"lattice", sampler_json(lat, true)}, {"sobol", sampler_json(sob, false)}};
+    nlohmann::json row = {{"target_rmse", t},
+                          {"from", from},
+                          {"lattice", sampler_json(lat, true, ref_mse)},
+                          {"sobol", sampler_json(sob, false, ref_mse)}};
     std::cerr << "  " << name << " target " << t << " (" << from << "): lattice " << spread(row["lattice"])
               << ", sobol " << spread(row["sobol"]) << "\n";
     char buf[512];
