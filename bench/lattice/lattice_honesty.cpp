@@ -42,7 +42,6 @@
 #include "../bench_host.h"
 #include "image/exr_io.h"
 #include "render/embree_device.h"
-#include "render/sampler.h"  // before lattice_sampler.h, which uses PixelSampler without it
 #include "render/lattice_sampler.h"
 #include "render/render_scene_internal.h"
 #include "render/tile_renderer.h"
@@ -74,6 +73,7 @@ struct Run {
   int64_t smooth_pixels_90 = 0, audited_90 = 0;
   double estimated_share_90 = 0, top_audit_share = 0;
   std::vector<std::array<double, 3>> worst_smooth;  // the 5 smooth pixels of largest error: x, y, RMSE
+  LatticeCost lattice;                              // the lattice's smooth, audited and edge pixels
   double ratio() const { return rmse > 0 ? estimated_rmse / rmse : 0.0; }
 };
 
@@ -229,6 +229,7 @@ Run render(const Scene& base, SamplerKind sampler, int spp, double target, uint6
   run.mean_spp = sum.mean_spp;
   run.reached = sum.target_reached;
   run.camera_rays = double(r.rays.camera) / (double(s.image.width) * double(s.image.height));
+  run.lattice = r.lattice;
   // Which pixels the lattice called smooth: its pilot again (a pure function of the scene and
   // settings, so the same pixels), untimed.
   std::vector<uint8_t> smooth(r.spp.size(), 0);
@@ -279,6 +280,9 @@ nlohmann::json sampler_json(const std::vector<Run>& runs, bool lattice, double r
       seed["of_those_estimate_over_error"] = r.estimated_share_90;
       seed["worst_smooth_pixels"] = r.worst_smooth;
       seed["top_audit_share"] = r.top_audit_share;
+      seed["pixels"] = {{"smooth", r.lattice.smooth_pixels},
+                        {"audited", r.lattice.audited_pixels},
+                        {"edge", r.lattice.edge_pixels}};
     }
     seeds.push_back(std::move(seed));
   }

@@ -33,6 +33,7 @@
 
 #include "render/lattice_cost.h"
 #include "render/render_scene.h"
+#include "render/sampler.h"
 #include "sampling/pass_plan.h"
 #include "tile/block_stat.h"
 #include "tile/tile_result.h"
