@@ -10,6 +10,8 @@
 #                 against the packet ceiling with Embree's robust triangles (Whitted, Cornell, bunny,
 #                 armadillo); the watertight test's frame time against Embree's robust test
 #   povray        POV-Ray 3.7 on the same Whitted scene: error and samples/s of both
+#   lattice       how honest --sampler lattice's and the default frame target's error estimates are
+#                 on the hard scenes of bench/lattice/scenes, over seeds (bench/lattice/lattice_honesty)
 #   cycles        Blender 3.4's Cycles (Whitted-like settings) on the glTF test scene: error and
 #                 samples/s of both (skipped, with a message, when blender is not installed), and
 #                 the bound on their ratio: bare Embree's time for the frame's own queries
@@ -25,7 +27,7 @@ ROOT=$(cd "$HERE/.." && pwd)
 BUILD=$ROOT/build
 OUT=""
 SMOKE=0
-ONLY=speed_error,ray_ceiling,povray,cycles,farm
+ONLY=speed_error,ray_ceiling,povray,lattice,cycles,farm
 FARM=1
 THREADS=$(nproc)
 while [ $# -gt 0 ]; do
@@ -60,7 +62,7 @@ peer() {
     return 1
   fi
 }
-for exe in speed_error/speed_error ray_ceiling/ray_ceiling povray/pov_compare cycles/cycles_compare; do
+for exe in speed_error/speed_error ray_ceiling/ray_ceiling povray/pov_compare lattice/lattice_honesty cycles/cycles_compare; do
   if [ ! -x "$BUILD/bench/$exe" ]; then
     echo "run_all.sh: $BUILD/bench/$exe is missing: cmake --build $BUILD --target $(basename $exe)" >&2
     exit 1
@@ -72,15 +74,17 @@ SUMMARY=$OUT/summary.md
 if [ $SMOKE = 1 ]; then
   W=32 H=18 MAXSPP=4 REFSPP=16 CENTER=2 TARGETS=0.05 SEEDS=1   # speed_error
   CW=32 CH=18 CSPP=1 REPS=1                      # ray_ceiling
-  PW=32 PH=18 PR=2                               # povray: +R2 = 4 samples per pixel
+  PW=32 PH=18 PR=2 PSEEDS=0                      # povray: +R2 = 4 samples per pixel
   POV_ADAPTIVE=("+A0.3 +AM2 +R3")                # povray's adaptive anti-aliasing, as its users set it
   BW=32 BH=18 BSPP=2 BREF=16 BNOISE=0.1          # cycles (BNOISE: its adaptive sampling's noise threshold)
+  LW=48 LH=27 LREF=64 LSEEDS=2 LSPP=16           # lattice
 else
   W=192 H=108 MAXSPP=1024 REFSPP=4096 CENTER=16 TARGETS=auto SEEDS=3
   CW=480 CH=270 CSPP=4 REPS=3
-  PW=640 PH=360 PR=4                             # povray: the size POV-Ray's users compare at (192x108 flattered Tessera at +A0.3: docs/performance-log.md)
+  PW=640 PH=360 PR=4 PSEEDS=8                    # povray (PSEEDS: seeds of the estimate/measured spread): the size POV-Ray's users compare at (192x108 flattered Tessera at +A0.3: docs/performance-log.md)
   POV_ADAPTIVE=("+A0.3 +AM2 +R3" "+A0.1 +AM2 +R3" "+A0.03 +AM2 +R4")
   BW=192 BH=108 BSPP=16 BREF=1024 BNOISE=0.01    # 0.01: Cycles' default noise threshold
+  LW=192 LH=108 LREF=1024 LSEEDS=8 LSPP=4,16,64  # lattice: the scenes' own size; the errors of 4, 16, 64 spp
 fi
 {
   echo "<!-- bench/run_all.sh$([ $SMOKE = 1 ] && echo ' --smoke') on $(date -u '+%Y-%m-%d %H:%M UTC'), $(nproc) cores: $(lscpu | sed -n 's/^Model name: *//p') -->"
@@ -218,9 +222,18 @@ if want povray && peer povray povray "POV-Ray 3.7 against Tessera (${PW}x${PH}, 
     [ $k = 0 ] || echo -e "\nPOV-Ray's adaptive anti-aliasing, \`$settings\`:\n" >>"$SUMMARY"
     "$BUILD/bench/povray/pov_compare" --scene scenes/whitted.json --pov-exr "$OUT/${name}_whitted.exr" \
       --pov-wall "$wall" --pov-cpu "$cpu" --pov-samples "$samples" --pov-pixels "$pixels" --pov-spp $((PR * PR)) --reference "$REF" \
-      --width $PW --height $PH --threads "$THREADS" --pov-settings "$settings" --markdown "$SUMMARY" >"$OUT/$name.json"
+      --width $PW --height $PH --threads "$THREADS" --pov-settings "$settings" --honesty-seeds $PSEEDS \
+      --markdown "$SUMMARY" >"$OUT/$name.json"
     k=$((k + 1))
   done
+fi
+
+if want lattice; then
+  echo "== The lattice sampler's error estimate on hard scenes (${LW}x${LH}, $LSEEDS seeds)" >&2
+  scenes=()
+  for s in bench/lattice/scenes/*.json; do scenes+=(--scene "$s"); done
+  "$BUILD/bench/lattice/lattice_honesty" "${scenes[@]}" --width $LW --height $LH --ref-spp $LREF --seeds $LSEEDS \
+    --target-spp $LSPP --threads "$THREADS" --cache "$CACHE" --markdown "$SUMMARY" >"$OUT/lattice_honesty.json"
 fi
 
 if want cycles && peer blender blender "Blender's Cycles against Tessera on whitted_a.glb (${BW}x${BH}, $BSPP spp, $THREADS threads)" \
