@@ -31,6 +31,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -38,6 +39,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 #include <tbb/task_arena.h>
+#include <xxhash.h>
 
 #include "../bench_host.h"
 #include "image/exr_io.h"
@@ -84,21 +86,21 @@ struct Reference {
   bool cached = false;
 };
 
-// FNV-1a over the bytes of a file, continuing from h.
-uint64_t hash_file(const fs::path& path, uint64_t h) {
-  std::ifstream in(path, std::ios::binary);
-  for (char c; in.get(c);) h = (h ^ uint8_t(c)) * 1099511628211ull;
-  return h;
-}
-
-// The scene file and every file it names (meshes, their materials).
+// XXH3-64 of the scene file and every file it names (meshes, their materials), in that order.
 std::string scene_hash(const Scene& scene) {
-  uint64_t h = hash_file(scene.path, 14695981039346656037ull);
+  std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), &XXH3_freeState);
+  XXH3_64bits_reset(state.get());
+  auto add = [&](const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    char buf[1 << 16];
+    while (in.read(buf, sizeof buf) || in.gcount() > 0) XXH3_64bits_update(state.get(), buf, size_t(in.gcount()));
+  };
+  add(scene.path);
   const fs::path dir = fs::path(scene.path).parent_path();
-  for (const std::string& dep : scene.dependencies) h = hash_file(dir / dep, h);
-  char buf[20];
-  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
-  return buf;
+  for (const std::string& dep : scene.dependencies) add(dir / dep);
+  char out[20];
+  std::snprintf(out, sizeof out, "%016llx", static_cast<unsigned long long>(XXH3_64bits_digest(state.get())));
+  return out;
 }
 
 // RMSE over all pixels and channels, in linear light.
