@@ -282,9 +282,8 @@ nlohmann::json sampler_json(const std::vector<Run>& runs, bool lattice, double r
       seed["of_those_estimate_over_error"] = r.estimated_share_90;
       seed["worst_smooth_pixels"] = r.worst_smooth;
       seed["top_audit_share"] = r.top_audit_share;
-      seed["pixels"] = {{"smooth", r.lattice.smooth_pixels},
-                        {"audited", r.lattice.audited_pixels},
-                        {"edge", r.lattice.edge_pixels}};
+      seed["pixels"] = {
+          {"smooth", r.lattice.smooth_pixels}, {"audited", r.lattice.audited_pixels}, {"edge", r.lattice.edge_pixels}};
     }
     seeds.push_back(std::move(seed));
   }
