@@ -10,6 +10,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "render/huge_page_allocator.h"
 #include "render/lattice_frame.h"
 #include "render/pixel_samples.h"
 #include "tile/bfloat16.h"
@@ -97,10 +98,11 @@ FrameResult render_frame_to_target(const RenderScene& scene, int threads,
   const BlockGrid grid(img.width, img.height);
   constexpr int B = kAllocationBlock;
   const size_t pixels = size_t(img.width) * size_t(img.height);
-  // Every pixel's running estimate, block by block (block b's pixels at b * B * B, row-major).
-  std::vector<PixelEstimate> est(size_t(grid.count()) * B * B);
+  // Every pixel's running estimate, block by block (block b's pixels at b * B * B, row-major):
+  // 80 bytes a pixel, on huge pages (render/huge_page_allocator.h).
+  std::vector<PixelEstimate, HugePageAllocator<PixelEstimate>> est(size_t(grid.count()) * B * B);
   std::vector<BlockStat> stats(size_t(grid.count()));
-  std::vector<RayCounts> rays_per_block(size_t(grid.count()));
+  std::vector<RayCounts, HugePageAllocator<RayCounts>> rays_per_block(size_t(grid.count()));
   std::vector<uint32_t> want(size_t(grid.count()), uint32_t(img.first_spp()));
   std::atomic<int64_t> samples_done{0};
   int64_t samples_planned = 0;

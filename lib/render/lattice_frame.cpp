@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "render/frame_target.h"
+#include "render/huge_page_allocator.h"
 #include "render/lattice_sampler.h"
 #include "render/pixel_samples.h"
 #include "tile/bfloat16.h"
@@ -29,10 +30,11 @@ struct EdgePixels {
     int x = 0, y = 0;
     PixelEstimate est;
   };
-  std::vector<Pixel> edge;
+  std::vector<Pixel, HugePageAllocator<Pixel>> edge;  // render/huge_page_allocator.h
   std::vector<size_t> first;
 
   EdgePixels(const LatticePilot& pilot, const BlockGrid& grid) : first(size_t(grid.count()) + 1, 0) {
+    edge.reserve(size_t(pilot.cost.edge_pixels));
     for (int b = 0; b < grid.count(); ++b) {
       first[size_t(b)] = edge.size();
       const int bx = (b % grid.cols) * B, by = (b / grid.cols) * B;

@@ -72,7 +72,7 @@ float second_difference(const Rgb& a, const Rgb& b, const Rgb& c) {
 }
 
 // Traces corner rows [y0, y1) of the lattice into corners (row-major, width + 1 a row).
-void trace_corner_rows(const RenderScene& scene, int y0, int y1, std::vector<Rgb>* corners, RayCounts* rays) {
+void trace_corner_rows(const RenderScene& scene, int y0, int y1, CornerLattice* corners, RayCounts* rays) {
   const ImageSettings& img = scene.image();
   const int cols = img.width + 1;
   constexpr int P = RenderScene::kPacket;
@@ -123,7 +123,7 @@ void trace_film_points(const RenderScene& scene, const float* x, const float* y,
   }
 }
 
-float corner_curvature(const std::vector<Rgb>& corners, int width, int height, int px, int py) {
+float corner_curvature(const CornerLattice& corners, int width, int height, int px, int py) {
   // Too narrow for a second difference along an axis: no pixel can be called smooth.
   if (width < 2 || height < 2) return std::numeric_limits<float>::infinity();
   const int cols = width + 1;
@@ -163,7 +163,7 @@ struct HoldOut {
 // The audits of the smooth pixels of rows [y0, y1) under `domain` (the key of their own draws),
 // each pixel drawing one with probability q[p]; traced together, so that their packets are full.
 // Their rays go to `rays`.
-std::vector<HoldOut> hold_outs(const RenderScene& scene, const std::vector<Rgb>& corners, const LatticePilot& pilot,
+std::vector<HoldOut> hold_outs(const RenderScene& scene, const CornerLattice& corners, const LatticePilot& pilot,
                                const std::vector<float>& q, uint64_t domain, int y0, int y1, RayCounts* rays) {
   const ImageSettings& img = scene.image();
   const int W = img.width;
@@ -214,7 +214,7 @@ std::vector<HoldOut> hold_outs(const RenderScene& scene, const std::vector<Rgb>&
 
 // The smooth pixels of rows [y0, y1): their values (the corners' mean), and from their audits
 // their variance estimates, in `out`; the audits' rays in `rays`. Returns how many were audited.
-int64_t settle_smooth_band(const RenderScene& scene, const std::vector<Rgb>& corners, const std::vector<float>& q,
+int64_t settle_smooth_band(const RenderScene& scene, const CornerLattice& corners, const std::vector<float>& q,
                            int y0, int y1, LatticePilot* out, RayCounts* rays) {
   const int W = scene.image().width;
   const std::vector<HoldOut> audits = hold_outs(scene, corners, *out, q, kAuditKey, y0, y1, rays);
@@ -270,7 +270,7 @@ namespace {
 
 // Each second difference of the lattice is computed once here; corner_curvature takes eight a
 // pixel, each shared with a neighbour, which was most of the classification's time.
-void corner_curvature_rows(const std::vector<Rgb>& corners, int W, int H, int y0, int y1, float* curvature) {
+void corner_curvature_rows(const CornerLattice& corners, int W, int H, int y0, int y1, float* curvature) {
   if (W < 2 || H < 2) {
     std::fill(curvature + size_t(y0) * size_t(W), curvature + size_t(y1) * size_t(W),
               std::numeric_limits<float>::infinity());
@@ -311,7 +311,7 @@ namespace {
 // The classification (the curvature test, then kBusyNeighbours and kRegion, all from the lattice
 // alone, so no audit decides it) and every smooth pixel's audit probability, into pilot->smooth
 // and q.
-void classify(const std::vector<Rgb>& corners, int W, int H, float threshold, LatticePilot* pilot,
+void classify(const CornerLattice& corners, int W, int H, float threshold, LatticePilot* pilot,
               std::vector<float>* q) {
   const size_t pixels = size_t(W) * size_t(H);
   q->resize(pixels);
@@ -377,7 +377,7 @@ LatticePilot render_lattice_pilot(const RenderScene& scene) {
   auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
   auto stage = Clock::now();
   // The lattice, in bands of corner rows (each corner traced once: it is its own pure function).
-  std::vector<Rgb> corners(size_t(W + 1) * size_t(H + 1));
+  CornerLattice corners(size_t(W + 1) * size_t(H + 1));
   constexpr int kBand = 8;
   const int bands = (H + 1 + kBand - 1) / kBand;
   std::vector<RayCounts> band_rays(static_cast<size_t>(bands));

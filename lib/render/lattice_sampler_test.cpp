@@ -78,7 +78,7 @@ FrameResult render_with(const std::string& json, SamplerKind sampler, double tar
 TEST(LatticeSampler, CurvatureIsTheLargestSecondDifference) {
   // A 3 x 2 pixel lattice (4 x 3 corners), every channel L = x^2 + 3 y: second differences 2
   // along x, 0 along y, whatever the pixel.
-  std::vector<Rgb> c;
+  CornerLattice c;
   for (int y = 0; y <= 2; ++y) {
     for (int x = 0; x <= 3; ++x) c.push_back(Rgb(float(x * x + 3 * y)));
   }
@@ -97,7 +97,7 @@ TEST(LatticeSampler, CurvatureIsTheLargestSecondDifference) {
   EXPECT_FLOAT_EQ(corner_curvature(c, 3, 2, 2, 1), 1.0f);
   // A step of 1 between corner columns 2 and 3 of a 6 x 4 pixel lattice: only the pixels it
   // crosses see it, not their neighbours, whose own corners agree.
-  std::vector<Rgb> step;
+  CornerLattice step;
   for (int y = 0; y <= 4; ++y) {
     for (int x = 0; x <= 6; ++x) step.push_back(Rgb(x >= 3 ? 1.0f : 0.0f));
   }
@@ -111,7 +111,7 @@ TEST(LatticeSampler, CurvatureIsTheLargestSecondDifference) {
 TEST(LatticeSampler, CurvatureByRowsIsCornerCurvature) {
   uint64_t state = 7;
   for (auto [w, h] : {std::pair{13, 9}, std::pair{2, 5}, std::pair{1, 4}, std::pair{6, 1}}) {
-    std::vector<Rgb> c;
+    CornerLattice c;
     for (int i = 0; i < (w + 1) * (h + 1); ++i) {
       Rgb v;
       for (int k = 0; k < 3; ++k) v[k] = to_unit_float(uint32_t(state = mix64(state)));
