@@ -42,6 +42,7 @@
 #include <xxhash.h>
 
 #include "../bench_host.h"
+#include "../bench_image.h"
 #include "image/exr_io.h"
 #include "render/embree_device.h"
 #include "render/lattice_sampler.h"
@@ -103,15 +104,7 @@ std::string scene_hash(const Scene& scene) {
   return out;
 }
 
-// RMSE over all pixels and channels, in linear light.
-double rmse(const ImageRGB& a, const ImageRGB& b) {
-  double s = 0;
-  for (size_t i = 0; i < a.rgb.size(); ++i) {
-    const double d = double(a.rgb[i]) - double(b.rgb[i]);
-    s += d * d;
-  }
-  return std::sqrt(s / double(a.rgb.size()));
-}
+using bench::rmse;
 
 double median(const std::vector<double>& sorted) {
   if (sorted.empty()) return 0;

@@ -23,6 +23,7 @@
 #include <nlohmann/json.hpp>
 
 #include "../bench_host.h"
+#include "../bench_image.h"
 #include "image/exr_io.h"
 #include "render/embree_device.h"
 #include "render/render_scene_internal.h"
@@ -34,14 +35,7 @@ using namespace tessera;
 
 namespace {
 
-double rmse(const ImageRGB& a, const ImageRGB& b) {
-  double s = 0;
-  for (size_t i = 0; i < a.rgb.size(); ++i) {
-    const double d = double(a.rgb[i]) - double(b.rgb[i]);
-    s += d * d;
-  }
-  return std::sqrt(s / double(a.rgb.size()));
-}
+using bench::rmse;
 
 struct Run {
   int spp = 0;

@@ -30,6 +30,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "../bench_image.h"
 #include "image/exr_io.h"
 #include "render/embree_device.h"
 #include "render/render_scene_internal.h"
@@ -41,7 +42,7 @@ using namespace tessera;
 
 namespace {
 
-double rmse(const ImageRGB& a, const ImageRGB& ref);
+using bench::rmse;
 double relmse(const ImageRGB& a, const ImageRGB& ref);
 
 struct Point {
@@ -128,16 +129,6 @@ double at_rmse(const std::vector<Point>& ladder, double e, double Point::*y, boo
   *extrapolated = e > pts.front()->rmse || e < pts.back()->rmse;
   const double t = (std::log(e) - std::log(a.rmse)) / (std::log(b.rmse) - std::log(a.rmse));
   return std::exp(std::log(a.*y) + t * (std::log(b.*y) - std::log(a.*y)));
-}
-
-// RMSE over all pixels and channels, in linear light.
-double rmse(const ImageRGB& a, const ImageRGB& ref) {
-  double s = 0;
-  for (size_t i = 0; i < a.rgb.size(); ++i) {
-    const double d = double(a.rgb[i]) - double(ref.rgb[i]);
-    s += d * d;
-  }
-  return std::sqrt(s / double(a.rgb.size()));
 }
 
 // Relative MSE as in the denoising literature: mean of (x - ref)^2 / (ref^2 + 0.01).
