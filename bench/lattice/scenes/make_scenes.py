@@ -182,6 +182,20 @@ def thin_shadows():
     })
 
 
+# The paints of the small spheres of mirror_small and glass_small.
+SMALL_SPHERE_PAINTS = {
+    "red": {"type": "diffuse", "albedo": [0.95, 0.15, 0.1]},
+    "yellow": {"type": "diffuse", "albedo": [0.95, 0.85, 0.1]},
+    "blue": {"type": "diffuse", "albedo": [0.1, 0.3, 0.95]},
+    "white": {"type": "diffuse", "albedo": 0.95},
+}
+
+
+def small_spheres(spheres):
+    """Sphere objects from (x, y, z, radius, paint) tuples."""
+    return [{"type": "sphere", "center": [x, y, z], "radius": r, "material": m} for x, y, z, r, m in spheres]
+
+
 def mirror_small():
     """Spheres behind the eye, seen in a mirror 3.6 x 2.4 (framed by the floor and the sky) 11-13 away:
     0.5-4 pixels wide."""
@@ -196,8 +210,7 @@ def mirror_small():
         {"type": "plane", "name": "floor", "point": [0, -0.5, 0], "normal": [0, 1, 0], "material": "floor"},
         {"type": "mesh", "name": "mirror", "file": "mirror_quad.obj", "material": "mirror"},
     ]
-    for x, y, z, r, m in spheres:
-        objects.append({"type": "sphere", "center": [x, y, z], "radius": r, "material": m})
+    objects += small_spheres(spheres)
     write_scene("mirror_small", {
         "camera": {"position": [0, 1, 4], "look_at": [0, 1, 0], "up": [0, 1, 0], "vfov_deg": 40},
         "image": image(),
@@ -206,10 +219,7 @@ def mirror_small():
         "materials": {
             "floor": {"type": "diffuse", "albedo": 0.5},
             "mirror": {"type": "mirror", "reflectance": 0.9},
-            "red": {"type": "diffuse", "albedo": [0.95, 0.15, 0.1]},
-            "yellow": {"type": "diffuse", "albedo": [0.95, 0.85, 0.1]},
-            "blue": {"type": "diffuse", "albedo": [0.1, 0.3, 0.95]},
-            "white": {"type": "diffuse", "albedo": 0.95},
+            **SMALL_SPHERE_PAINTS,
         },
         "objects": objects,
     })
@@ -226,8 +236,7 @@ def glass_small():
         {"type": "plane", "name": "floor", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "floor"},
         {"type": "sphere", "name": "glass_ball", "center": [0, 1, 0], "radius": 1, "material": "glass"},
     ]
-    for x, y, z, r, m in spheres:
-        objects.append({"type": "sphere", "center": [x, y, z], "radius": r, "material": m})
+    objects += small_spheres(spheres)
     write_scene("glass_small", {
         "camera": {"position": [0, 1, 5], "look_at": [0, 1, 0], "up": [0, 1, 0], "vfov_deg": 40},
         "image": image(),
@@ -238,10 +247,7 @@ def glass_small():
         "materials": {
             "floor": {"type": "diffuse", "albedo": 0.55},
             "glass": {"type": "glass", "ior": 1.5},
-            "red": {"type": "diffuse", "albedo": [0.95, 0.15, 0.1]},
-            "yellow": {"type": "diffuse", "albedo": [0.95, 0.85, 0.1]},
-            "blue": {"type": "diffuse", "albedo": [0.1, 0.3, 0.95]},
-            "white": {"type": "diffuse", "albedo": 0.95},
+            **SMALL_SPHERE_PAINTS,
         },
         "objects": objects,
     })
