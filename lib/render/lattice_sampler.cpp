@@ -264,10 +264,6 @@ BlockStat smooth_block_stat(const LatticePilot& pilot, int width, int b, int bx,
 
 }  // namespace
 
-namespace {
-
-}  // namespace
-
 // Each second difference of the lattice is computed once here; corner_curvature takes eight a
 // pixel, each shared with a neighbour, which was most of the classification's time.
 void corner_curvature_rows(const CornerLattice& corners, int W, int H, int y0, int y1, float* curvature) {
